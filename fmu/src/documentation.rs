@@ -1,0 +1,93 @@
+//! The `documentation/index.html` of an FMU: the model's derivation (Markdown from the model
+//! crate) and its variable table, generated from the same source as the binary and the XML.
+
+use crate::model::{Causality, Model, Variability};
+use crate::table::Table;
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+fn causality(c: Causality) -> &'static str {
+    match c {
+        Causality::Parameter => "parameter",
+        Causality::CalculatedParameter => "calculatedParameter",
+        Causality::Input => "input",
+        Causality::Output => "output",
+        Causality::Local => "local",
+        Causality::Independent => "independent",
+    }
+}
+
+fn variability(v: Variability) -> &'static str {
+    match v {
+        Variability::Constant => "constant",
+        Variability::Fixed => "fixed",
+        Variability::Tunable => "tunable",
+        Variability::Discrete => "discrete",
+        Variability::Continuous => "continuous",
+    }
+}
+
+/// Renders the complete HTML page of model `M`.
+pub fn index_html<M: Model>() -> String {
+    let info = M::info();
+    let mut derivation = String::new();
+    let parser = pulldown_cmark::Parser::new_ext(info.documentation, pulldown_cmark::Options::ENABLE_TABLES);
+    pulldown_cmark::html::push_html(&mut derivation, parser);
+
+    let model = M::default();
+    let mut rows = String::new();
+    for (vr, row) in Table::<M>::new().rows.iter().enumerate() {
+        let start = row.start(&model).map(|s| s.to_string()).unwrap_or_default();
+        rows.push_str(&format!(
+            "<tr><td><code>{}</code></td><td>{vr}</td><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            escape(row.name),
+            causality(row.causality),
+            variability(row.variability),
+            row.base_type,
+            escape(row.unit.unwrap_or("")),
+            escape(row.display_unit.unwrap_or("")),
+            escape(&start),
+            escape(row.description),
+        ));
+    }
+    format!(
+        r#"<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<title>{id}: {desc}</title>
+<style>
+body {{ font-family: sans-serif; max-width: 60em; margin: 2em auto; line-height: 1.45; padding: 0 1em; }}
+table {{ border-collapse: collapse; font-size: 0.9em; }}
+td, th {{ border: 1px solid #bbb; padding: 0.2em 0.5em; text-align: left; vertical-align: top; }}
+pre, code {{ background: #f4f4f4; }}
+pre {{ padding: 0.5em; overflow-x: auto; }}
+</style>
+</head>
+<body>
+<h1><code>{id}</code></h1>
+<p>{desc}</p>
+{derivation}
+<h2>Variables</h2>
+<p>All values are SI; display units are the handbook's. Value references number the variables in this order.</p>
+<table>
+<tr><th>name</th><th>vr</th><th>causality</th><th>variability</th><th>type</th><th>unit</th><th>display unit</th><th>start</th><th>description</th></tr>
+{rows}</table>
+<h2>Simulation</h2>
+<p>Default experiment: stop time {stop} s, relative tolerance {tol}, output interval {dt} s.
+The solver is chosen with <code>solver</code> (0 forward Euler, 1 classical RK4, 2 adaptive Dormand&ndash;Prince 5(4), the method of MATLAB's <code>ode45</code>);
+Euler and RK4 use <code>fixed_step</code>; Dormand&ndash;Prince uses the relative tolerance of <code>fmi2SetupExperiment</code> and <code>abs_tol</code>,
+and carries its step size across communication points without ever stepping over one. Inputs are held constant over each communication step.
+<code>n_steps</code> and <code>n_rhs</code> count accepted steps and right-hand-side evaluations.</p>
+</body>
+</html>
+"#,
+        id = escape(info.identifier),
+        desc = escape(info.description),
+        stop = info.stop_time,
+        tol = info.tolerance,
+        dt = info.output_interval,
+    )
+}

@@ -1,0 +1,48 @@
+//! The byte format of serialized FMU states: a header (magic, format version, model tag,
+//! payload length, CRC-32) before the postcard encoding of the instance core, so a buffer of
+//! the wrong size, from another model, or corrupted is refused instead of misread.
+
+use crate::instance::Core;
+use crate::model::Model;
+
+const MAGIC: &[u8; 4] = b"RFMS";
+const FORMAT_VERSION: u16 = 1;
+const HEADER_LEN: usize = 4 + 2 + 8 + 8 + 4;
+
+/// Encodes `core` with a header tying it to the model whose GUID hashes to `model_tag`.
+pub fn encode<M: Model>(core: &Core<M>, model_tag: u64) -> Result<Vec<u8>, String> {
+    let payload = postcard::to_stdvec(core).map_err(|e| format!("the FMU state could not be serialized: {e}"))?;
+    let mut out = Vec::with_capacity(HEADER_LEN + payload.len());
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out.extend_from_slice(&model_tag.to_le_bytes());
+    out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    out.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
+    out.extend_from_slice(&payload);
+    Ok(out)
+}
+
+/// Decodes a buffer written by [`encode`] for the same model, explaining any refusal.
+pub fn decode<M: Model>(bytes: &[u8], model_tag: u64) -> Result<Core<M>, String> {
+    if bytes.len() < HEADER_LEN || &bytes[..4] != MAGIC {
+        return Err(format!("the buffer ({} bytes) is not a serialized FMU state of this toolkit", bytes.len()));
+    }
+    let version = u16::from_le_bytes([bytes[4], bytes[5]]);
+    if version != FORMAT_VERSION {
+        return Err(format!("the serialized FMU state has format version {version}; this FMU reads version {FORMAT_VERSION}"));
+    }
+    let tag = u64::from_le_bytes(bytes[6..14].try_into().expect("8 bytes"));
+    if tag != model_tag {
+        return Err("the serialized FMU state belongs to another model (or another version of this one)".to_owned());
+    }
+    let len = u64::from_le_bytes(bytes[14..22].try_into().expect("8 bytes"));
+    let payload = &bytes[HEADER_LEN..];
+    if len != payload.len() as u64 {
+        return Err(format!("the serialized FMU state should have {} bytes but {} were given", HEADER_LEN as u64 + len, bytes.len()));
+    }
+    let crc = u32::from_le_bytes(bytes[22..26].try_into().expect("4 bytes"));
+    if crc32fast::hash(payload) != crc {
+        return Err("the serialized FMU state is corrupted (checksum mismatch)".to_owned());
+    }
+    postcard::from_bytes(payload).map_err(|e| format!("the serialized FMU state could not be decoded: {e}"))
+}

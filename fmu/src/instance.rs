@@ -1,0 +1,563 @@
+//! One FMU instance in safe Rust: the state machine, variable access, stepping with events,
+//! and FMU state capture. The C glue (`ffi`) only converts pointers and statuses around it.
+
+use serde::{Deserialize, Serialize};
+
+use crate::controls::{Control, Controls};
+use crate::logging::{Logger, Status, LOG_CALLS, LOG_EVENTS};
+use crate::model::{Access, Causality, EventOutcome, Model, Variability};
+use crate::solver::{Advance, Integrator, OdeSystem};
+use crate::state_machine::{Call, FmiState};
+use crate::table::{Slot, Table};
+
+/// Why a call failed: the status to return and the message to log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Failure {
+    pub status: Status,
+    pub message: String,
+}
+
+impl Failure {
+    /// An `fmi2Error` with `message`.
+    pub fn error(message: impl Into<String>) -> Failure {
+        Failure { status: Status::Error, message: message.into() }
+    }
+}
+
+/// Result of an instance call.
+pub type CallResult<T = ()> = Result<T, Failure>;
+
+/// More events than this in one communication step means the model is chattering.
+const MAX_EVENTS_PER_STEP: usize = 10_000;
+
+/// Everything an FMU state captures: enough to continue bit for bit from where it was taken.
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(bound = "M: Model")]
+pub struct Core<M> {
+    pub(crate) model: M,
+    pub(crate) x: Vec<f64>,
+    pub(crate) t: f64,
+    pub(crate) start_time: f64,
+    pub(crate) stop_time: Option<f64>,
+    pub(crate) tolerance: Option<f64>,
+    pub(crate) controls: Controls,
+    pub(crate) integrator: Option<Integrator>,
+    /// `x` holds the initial state computed from the current parameters.
+    pub(crate) initial_state_ready: bool,
+    pub(crate) outputs_dirty: bool,
+    /// The model ended the experiment (`fmi2Terminated` status).
+    pub(crate) terminated: bool,
+    pub(crate) last_successful_time: f64,
+    pub(crate) last_step_status: i32,
+    /// The state-machine state when the FMU state was captured.
+    pub(crate) phase: FmiState,
+}
+
+impl<M: Model> Core<M> {
+    fn new() -> Core<M> {
+        Core {
+            model: M::default(),
+            x: vec![0.0; M::N_STATES],
+            t: 0.0,
+            start_time: 0.0,
+            stop_time: None,
+            tolerance: None,
+            controls: Controls::default(),
+            integrator: None,
+            initial_state_ready: false,
+            outputs_dirty: true,
+            terminated: false,
+            last_successful_time: 0.0,
+            last_step_status: Status::Ok as i32,
+            phase: FmiState::Instantiated,
+        }
+    }
+}
+
+/// The model seen by the solver: its right-hand side and event indicators.
+struct System<'a, M>(&'a M);
+
+impl<M: Model> OdeSystem for System<'_, M> {
+    #[inline]
+    fn dim(&self) -> usize {
+        M::N_STATES
+    }
+    #[inline]
+    fn rhs(&self, t: f64, x: &[f64], dx: &mut [f64]) {
+        self.0.derivatives(t, x, dx)
+    }
+    fn n_event_indicators(&self) -> usize {
+        M::N_EVENT_INDICATORS
+    }
+    fn event_indicators(&self, t: f64, x: &[f64], z: &mut [f64]) {
+        self.0.event_indicators(t, x, z)
+    }
+}
+
+/// A live FMU instance of model `M`.
+pub struct Instance<M: Model> {
+    pub name: String,
+    pub logger: Logger,
+    table: Table<M>,
+    state: FmiState,
+    core: Core<M>,
+    /// Scratch copy of the state at the start of a step, to restore after a solver failure.
+    x_start: Vec<f64>,
+    /// Scratch copy of the state before the communication-point projection.
+    x_before: Vec<f64>,
+}
+
+impl<M: Model> Instance<M> {
+    /// A new instance in state Instantiated with the table's start values.
+    pub fn new(name: &str, logger: Logger) -> Instance<M> {
+        Instance { name: name.to_owned(), logger, table: Table::new(), state: FmiState::Instantiated, core: Core::new(), x_start: vec![0.0; M::N_STATES], x_before: vec![0.0; M::N_STATES] }
+    }
+
+    /// The current state-machine state.
+    pub fn state(&self) -> FmiState {
+        self.state
+    }
+
+    /// The instance's variable table.
+    pub fn table(&self) -> &Table<M> {
+        &self.table
+    }
+
+    /// The model's current time.
+    pub fn time(&self) -> f64 {
+        self.core.t
+    }
+
+    /// Refuses `call` when the state machine does not allow it now.
+    pub fn check(&self, call: Call) -> CallResult {
+        if call.is_allowed_in(self.state) {
+            Ok(())
+        } else {
+            Err(Failure::error(format!("{} is not allowed in state {}: illegal call sequence", call.name(), self.state.name())))
+        }
+    }
+
+    /// Logs a call in the `logCalls` category (formatting only when someone listens).
+    pub fn trace(&mut self, call: Call, args: impl FnOnce() -> String) {
+        if self.logger.wants(LOG_CALLS) {
+            let msg = format!("{}({})", call.name(), args());
+            self.logger.log(Status::Ok, LOG_CALLS, &msg);
+        }
+    }
+
+    /// `fmi2SetupExperiment`.
+    pub fn setup_experiment(&mut self, tolerance: Option<f64>, start_time: f64, stop_time: Option<f64>) -> CallResult {
+        self.check(Call::SetupExperiment)?;
+        if !start_time.is_finite() {
+            return Err(Failure::error(format!("startTime = {start_time} must be finite")));
+        }
+        if let Some(tol) = tolerance {
+            if !(tol.is_finite() && tol > 0.0) {
+                return Err(Failure::error(format!("tolerance = {tol} must be a finite number greater than zero")));
+            }
+        }
+        if let Some(stop) = stop_time {
+            if !(stop.is_finite() && stop >= start_time) {
+                return Err(Failure::error(format!("stopTime = {stop} must be finite and not before startTime = {start_time}")));
+            }
+        }
+        self.core.start_time = start_time;
+        self.core.t = start_time;
+        self.core.stop_time = stop_time;
+        self.core.tolerance = tolerance;
+        Ok(())
+    }
+
+    /// `fmi2EnterInitializationMode`.
+    pub fn enter_initialization_mode(&mut self) -> CallResult {
+        self.check(Call::EnterInitializationMode)?;
+        self.state = FmiState::InitializationMode;
+        Ok(())
+    }
+
+    /// Computes the initial state from the current parameters (once per parameter change).
+    fn ensure_initial_state(&mut self) -> CallResult {
+        if !self.core.initial_state_ready {
+            let mut x = vec![0.0; M::N_STATES];
+            self.core.model.initial_state(&mut x).map_err(|e| Failure::error(format!("the parameters were refused: {e}")))?;
+            if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+                return Err(Failure::error(format!("the initial state {i} is {}: check the parameters", x[i])));
+            }
+            self.core.x = x;
+            self.core.initial_state_ready = true;
+            self.core.outputs_dirty = true;
+        }
+        Ok(())
+    }
+
+    /// `fmi2ExitInitializationMode`: checks parameters and solver controls, starts the solver.
+    pub fn exit_initialization_mode(&mut self) -> CallResult {
+        self.check(Call::ExitInitializationMode)?;
+        self.ensure_initial_state()?;
+        let rtol = self.core.tolerance.unwrap_or(M::info().tolerance);
+        let settings = self.core.controls.settings(rtol).map_err(Failure::error)?;
+        self.core.integrator = Some(Integrator::new(settings, M::N_STATES, M::N_EVENT_INDICATORS));
+        self.core.t = self.core.start_time;
+        self.core.last_successful_time = self.core.t;
+        self.core.outputs_dirty = true;
+        self.state = FmiState::StepComplete;
+        Ok(())
+    }
+
+    /// `fmi2Terminate`.
+    pub fn terminate(&mut self) -> CallResult {
+        self.check(Call::Terminate)?;
+        self.state = FmiState::Terminated;
+        Ok(())
+    }
+
+    /// `fmi2Reset`: back to Instantiated with the start values (logging settings are kept).
+    pub fn reset(&mut self) -> CallResult {
+        self.check(Call::Reset)?;
+        self.core = Core::new();
+        self.state = FmiState::Instantiated;
+        Ok(())
+    }
+
+    /// Makes the outputs current before any read.
+    fn refresh(&mut self) -> CallResult {
+        if self.state == FmiState::InitializationMode {
+            self.ensure_initial_state()?;
+        }
+        if self.core.outputs_dirty {
+            let Core { model, t, x, .. } = &mut self.core;
+            model.outputs(*t, x);
+            self.core.outputs_dirty = false;
+        }
+        Ok(())
+    }
+
+    fn unknown(&self, vr: u32, kind: &str) -> Failure {
+        Failure::error(format!("value reference {vr} is not a {kind} variable of this FMU"))
+    }
+
+    fn control_value(&self, c: Control) -> f64 {
+        let counters = self.core.integrator.as_ref().map(|i| (i.n_steps(), i.n_rhs())).unwrap_or((0, 0));
+        match c {
+            Control::Solver => self.core.controls.solver as f64,
+            Control::FixedStep => self.core.controls.fixed_step,
+            Control::AbsTol => self.core.controls.abs_tol,
+            Control::NSteps => counters.0 as f64,
+            Control::NRhs => counters.1 as f64,
+        }
+    }
+
+    /// `fmi2GetReal`.
+    pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> CallResult {
+        self.check(Call::GetReal)?;
+        self.refresh()?;
+        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
+            *value = match self.table.row(*vr).map(|r| &r.slot) {
+                Some(Slot::Model(Access::State(i))) => self.core.x[*i],
+                Some(Slot::Model(Access::Real { get, .. })) => get(&self.core.model),
+                Some(Slot::Control(c)) if !c.is_integer() => self.control_value(*c),
+                _ => return Err(self.unknown(*vr, "Real")),
+            };
+        }
+        Ok(())
+    }
+
+    /// `fmi2GetInteger`.
+    pub fn get_integer(&mut self, vrs: &[u32], values: &mut [i32]) -> CallResult {
+        self.check(Call::GetInteger)?;
+        self.refresh()?;
+        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
+            *value = match self.table.row(*vr).map(|r| &r.slot) {
+                Some(Slot::Model(Access::Integer { get, .. })) => get(&self.core.model),
+                // Counters saturate rather than wrap: FMI integers are 32-bit.
+                Some(Slot::Control(c)) if c.is_integer() => self.control_value(*c).min(i32::MAX as f64) as i32,
+                _ => return Err(self.unknown(*vr, "Integer")),
+            };
+        }
+        Ok(())
+    }
+
+    /// `fmi2GetBoolean`.
+    pub fn get_boolean(&mut self, vrs: &[u32], values: &mut [bool]) -> CallResult {
+        self.check(Call::GetBoolean)?;
+        self.refresh()?;
+        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
+            *value = match self.table.row(*vr).map(|r| &r.slot) {
+                Some(Slot::Model(Access::Boolean { get, .. })) => get(&self.core.model),
+                _ => return Err(self.unknown(*vr, "Boolean")),
+            };
+        }
+        Ok(())
+    }
+
+    /// `fmi2GetString`: these FMUs have no String variables.
+    pub fn get_string(&mut self, vrs: &[u32]) -> CallResult {
+        self.check(Call::GetString)?;
+        match vrs.first() {
+            Some(vr) => Err(self.unknown(*vr, "String")),
+            None => Ok(()),
+        }
+    }
+
+    /// Checks that the row of `vr` may be set now; returns its index.
+    fn settable(&self, vr: u32, call: Call) -> CallResult<usize> {
+        let row = self.table.row(vr).ok_or_else(|| Failure::error(format!("{}: value reference {vr} is not a variable of this FMU", call.name())))?;
+        if !row.is_settable() {
+            let what = match row.causality {
+                Causality::Output => "an output",
+                Causality::CalculatedParameter => "a calculated parameter",
+                Causality::Local => "a local variable",
+                _ => "not settable",
+            };
+            return Err(Failure::error(format!("{}: '{}' is {what} and cannot be set", call.name(), row.name)));
+        }
+        let initializing = matches!(self.state, FmiState::Instantiated | FmiState::InitializationMode);
+        let allowed = match (row.causality, row.variability) {
+            (_, Variability::Constant) => false,
+            (Causality::Input, _) => true,
+            (_, Variability::Tunable) => true,
+            _ => initializing,
+        };
+        if !allowed {
+            return Err(Failure::error(format!(
+                "{}: parameter '{}' is {} and can be set only before fmi2ExitInitializationMode (now in state {})",
+                call.name(),
+                row.name,
+                if row.variability == Variability::Constant { "constant" } else { "fixed" },
+                self.state.name()
+            )));
+        }
+        Ok(vr as usize)
+    }
+
+    /// Records that a settable value changed.
+    fn after_set(&mut self) {
+        if matches!(self.state, FmiState::Instantiated | FmiState::InitializationMode) {
+            self.core.initial_state_ready = false;
+        }
+        self.core.outputs_dirty = true;
+        // New inputs make any cached derivative stale.
+        if let Some(integrator) = self.core.integrator.as_mut() {
+            integrator.invalidate();
+        }
+    }
+
+    /// `fmi2SetReal`. Non-finite values are refused at once, naming the variable.
+    pub fn set_real(&mut self, vrs: &[u32], values: &[f64]) -> CallResult {
+        self.check(Call::SetReal)?;
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            let i = self.settable(*vr, Call::SetReal)?;
+            let name = self.table.rows[i].name;
+            if !value.is_finite() {
+                return Err(Failure::error(format!("fmi2SetReal: {name} = {value} refused: the value must be finite")));
+            }
+            match &self.table.rows[i].slot {
+                Slot::Model(Access::Real { set: Some(set), .. }) => set(&mut self.core.model, *value),
+                Slot::Control(Control::FixedStep) => {
+                    if *value <= 0.0 {
+                        return Err(Failure::error(format!("fmi2SetReal: fixed_step = {value} refused: the step must be greater than zero")));
+                    }
+                    self.core.controls.fixed_step = *value;
+                }
+                Slot::Control(Control::AbsTol) => {
+                    if *value < 0.0 {
+                        return Err(Failure::error(format!("fmi2SetReal: abs_tol = {value} refused: the tolerance must not be negative")));
+                    }
+                    self.core.controls.abs_tol = *value;
+                }
+                _ => return Err(self.unknown(*vr, "settable Real")),
+            }
+        }
+        self.after_set();
+        Ok(())
+    }
+
+    /// `fmi2SetInteger`.
+    pub fn set_integer(&mut self, vrs: &[u32], values: &[i32]) -> CallResult {
+        self.check(Call::SetInteger)?;
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            let i = self.settable(*vr, Call::SetInteger)?;
+            match &self.table.rows[i].slot {
+                Slot::Model(Access::Integer { set: Some(set), .. }) => set(&mut self.core.model, *value),
+                Slot::Control(Control::Solver) => {
+                    if crate::solver::Method::from_code(*value).is_none() {
+                        return Err(Failure::error(format!(
+                            "fmi2SetInteger: solver = {value} refused: use 0 (forward Euler), 1 (classical RK4) or 2 (Dormand-Prince 5(4))"
+                        )));
+                    }
+                    self.core.controls.solver = *value;
+                }
+                _ => return Err(self.unknown(*vr, "settable Integer")),
+            }
+        }
+        self.after_set();
+        Ok(())
+    }
+
+    /// `fmi2SetBoolean`.
+    pub fn set_boolean(&mut self, vrs: &[u32], values: &[bool]) -> CallResult {
+        self.check(Call::SetBoolean)?;
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            let i = self.settable(*vr, Call::SetBoolean)?;
+            match &self.table.rows[i].slot {
+                Slot::Model(Access::Boolean { set: Some(set), .. }) => set(&mut self.core.model, *value),
+                _ => return Err(self.unknown(*vr, "settable Boolean")),
+            }
+        }
+        self.after_set();
+        Ok(())
+    }
+
+    /// `fmi2SetString`: these FMUs have no String variables.
+    pub fn set_string(&mut self, vrs: &[u32]) -> CallResult {
+        self.check(Call::SetString)?;
+        match vrs.first() {
+            Some(vr) => Err(self.unknown(*vr, "String")),
+            None => Ok(()),
+        }
+    }
+
+    /// Ends the experiment early at the current time: `fmi2Discard`, `fmi2Terminated` true.
+    fn stop_early(&mut self, reason: &str) -> CallResult<Status> {
+        self.core.terminated = true;
+        self.core.last_successful_time = self.core.t;
+        self.core.outputs_dirty = true;
+        self.state = FmiState::StepFailed;
+        self.core.last_step_status = Status::Discard as i32;
+        let msg = format!("the simulation ended at t = {} s: {reason}", self.core.t);
+        self.logger.status(Status::Discard, &msg);
+        Ok(Status::Discard)
+    }
+
+    /// A computation failed inside a step: restore the state at the step's start (so outputs
+    /// stay finite) and enter the Error state.
+    fn fail_step(&mut self, t_start: f64, message: String) -> Failure {
+        self.core.x.copy_from_slice(&self.x_start);
+        self.core.t = t_start;
+        self.core.outputs_dirty = true;
+        self.core.last_step_status = Status::Error as i32;
+        self.state = FmiState::Error;
+        Failure::error(message)
+    }
+
+    /// `fmi2DoStep`: integrates from the current communication point over `h`, handling events.
+    /// Returns `Ok` or `Discard` (the model ended the experiment early).
+    pub fn do_step(&mut self, current: f64, h: f64) -> CallResult<Status> {
+        self.check(Call::DoStep)?;
+        let t0 = self.core.t;
+        if !(current.is_finite() && (current - t0).abs() <= 1e-9 * t0.abs().max(1.0)) {
+            return Err(Failure::error(format!("fmi2DoStep: currentCommunicationPoint = {current} does not match the FMU's time {t0}")));
+        }
+        if !(h.is_finite() && h >= 0.0) {
+            return Err(Failure::error(format!("fmi2DoStep: communicationStepSize = {h} must be finite and not negative")));
+        }
+        let t_end = current + h;
+        if let Some(stop) = self.core.stop_time {
+            if t_end > stop + 1e-9 * stop.abs().max(1.0) {
+                return Err(Failure::error(format!("fmi2DoStep: the step to t = {t_end} would pass the stop time {stop} set in fmi2SetupExperiment")));
+            }
+        }
+        if h == 0.0 {
+            return Ok(Status::Ok);
+        }
+        self.x_start.copy_from_slice(&self.core.x);
+        let mut events = 0usize;
+        while self.core.t < t_end {
+            let Core { model, x, t, integrator, .. } = &mut self.core;
+            let integrator = integrator.as_mut().expect("the integrator exists in StepComplete");
+            let advance = integrator.advance(&System(&*model), t, x, t_end);
+            match advance {
+                Ok(Advance::Reached) => break,
+                Ok(Advance::Event { fired }) => {
+                    events += 1;
+                    if events > MAX_EVENTS_PER_STEP {
+                        let msg = format!("more than {MAX_EVENTS_PER_STEP} events between t = {t0} and t = {t_end}: the model is chattering");
+                        return Err(self.fail_step(t0, msg));
+                    }
+                    let te = *t;
+                    let outcome = model.on_event(te, x, &fired);
+                    integrator.invalidate();
+                    if self.logger.wants(LOG_EVENTS) {
+                        let which: Vec<usize> = fired.iter().enumerate().filter(|(_, f)| **f).map(|(i, _)| i).collect();
+                        self.logger.log(Status::Ok, LOG_EVENTS, &format!("event at t = {te} s (indicators {which:?})"));
+                    }
+                    match outcome {
+                        Ok(EventOutcome::Continue) => {}
+                        Ok(EventOutcome::Stop { reason }) => return self.stop_early(&reason),
+                        Err(e) => return Err(self.fail_step(t0, format!("the model failed at the event at t = {te}: {e}"))),
+                    }
+                }
+                Err(e) => return Err(self.fail_step(t0, format!("the solver failed between t = {t0} and t = {t_end}: {e}"))),
+            }
+        }
+        // Land exactly on the communication point whatever the solver's rounding.
+        self.core.t = t_end;
+        self.x_before.copy_from_slice(&self.core.x);
+        let Core { model, x, t, integrator, .. } = &mut self.core;
+        let outcome = model.communication_point(*t, x);
+        if *x != self.x_before {
+            if let Some(integrator) = integrator.as_mut() {
+                integrator.invalidate();
+            }
+        }
+        self.core.outputs_dirty = true;
+        self.core.last_successful_time = self.core.t;
+        match outcome {
+            Ok(EventOutcome::Continue) => {
+                self.core.last_step_status = Status::Ok as i32;
+                Ok(Status::Ok)
+            }
+            Ok(EventOutcome::Stop { reason }) => self.stop_early(&reason),
+            Err(e) => Err(self.fail_step(t0, format!("the model failed at t = {t_end}: {e}"))),
+        }
+    }
+
+    /// `fmi2GetStatus(fmi2DoStepStatus)`: the status of the last step.
+    pub fn do_step_status(&self) -> CallResult<Status> {
+        self.check(Call::GetStatus)?;
+        Ok(match self.core.last_step_status {
+            0 => Status::Ok,
+            2 => Status::Discard,
+            _ => Status::Error,
+        })
+    }
+
+    /// `fmi2GetRealStatus(fmi2LastSuccessfulTime)`.
+    pub fn last_successful_time(&self) -> CallResult<f64> {
+        self.check(Call::GetRealStatus)?;
+        Ok(self.core.last_successful_time)
+    }
+
+    /// `fmi2GetBooleanStatus(fmi2Terminated)`: true once the model ended the experiment.
+    pub fn terminated(&self) -> CallResult<bool> {
+        self.check(Call::GetBooleanStatus)?;
+        Ok(self.core.terminated)
+    }
+
+    /// `fmi2GetFMUstate`: a copy of everything needed to continue from here.
+    pub fn get_fmu_state(&self) -> CallResult<Core<M>> {
+        self.check(Call::GetFMUstate)?;
+        let mut core = self.core.clone();
+        core.phase = self.state;
+        Ok(core)
+    }
+
+    /// `fmi2SetFMUstate`: continues from a captured state, including its state-machine state.
+    pub fn set_fmu_state(&mut self, core: &Core<M>) -> CallResult {
+        self.check(Call::SetFMUstate)?;
+        self.core = core.clone();
+        self.state = core.phase;
+        Ok(())
+    }
+
+    /// Replaces the logger's debug settings (`fmi2SetDebugLogging`).
+    pub fn set_debug_logging(&mut self, on: bool, categories: &[&str]) -> CallResult {
+        self.check(Call::SetDebugLogging)?;
+        self.logger.set_debug_logging(on, categories).map_err(Failure::error)
+    }
+
+    /// Marks the instance unusable after a panic in model code.
+    pub fn poison(&mut self) {
+        self.state = FmiState::Error;
+    }
+}

@@ -1,0 +1,173 @@
+#![doc = include_str!("../derivation.md")]
+#![deny(unsafe_code)]
+
+use fmu::units::{INCH, LBF};
+use fmu::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable};
+
+/// Rows of this model's variable table.
+type V = Variable<MassSpringDamper>;
+use serde::{Deserialize, Serialize};
+
+/// `m x'' + b x' + k x = F(t)`, F an input.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct MassSpringDamper {
+    pub m: f64,
+    pub b: f64,
+    pub k: f64,
+    pub x0: f64,
+    pub v0: f64,
+    /// Input force (N), held over each communication step.
+    pub force: f64,
+    pub a: f64,
+    pub f_total: f64,
+}
+
+impl Default for MassSpringDamper {
+    fn default() -> Self {
+        MassSpringDamper { m: 2.0 * LBF / INCH, b: LBF / INCH, k: 10.0 * LBF / INCH, x0: 0.0, v0: 0.0, force: 0.0, a: 0.0, f_total: 0.0 }
+    }
+}
+
+impl MassSpringDamper {
+    /// Acceleration from Newton's second law.
+    #[inline]
+    fn acceleration(&self, x: f64, v: f64) -> f64 {
+        (self.force - self.b * v - self.k * x) / self.m
+    }
+}
+
+impl Model for MassSpringDamper {
+    const N_STATES: usize = 2;
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            identifier: "mass_spring_damper",
+            description: "ME326 Ex. 4 prelab, App. A/B: m x'' + b x' + k x = F(t), F an input",
+            stop_time: 10.0,
+            tolerance: 1e-6,
+            output_interval: 0.01,
+            documentation: include_str!("../derivation.md"),
+        }
+    }
+
+    fn variables() -> Vec<Variable<Self>> {
+        vec![
+            V::parameter("m", "Mass (2 lbf.s2/in)", |s| s.m, |s, v| s.m = v).unit("kg").display("lbf.s2/in"),
+            V::parameter("b", "Damping coefficient (1 lbf.s/in)", |s| s.b, |s, v| s.b = v).unit("N.s/m").display("lbf.s/in"),
+            V::parameter("k", "Spring stiffness (10 lbf/in)", |s| s.k, |s, v| s.k = v).unit("N/m").display("lbf/in"),
+            V::parameter("x0", "Initial displacement", |s| s.x0, |s, v| s.x0 = v).unit("m").display("in"),
+            V::parameter("v0", "Initial velocity", |s| s.v0, |s, v| s.v0 = v).unit("m/s").display("in/s"),
+            V::input("F", "Applied force F(t)", |s| s.force, |s, v| s.force = v).unit("N").display("lbf"),
+            V::state("x", "Displacement", 0).unit("m").display("in"),
+            V::state("v", "Velocity", 1).unit("m/s").display("in/s"),
+            V::output("a", "Acceleration", |s| s.a).unit("m/s2").display("in/s2"),
+            V::output("F_total", "Force through spring and damper, k x + b v", |s| s.f_total).unit("N").display("lbf"),
+        ]
+    }
+
+    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
+        require_positive("m", self.m)?;
+        require_non_negative("b", self.b)?;
+        require_non_negative("k", self.k)?;
+        require_finite("x0", self.x0)?;
+        require_finite("v0", self.v0)?;
+        x[0] = self.x0;
+        x[1] = self.v0;
+        Ok(())
+    }
+
+    #[inline]
+    fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
+        dx[0] = x[1];
+        dx[1] = self.acceleration(x[0], x[1]);
+    }
+
+    fn outputs(&mut self, _t: f64, x: &[f64]) {
+        self.a = self.acceleration(x[0], x[1]);
+        self.f_total = self.k * x[0] + self.b * x[1];
+    }
+}
+
+fmu::export_fmu!(MassSpringDamper);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fmu::harness::Harness;
+
+    /// The underdamped closed form of derivation.md for a constant force `f0`.
+    fn exact(p: &MassSpringDamper, f0: f64, t: f64) -> (f64, f64) {
+        let wn = (p.k / p.m).sqrt();
+        let zeta = p.b / (2.0 * (p.k * p.m).sqrt());
+        let wd = wn * (1.0 - zeta * zeta).sqrt();
+        let a = p.x0 - f0 / p.k;
+        let bb = (p.v0 + zeta * wn * a) / wd;
+        let (e, c, s) = ((-zeta * wn * t).exp(), (wd * t).cos(), (wd * t).sin());
+        let x = f0 / p.k + e * (a * c + bb * s);
+        let v = e * ((-zeta * wn) * (a * c + bb * s) + wd * (-a * s + bb * c));
+        (x, v)
+    }
+
+    /// The prelab's values in SI: the ratios k/m and b/m do not depend on the unit factors.
+    #[test]
+    fn handbook_values_in_si() {
+        let p = MassSpringDamper::default();
+        assert!((p.k - 1751.268_352_464_76).abs() < 1e-8);
+        assert!((p.k / p.m - 5.0).abs() < 1e-14 && (p.b / p.m - 0.5).abs() < 1e-14);
+    }
+
+    /// A step force from an initial displacement, against the closed form; at rtol 1e-10 the
+    /// error stays below 1e-9 of the response's scale (F0/k ~ 0.057 m).
+    #[test]
+    fn step_response_matches_the_analytical_solution() {
+        let mut h = Harness::<MassSpringDamper>::new();
+        h.set("x0", 0.01).unwrap();
+        h.set("v0", -0.02).unwrap();
+        h.set("F", 100.0).unwrap();
+        h.set("abs_tol", 1e-13).unwrap();
+        h.initialize(Some(1e-10)).unwrap();
+        let traj = h.run(10.0, 0.01, &["x", "v", "a", "F_total"]).unwrap();
+        let p = MassSpringDamper { x0: 0.01, v0: -0.02, ..Default::default() };
+        for (k, t) in traj.time.iter().enumerate() {
+            let (x, v) = exact(&p, 100.0, *t);
+            assert!((traj.get("x")[k] - x).abs() < 1e-10, "x at t={t}");
+            assert!((traj.get("v")[k] - v).abs() < 1e-10, "v at t={t}");
+            // Outputs are the App. B output equation y = C x + D u.
+            let a = (100.0 - p.b * traj.get("v")[k] - p.k * traj.get("x")[k]) / p.m;
+            assert!((traj.get("a")[k] - a).abs() < 1e-9);
+            assert!((traj.get("F_total")[k] - (p.k * traj.get("x")[k] + p.b * traj.get("v")[k])).abs() < 1e-9);
+        }
+    }
+
+    /// The input is held over a step: switching F mid-run gives the superposition of two steps.
+    #[test]
+    fn input_changes_between_steps_are_honoured() {
+        let mut h = Harness::<MassSpringDamper>::new();
+        h.set("abs_tol", 1e-13).unwrap();
+        h.initialize(Some(1e-10)).unwrap();
+        h.set("F", 50.0).unwrap();
+        for _ in 0..100 {
+            h.step(0.01).unwrap();
+        }
+        h.set("F", 0.0).unwrap();
+        for _ in 0..100 {
+            h.step(0.01).unwrap();
+        }
+        let p = MassSpringDamper::default();
+        // F(t) = 50 (H(t) - H(t-1)): response is x50(t) - x50(t-1).
+        let x = exact(&p, 50.0, 2.0).0 - exact(&p, 50.0, 1.0).0;
+        assert!((h.get("x").unwrap() - x).abs() < 1e-10);
+    }
+
+    #[test]
+    fn non_physical_parameters_are_refused_by_name() {
+        for (name, value) in [("m", 0.0), ("m", -1.0), ("k", -5.0), ("b", -1.0)] {
+            let mut h = Harness::<MassSpringDamper>::new();
+            h.set(name, value).unwrap();
+            let err = h.initialize(None).unwrap_err();
+            assert!(err.contains(&format!("parameter {name}")), "{err}");
+        }
+        let mut h = Harness::<MassSpringDamper>::new();
+        assert!(h.set("m", f64::NAN).unwrap_err().contains("m = NaN"));
+    }
+}

@@ -1,0 +1,153 @@
+#![doc = include_str!("../derivation.md")]
+#![deny(unsafe_code)]
+
+use fmu::{require_finite, Model, ModelError, ModelInfo, Variable};
+
+/// Rows of this model's variable table.
+type V = Variable<SecondOrder>;
+use serde::{Deserialize, Serialize};
+
+/// Ex. 1: `a2 q'' + a1 q' + a0 q = exp(-3t)`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SecondOrder {
+    pub a2: f64,
+    pub a1: f64,
+    pub a0: f64,
+    pub q0: f64,
+    pub q_dot0: f64,
+    /// The input u = exp(-3t) at the current time (an output).
+    pub u: f64,
+}
+
+impl Default for SecondOrder {
+    fn default() -> Self {
+        SecondOrder { a2: 2.0, a1: 10.0, a0: 12.0, q0: 2.0, q_dot0: 1.0, u: 1.0 }
+    }
+}
+
+/// The forcing of Ex. 1.
+fn forcing(t: f64) -> f64 {
+    (-3.0 * t).exp()
+}
+
+impl Model for SecondOrder {
+    const N_STATES: usize = 2;
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            identifier: "second_order",
+            description: "ME326 Ex. 1: 2 q'' + 10 q' + 12 q = exp(-3t), q(0) = 2, q'(0) = 1",
+            stop_time: 10.0,
+            tolerance: 1e-6,
+            output_interval: 0.01,
+            documentation: include_str!("../derivation.md"),
+        }
+    }
+
+    fn variables() -> Vec<Variable<Self>> {
+        vec![
+            V::parameter("a2", "Coefficient of q''", |m| m.a2, |m, v| m.a2 = v),
+            V::parameter("a1", "Coefficient of q'", |m| m.a1, |m, v| m.a1 = v),
+            V::parameter("a0", "Coefficient of q", |m| m.a0, |m, v| m.a0 = v),
+            V::parameter("q0", "Initial value q(0)", |m| m.q0, |m, v| m.q0 = v),
+            V::parameter("q_dot0", "Initial rate q'(0)", |m| m.q_dot0, |m, v| m.q_dot0 = v),
+            V::state("q", "Response q(t)", 0),
+            V::state("q_dot", "Rate q'(t)", 1),
+            V::output("u", "Input u(t) = exp(-3t)", |m| m.u),
+        ]
+    }
+
+    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
+        for (name, v) in [("a2", self.a2), ("a1", self.a1), ("a0", self.a0), ("q0", self.q0), ("q_dot0", self.q_dot0)] {
+            require_finite(name, v)?;
+        }
+        if self.a2 == 0.0 {
+            return Err(ModelError("parameter a2 = 0 makes the equation first order: a2 must not be zero".into()));
+        }
+        x[0] = self.q0;
+        x[1] = self.q_dot0;
+        Ok(())
+    }
+
+    #[inline]
+    fn derivatives(&self, t: f64, x: &[f64], dx: &mut [f64]) {
+        dx[0] = x[1];
+        dx[1] = (forcing(t) - self.a1 * x[1] - self.a0 * x[0]) / self.a2;
+    }
+
+    fn outputs(&mut self, t: f64, _x: &[f64]) {
+        self.u = forcing(t);
+    }
+}
+
+fmu::export_fmu!(SecondOrder);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fmu::harness::Harness;
+
+    /// The closed form derived in derivation.md (default parameters only).
+    fn exact(t: f64) -> (f64, f64) {
+        let (e2, e3) = ((-2.0 * t).exp(), (-3.0 * t).exp());
+        (7.5 * e2 - 5.5 * e3 - 0.5 * t * e3, -15.0 * e2 + 16.0 * e3 + 1.5 * t * e3)
+    }
+
+    fn max_error(h: &mut Harness<SecondOrder>, dt: f64) -> f64 {
+        let traj = h.run(10.0, dt, &["q", "q_dot"]).unwrap();
+        traj.time.iter().enumerate().map(|(k, t)| {
+            let (q, qd) = exact(*t);
+            (traj.get("q")[k] - q).abs().max((traj.get("q_dot")[k] - qd).abs())
+        }).fold(0.0, f64::max)
+    }
+
+    /// DOPRI5 against the analytical solution: at rtol 1e-10 the global error over 10 s stays
+    /// within a small multiple of the tolerance times the solution's scale (|q| <= 2.2).
+    #[test]
+    fn dopri5_matches_the_analytical_solution() {
+        let mut h = Harness::<SecondOrder>::new();
+        h.set("abs_tol", 1e-12).unwrap();
+        h.initialize(Some(1e-10)).unwrap();
+        let err = max_error(&mut h, 0.01);
+        assert!(err < 1e-8, "max error {err}");
+    }
+
+    /// RK4 at h = 1e-3: its global error is O(h^4) ~ 1e-12 times the derivatives' scale, so 1e-9 holds with margin.
+    #[test]
+    fn rk4_matches_the_analytical_solution() {
+        let mut h = Harness::<SecondOrder>::new();
+        h.set("solver", 1.0).unwrap();
+        h.initialize(None).unwrap();
+        assert!(max_error(&mut h, 0.01) < 1e-9);
+    }
+
+    /// Forward Euler is first order: halving the step halves the error (ratio near 2).
+    #[test]
+    fn euler_converges_at_first_order() {
+        let errs: Vec<f64> = [1e-3, 5e-4].iter().map(|step| {
+            let mut h = Harness::<SecondOrder>::new();
+            h.set("solver", 0.0).unwrap();
+            h.set("fixed_step", *step).unwrap();
+            h.initialize(None).unwrap();
+            max_error(&mut h, 0.01)
+        }).collect();
+        let ratio = errs[0] / errs[1];
+        assert!((ratio - 2.0).abs() < 0.1, "errors {errs:?}, ratio {ratio}");
+    }
+
+    #[test]
+    fn outputs_the_input_signal() {
+        let mut h = Harness::<SecondOrder>::new();
+        h.initialize(None).unwrap();
+        h.step(0.5).unwrap();
+        assert!((h.get("u").unwrap() - (-1.5f64).exp()).abs() < 1e-15);
+    }
+
+    #[test]
+    fn zero_leading_coefficient_is_refused_by_name() {
+        let mut h = Harness::<SecondOrder>::new();
+        h.set("a2", 0.0).unwrap();
+        let err = h.initialize(None).unwrap_err();
+        assert!(err.contains("a2"), "{err}");
+    }
+}

@@ -1,0 +1,26 @@
+"""Shared fixtures: the workspace, the FMUs `runner build` wrote, and helpers to run them."""
+
+import os
+import pathlib
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+TARGET = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
+FMU_DIR = TARGET / "fmu"
+
+# Every crate under models/ must have produced an FMU.
+MODELS = sorted(p.name for p in (ROOT / "models").iterdir() if (p / "Cargo.toml").is_file())
+
+
+def fmu_path(model: str) -> pathlib.Path:
+    path = FMU_DIR / f"{model}.fmu"
+    if not path.is_file():
+        pytest.fail(f"{path} is missing: run `cargo run --release -p runner -- build` first")
+    return path
+
+
+@pytest.fixture(params=MODELS)
+def any_fmu(request):
+    """Each model's FMU path in turn."""
+    return fmu_path(request.param)

@@ -1,11 +1,24 @@
 //! `runner`: builds, inspects, simulates, sweeps and compares FMI 2.0 Co-Simulation FMUs.
 
 mod archive;
+mod experiment;
+mod fmi;
+mod info;
 mod library;
+mod metrics;
 mod package;
+mod plot;
+mod sim;
+mod simulate;
+mod sweep;
+mod variables;
 mod workspace;
 
-use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+use crate::experiment::RunDefaults;
 
 /// Build and run FMI 2.0 Co-Simulation FMUs.
 #[derive(Parser)]
@@ -13,6 +26,30 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
+}
+
+/// Options of every run; unset ones come from the model's experiment.toml, then the FMU's
+/// DefaultExperiment.
+#[derive(Args)]
+struct RunArgs {
+    /// Stop time in seconds.
+    #[arg(long, value_name = "T")]
+    stop_time: Option<f64>,
+    /// Communication (output) interval in seconds: one CSV row per interval.
+    #[arg(long, value_name = "H")]
+    output_interval: Option<f64>,
+    /// Relative tolerance given to fmi2SetupExperiment.
+    #[arg(long, value_name = "R")]
+    tolerance: Option<f64>,
+    /// Set a parameter or input before initialization (SI units); repeatable.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    set: Vec<String>,
+}
+
+impl RunArgs {
+    fn defaults(self) -> RunDefaults {
+        RunDefaults { stop_time: self.stop_time, output_interval: self.output_interval, tolerance: self.tolerance, set: self.set }
+    }
 }
 
 #[derive(Subcommand)]
@@ -24,6 +61,70 @@ enum Cmd {
         /// Model identifiers (crate names under models/).
         models: Vec<String>,
     },
+    /// Show an FMU's variables (causality, type, unit, start value) and capabilities.
+    ///
+    /// FMU is a path to any .fmu file, or a model name of this workspace (built if missing).
+    ///
+    /// Example: `runner info quarter_car`
+    Info {
+        /// Model name or path to a .fmu file.
+        fmu: String,
+    },
+    /// Simulate an FMU and write time and its outputs as CSV (fmpy's layout).
+    ///
+    /// Without --out the CSV goes to stdout. A model that ends the run early (fmi2Discard and
+    /// terminated) keeps the rows up to there and the reason is printed on stderr.
+    ///
+    /// Example: `runner simulate quarter_car --stop-time 5 --set speed=12 --out qc.csv --plot qc.svg`
+    Simulate {
+        /// Model name or path to a .fmu file.
+        fmu: String,
+        #[command(flatten)]
+        run: RunArgs,
+        /// Write the CSV here instead of stdout.
+        #[arg(long, value_name = "FILE.csv")]
+        out: Option<PathBuf>,
+        /// Plot the outputs against time into this SVG file.
+        #[arg(long, value_name = "FILE.svg")]
+        plot: Option<PathBuf>,
+        /// Turn on the FMU's debug logging (messages go to stderr with the instance name).
+        #[arg(long)]
+        log: bool,
+    },
+    /// Run a parameter sweep: one FMU instance per point, in parallel; metrics per point as CSV.
+    ///
+    /// Every --param adds a dimension; the points are the cartesian product (the last --param
+    /// varies fastest). A metric is NAME=EXPR over per-run summaries (max, min, final, mean,
+    /// peak_to_peak, rms) of any variable, optionally from a time on as in max(x, 5), combined
+    /// with the operators `+ - * /` and parentheses. The CSV has one row per point: parameters,
+    /// metrics, status (`ok` or the error). Failed points are recorded and the others still
+    /// run; the exit code is 1 if any failed. With a model name and no options, the model's
+    /// experiment.toml gives the sweep.
+    ///
+    /// Example: `runner sweep quarter_car` (handbook Ex. 4: transmissibility against speed)
+    ///
+    /// Example: `runner sweep quarter_car --param speed=5:30:5 --param b_s=800,1300 --metric 'transmissibility=max(z_s)/max(z_r)' --threads 2 --out t.csv --plot t.svg`
+    Sweep {
+        /// Model name or path to a .fmu file.
+        fmu: String,
+        /// A swept parameter: NAME=START:STOP:STEP (inclusive) or NAME=V1,V2,...; repeatable.
+        #[arg(long = "param", value_name = "NAME=RANGE")]
+        params: Vec<String>,
+        /// A metric NAME=EXPR, e.g. 'transmissibility=max(z_s)/max(z_r)'; repeatable.
+        #[arg(long = "metric", value_name = "NAME=EXPR")]
+        metrics: Vec<String>,
+        /// Worker threads (default: one per core); results do not depend on it.
+        #[arg(long, value_name = "N")]
+        threads: Option<usize>,
+        #[command(flatten)]
+        run: RunArgs,
+        /// Write the CSV here (default: experiment.toml's, else stdout).
+        #[arg(long, value_name = "FILE.csv")]
+        out: Option<PathBuf>,
+        /// Plot each metric against the first parameter into this SVG file, peaks marked.
+        #[arg(long, value_name = "FILE.svg")]
+        plot: Option<PathBuf>,
+    },
 }
 
 fn main() {
@@ -34,6 +135,15 @@ fn main() {
                 println!("{}", p.display());
             }
         }),
+        Cmd::Info { fmu } => experiment::resolve(&fmu).and_then(|t| fmi::Fmu::load(&t.path)).map(|f| print!("{}", info::report(&f.description))),
+        Cmd::Simulate { fmu, run, out, plot, log } => simulate::run(&simulate::Options { fmu, run: run.defaults(), out, plot, log }),
+        Cmd::Sweep { fmu, params, metrics, threads, run, out, plot } => {
+            match sweep::run(&sweep::Options { fmu, params, metrics, threads, run: run.defaults(), out, plot }) {
+                Ok(0) => Ok(()),
+                Ok(failed) => Err(format!("{failed} sweep point(s) failed; see the status column")),
+                Err(e) => Err(e),
+            }
+        }
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

@@ -1,0 +1,112 @@
+//! One simulation run: instantiate, set, initialize, step on a fixed communication grid, read.
+
+use fmu::description::ScalarVariable;
+
+use crate::experiment::RunDefaults;
+use crate::fmi::{Fmu, Instance, Reader, Step, Value};
+
+/// The time grid and tolerance of a run.
+#[derive(Debug, Clone, Copy)]
+pub struct Grid {
+    /// Start time (s).
+    pub start: f64,
+    /// Stop time (s).
+    pub stop: f64,
+    /// Communication interval (s).
+    pub interval: f64,
+    /// Relative tolerance for fmi2SetupExperiment (`None`: the FMU's own default).
+    pub tolerance: Option<f64>,
+}
+
+impl Grid {
+    /// Command-line values over the experiment file over the DefaultExperiment over fmpy's
+    /// fallbacks (stop 1 s, 500 intervals), so a comparison with fmpy uses the same grid.
+    pub fn choose(fmu: &Fmu, cli: &RunDefaults, file: &RunDefaults) -> Result<Grid, String> {
+        let default = fmu.description.default_experiment.clone().unwrap_or_default();
+        let start = default.start_time.unwrap_or(0.0);
+        let stop = cli.stop_time.or(file.stop_time).or(default.stop_time).unwrap_or(start + 1.0);
+        let interval = cli.output_interval.or(file.output_interval).or(default.step_size).unwrap_or((stop - start) / 500.0);
+        let tolerance = cli.tolerance.or(file.tolerance).or(default.tolerance);
+        if stop <= start || !stop.is_finite() {
+            return Err(format!("stop time {stop} must be a number after the start time {start}"));
+        }
+        if interval <= 0.0 || !interval.is_finite() {
+            return Err(format!("output interval {interval} must be a positive number"));
+        }
+        if let Some(t) = tolerance {
+            if t <= 0.0 || !t.is_finite() {
+                return Err(format!("tolerance {t} must be a positive number"));
+            }
+        }
+        Ok(Grid { start, stop, interval, tolerance })
+    }
+
+    /// Number of communication steps; a last partial interval is kept (shortened to end at stop).
+    pub fn steps(&self) -> usize {
+        let n = (self.stop - self.start) / self.interval;
+        // Round away float noise such as 10 / 1e-3 = 9999.999999999998.
+        if (n - n.round()).abs() < 1e-9 * n.max(1.0) {
+            n.round() as usize
+        } else {
+            n.ceil() as usize
+        }
+    }
+
+    /// Communication point `i`, computed from `i` rather than accumulated so it does not drift.
+    pub fn time(&self, i: usize) -> f64 {
+        if i >= self.steps() {
+            self.stop
+        } else {
+            self.start + i as f64 * self.interval
+        }
+    }
+}
+
+/// How a run ended.
+pub struct Outcome {
+    /// `Some(reason)` when the model stopped before the stop time (fmi2Discard + terminated).
+    pub ended_early: Option<String>,
+}
+
+/// Runs one instance named `name`: sets `assignments` before initialization, then calls
+/// `sample(t, values)` at every communication point with the values of `recorded` in order.
+pub fn run(
+    fmu: &Fmu,
+    name: &str,
+    grid: &Grid,
+    assignments: &[(&ScalarVariable, Value)],
+    recorded: &[&ScalarVariable],
+    debug_logging: bool,
+    mut sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
+) -> Result<Outcome, String> {
+    let mut reader = Reader::new(recorded)?;
+    let mut values = vec![0.0; recorded.len()];
+    let mut instance = Instance::new(fmu, name, debug_logging)?;
+    instance.setup_experiment(grid.tolerance, grid.start, grid.stop)?;
+    for (variable, value) in assignments {
+        instance.set(variable, value)?;
+    }
+    instance.enter_initialization_mode()?;
+    instance.exit_initialization_mode()?;
+    instance.read(&mut reader, &mut values)?;
+    sample(grid.start, &values)?;
+    let n = grid.steps();
+    for i in 0..n {
+        let (t, t_next) = (grid.time(i), grid.time(i + 1));
+        match instance.do_step(t, t_next - t)? {
+            Step::Done => {
+                instance.read(&mut reader, &mut values)?;
+                sample(t_next, &values)?;
+            }
+            Step::Ended { reason, last_time } => {
+                // Like fmpy: keep the state the model reached as a last row, when it is new.
+                if let Some(last) = last_time.filter(|&last| last > t) {
+                    instance.read(&mut reader, &mut values)?;
+                    sample(last, &values)?;
+                }
+                return Ok(Outcome { ended_early: Some(reason) });
+            }
+        }
+    }
+    Ok(Outcome { ended_early: None })
+}

@@ -1,0 +1,82 @@
+//! `runner simulate`: one run, written as CSV in fmpy's layout (`time`, then the outputs).
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use fmu::description::TypeKind;
+
+use crate::experiment::{self, RunDefaults};
+use crate::fmi::Fmu;
+use crate::plot::{self, Series};
+use crate::sim::{self, Grid};
+use crate::variables;
+
+/// Options of `runner simulate`.
+pub struct Options {
+    /// Model name or `.fmu` path.
+    pub fmu: String,
+    /// Grid and assignments from the command line.
+    pub run: RunDefaults,
+    /// CSV destination (stdout when absent).
+    pub out: Option<PathBuf>,
+    /// SVG destination.
+    pub plot: Option<PathBuf>,
+    /// Turns the FMU's debug logging on.
+    pub log: bool,
+}
+
+/// Opens `path` for a CSV writer, or stdout when `None`.
+pub fn csv_writer(path: Option<&PathBuf>) -> Result<csv::Writer<Box<dyn Write>>, String> {
+    let sink: Box<dyn Write> = match path {
+        Some(p) => Box::new(std::fs::File::create(p).map_err(|e| format!("cannot create {}: {e}", p.display()))?),
+        None => Box::new(std::io::stdout().lock()),
+    };
+    Ok(csv::Writer::from_writer(sink))
+}
+
+/// Runs `runner simulate`.
+pub fn run(options: &Options) -> Result<(), String> {
+    let target = experiment::resolve(&options.fmu)?;
+    let fmu = Fmu::load(&target.path)?;
+    let grid = Grid::choose(&fmu, &options.run, &target.experiment.simulate)?;
+    let mut set_texts = target.experiment.simulate.set.clone();
+    set_texts.extend(options.run.set.iter().cloned());
+    let assignments = variables::parse_sets(&fmu.description, &set_texts)?;
+    let outputs: Vec<_> = fmu.description.outputs().filter(|v| v.type_kind() != TypeKind::String).collect();
+    let mut writer = csv_writer(options.out.as_ref())?;
+    let mut header = vec!["time".to_owned()];
+    header.extend(outputs.iter().map(|v| v.name.clone()));
+    writer.write_record(&header).map_err(|e| format!("cannot write CSV: {e}"))?;
+    // Only a plot needs the trajectory kept; the CSV is written as the samples arrive.
+    let mut kept: Vec<Vec<(f64, f64)>> = vec![Vec::new(); if options.plot.is_some() { outputs.len() } else { 0 }];
+    let mut row = Vec::with_capacity(outputs.len() + 1);
+    let outcome = sim::run(&fmu, &fmu.identifier, &grid, &assignments, &outputs, options.log, |t, values| {
+        row.clear();
+        row.push(format!("{t:?}"));
+        row.extend(values.iter().map(|v| format!("{v:?}")));
+        for (series, &v) in kept.iter_mut().zip(values) {
+            series.push((t, v));
+        }
+        writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
+    })?;
+    writer.flush().map_err(|e| format!("cannot write CSV: {e}"))?;
+    if let Some(reason) = &outcome.ended_early {
+        eprintln!("{}: stopped before the stop time {} s: {reason}", fmu.identifier, grid.stop);
+    }
+    if let Some(path) = &options.plot {
+        let units: Vec<Option<&str>> = outputs.iter().map(|v| fmu.description.unit_of(v)).collect();
+        let shared_unit = units.first().copied().flatten().filter(|u| units.iter().all(|x| *x == Some(*u)));
+        let series: Vec<Series> = outputs
+            .iter()
+            .zip(kept)
+            .zip(&units)
+            .map(|((v, points), unit)| Series { label: match (shared_unit, unit) { (None, Some(u)) => format!("{} ({u})", v.name), _ => v.name.clone() }, points })
+            .collect();
+        let y_label = match shared_unit {
+            Some(u) => format!("value ({u})"),
+            None => "value (SI units, see legend)".to_owned(),
+        };
+        plot::lines(path, &format!("{}: outputs", fmu.description.model_name), "time (s)", &y_label, &series, &[])?;
+    }
+    Ok(())
+}

@@ -1,6 +1,7 @@
 //! `runner`: builds, inspects, simulates, sweeps and compares FMI 2.0 Co-Simulation FMUs.
 
 mod archive;
+mod compare;
 mod experiment;
 mod fmi;
 mod info;
@@ -125,6 +126,37 @@ enum Cmd {
         #[arg(long, value_name = "FILE.svg")]
         plot: Option<PathBuf>,
     },
+    /// Compare solvers: steps, rhs evaluations and time each needs to reach a target error.
+    ///
+    /// Runs the FMU with forward Euler and RK4 over fixed steps from the output interval down,
+    /// and DOPRI5 over tolerances 1e-3..1e-11, measures each run's error against DOPRI5 at
+    /// rtol 1e-12 (max over continuous outputs of |y - y_ref| / max|y_ref|), prints the cheapest
+    /// setting that reaches --target-error per solver, and writes the work-precision table
+    /// (CSV) and plot (SVG). Answers Ex. 4's question on solver effort, for any of our models.
+    ///
+    /// Example: `runner compare quarter_car --solvers euler,rk4,dopri5 --target-error 1e-6`
+    Compare(CompareArgs),
+}
+
+/// Arguments of `runner compare`.
+#[derive(clap::Args)]
+struct CompareArgs {
+    /// Model name or path to a .fmu file of this toolkit (it needs the solver controls).
+    fmu: String,
+    /// Solvers to compare, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "euler,rk4,dopri5")]
+    solvers: Vec<String>,
+    /// Error to reach: max over outputs of |y - y_ref| / max|y_ref|.
+    #[arg(long, value_name = "E", default_value_t = 1e-6)]
+    target_error: f64,
+    #[command(flatten)]
+    run: RunArgs,
+    /// Work-precision table (default <MODEL>_compare.csv).
+    #[arg(long, value_name = "FILE.csv")]
+    out: Option<PathBuf>,
+    /// Work-precision plot (default <MODEL>_compare.svg).
+    #[arg(long, value_name = "FILE.svg")]
+    plot: Option<PathBuf>,
 }
 
 fn main() {
@@ -143,6 +175,12 @@ fn main() {
                 Ok(failed) => Err(format!("{failed} sweep point(s) failed; see the status column")),
                 Err(e) => Err(e),
             }
+        }
+        Cmd::Compare(a) => {
+            let stem = std::path::Path::new(&a.fmu).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "compare".into());
+            let out = a.out.unwrap_or_else(|| PathBuf::from(format!("{stem}_compare.csv")));
+            let plot = a.plot.unwrap_or_else(|| PathBuf::from(format!("{stem}_compare.svg")));
+            compare::run(&compare::Options { fmu: a.fmu, solvers: a.solvers, target_error: a.target_error, run: a.run.defaults(), out, plot }).map(|_| ())
         }
     };
     if let Err(e) = result {

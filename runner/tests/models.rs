@@ -110,3 +110,43 @@ fn info_and_typos_on_our_fmu() {
     let err = fails(runner(dir.path(), &["simulate", q, "--set", "k_s=0", "--stop-time", "0.1"]));
     assert!(err.contains("k_s"), "{err}");
 }
+
+/// `runner compare` on second_order: the work-precision table must show each method's order
+/// (an independent property of the methods, not of our numbers): halving RK4's step divides its
+/// error by 2^4 = 16, quartering Euler's divides it by 4; RK4 reaches 1e-6 with fewer
+/// evaluations than Euler, and the reported counters follow from the settings.
+#[test]
+fn compare_shows_each_methods_order_and_the_cheapest_solver() {
+    let (_, second_order) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let out = ok(runner(dir.path(), &["compare", second_order.to_str().unwrap(), "--target-error", "1e-6", "--out", "w.csv", "--plot", "w.svg"]));
+    assert!(out.contains("rk4") && out.contains("dopri5"), "{out}");
+    assert!(dir.path().join("w.svg").is_file());
+    let (header, rows) = read_csv(&dir.path().join("w.csv"));
+    let pick = |solver: &str, col: &str| -> Vec<f64> {
+        let j = header.iter().position(|h| h == col).unwrap();
+        rows.iter().filter(|r| r[0] == solver).map(|r| r[j].parse().unwrap()).collect()
+    };
+    let (rk4_err, rk4_rhs, rk4_steps) = (pick("rk4", "max_relative_error"), pick("rk4", "n_rhs"), pick("rk4", "n_steps"));
+    // The first four halvings are in RK4's asymptotic range (errors 1e-8..1e-12, above roundoff).
+    for k in 0..3 {
+        let ratio = rk4_err[k] / rk4_err[k + 1];
+        assert!((13.0..19.0).contains(&ratio), "RK4 error ratio {ratio} at halving {k}");
+    }
+    for (rhs, steps) in rk4_rhs.iter().zip(&rk4_steps) {
+        assert_eq!(*rhs, 4.0 * steps, "RK4 evaluates f four times per step");
+    }
+    let euler_err = pick("euler", "max_relative_error");
+    for k in 1..4 {
+        let ratio = euler_err[k] / euler_err[k + 1];
+        assert!((3.6..4.4).contains(&ratio), "Euler error ratio {ratio} at step/4 number {k}");
+    }
+    let cheapest = |solver: &str| {
+        let (err, rhs) = (pick(solver, "max_relative_error"), pick(solver, "n_rhs"));
+        err.iter().zip(&rhs).filter(|(e, _)| **e <= 1e-6).map(|(_, r)| *r).fold(f64::INFINITY, f64::min)
+    };
+    assert!(cheapest("rk4") < cheapest("euler"), "rk4 {} vs euler {}", cheapest("rk4"), cheapest("euler"));
+    // A bad target error is refused with a message naming it.
+    let msg = fails(runner(dir.path(), &["compare", second_order.to_str().unwrap(), "--target-error", "0"]));
+    assert!(msg.contains("--target-error"), "{msg}");
+}

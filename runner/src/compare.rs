@@ -1,0 +1,202 @@
+//! `runner compare`: Ex. 4's question "which solver is cheapest for a given accuracy?",
+//! answered through the FMI interface alone: each run sets the toolkit's solver controls
+//! (`solver`, `fixed_step`, tolerance, `abs_tol`) and reads the counters `n_steps`, `n_rhs`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use fmu::description::{ModelDescription, ScalarVariable, TypeKind, Variability};
+
+use crate::experiment::{self, RunDefaults};
+use crate::fmi::{Fmu, Value};
+use crate::plot::{self, Mark, Series};
+use crate::sim::{self, Grid};
+use crate::simulate::csv_writer;
+use crate::variables;
+
+/// Relative tolerance of the reference run (DOPRI5): far below any error the table reports.
+pub const REFERENCE_RTOL: f64 = 1e-12;
+
+/// Options of `runner compare`.
+pub struct Options {
+    /// Model name or `.fmu` path (an FMU of this toolkit: it needs the solver controls).
+    pub fmu: String,
+    /// Solvers to compare, by name: euler, rk4, dopri5.
+    pub solvers: Vec<String>,
+    /// The error each solver must reach (max over outputs of the error relative to the output's peak).
+    pub target_error: f64,
+    /// Grid and assignments from the command line.
+    pub run: RunDefaults,
+    /// Work-precision table (CSV).
+    pub out: PathBuf,
+    /// Work-precision plot (SVG).
+    pub plot: PathBuf,
+}
+
+/// One run of the work-precision table.
+#[derive(Debug, Clone)]
+pub struct Row {
+    pub solver: String,
+    /// "fixed_step" or "tolerance".
+    pub setting: &'static str,
+    pub value: f64,
+    pub n_steps: f64,
+    pub n_rhs: f64,
+    pub seconds: f64,
+    /// Max over outputs and samples of |y - y_ref| / max|y_ref| (infinite when the run failed).
+    pub error: f64,
+    pub status: String,
+}
+
+/// The settings tried for each solver: fixed steps from the output interval down (Euler by 4x,
+/// RK4 by 2x, matching their orders), DOPRI5 tolerances by decades.
+fn settings(solver: &str, interval: f64) -> Result<(i32, &'static str, Vec<f64>), String> {
+    Ok(match solver {
+        "euler" => (0, "fixed_step", (0..8).map(|k| interval / 4f64.powi(k)).collect()),
+        "rk4" => (1, "fixed_step", (0..6).map(|k| interval / 2f64.powi(k)).collect()),
+        "dopri5" => (2, "tolerance", (3..=11).map(|k| 10f64.powi(-k)).collect()),
+        other => return Err(format!("unknown solver '{other}': use euler, rk4 or dopri5")),
+    })
+}
+
+fn control<'a>(description: &'a ModelDescription, name: &str) -> Result<&'a ScalarVariable, String> {
+    description.variable(name).ok_or_else(|| {
+        format!("{} has no variable '{name}': `runner compare` needs the solver controls of this toolkit's FMUs", description.model_name)
+    })
+}
+
+/// Runs one setting; returns the sampled compared outputs and the final counters.
+fn run_once(fmu: &Fmu, grid: &Grid, base: &[(&ScalarVariable, Value)], extra: &[(&ScalarVariable, Value)], compared: &[&ScalarVariable], counters: &[&ScalarVariable]) -> Result<(Vec<Vec<f64>>, f64, f64), String> {
+    let mut recorded: Vec<&ScalarVariable> = compared.to_vec();
+    recorded.extend_from_slice(counters);
+    let mut assignments: Vec<(&ScalarVariable, Value)> = base.to_vec();
+    assignments.extend_from_slice(extra);
+    let mut samples = Vec::with_capacity(grid.steps() + 1);
+    let mut last = (0.0, 0.0);
+    let n = compared.len();
+    let outcome = sim::run(fmu, "compare", grid, &assignments, &recorded, false, |_, values| {
+        samples.push(values[..n].to_vec());
+        last = (values[n], values[n + 1]);
+        Ok(())
+    })?;
+    if let Some(reason) = outcome.ended_early {
+        return Err(format!("the run ended early: {reason}"));
+    }
+    Ok((samples, last.0, last.1))
+}
+
+/// Max over outputs of the sample-wise error relative to the output's peak in the reference.
+fn relative_error(run: &[Vec<f64>], reference: &[Vec<f64>]) -> f64 {
+    if run.len() != reference.len() {
+        return f64::INFINITY;
+    }
+    let n = reference.first().map_or(0, |r| r.len());
+    (0..n)
+        .map(|j| {
+            let peak = reference.iter().map(|r| r[j].abs()).fold(0.0, f64::max);
+            let scale = if peak > 0.0 { peak } else { 1.0 };
+            // f64::max would drop a NaN sample; a run that produced one has failed.
+            run.iter().zip(reference).map(|(a, b)| (a[j] - b[j]).abs() / scale).fold(0.0, |m: f64, e| if e.is_nan() { f64::INFINITY } else { m.max(e) })
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Runs the comparison and returns the table (also written to CSV and SVG).
+pub fn run(options: &Options) -> Result<Vec<Row>, String> {
+    if !(options.target_error.is_finite() && options.target_error > 0.0) {
+        return Err(format!("--target-error {} must be a positive number", options.target_error));
+    }
+    let target = experiment::resolve(&options.fmu)?;
+    let fmu = Fmu::load(&target.path)?;
+    let md = &fmu.description;
+    let grid = Grid::choose(&fmu, &options.run, &target.experiment.simulate)?;
+    let mut set_texts = target.experiment.simulate.set.clone();
+    set_texts.extend(options.run.set.iter().cloned());
+    let base = variables::parse_sets(md, &set_texts)?;
+    let (solver, fixed_step, abs_tol) = (control(md, "solver")?, control(md, "fixed_step")?, control(md, "abs_tol")?);
+    let counters = [control(md, "n_steps")?, control(md, "n_rhs")?];
+    let compared: Vec<&ScalarVariable> =
+        md.outputs().filter(|v| v.type_kind() == TypeKind::Real && v.variability() == Variability::Continuous).collect();
+    if compared.is_empty() {
+        return Err(format!("{} has no continuous Real outputs to compare", md.model_name));
+    }
+    let plan: Vec<(String, (i32, &'static str, Vec<f64>))> =
+        options.solvers.iter().map(|s| settings(s.trim(), grid.interval).map(|p| (s.trim().to_owned(), p))).collect::<Result<_, _>>()?;
+
+    let reference_grid = Grid { tolerance: Some(REFERENCE_RTOL), ..grid };
+    let reference_settings = [(solver, Value::Integer(2)), (abs_tol, Value::Real(REFERENCE_RTOL * 1e-2))];
+    let (reference, _, _) = run_once(&fmu, &reference_grid, &base, &reference_settings, &compared, &counters)
+        .map_err(|e| format!("the reference run (DOPRI5 at rtol {REFERENCE_RTOL}) failed: {e}"))?;
+
+    let mut rows = Vec::new();
+    for (name, (code, setting, values)) in &plan {
+        for &value in values {
+            let (run_grid, extra) = if *setting == "fixed_step" {
+                (grid, vec![(solver, Value::Integer(*code)), (fixed_step, Value::Real(value))])
+            } else {
+                (Grid { tolerance: Some(value), ..grid }, vec![(solver, Value::Integer(*code)), (abs_tol, Value::Real(value * 1e-3))])
+            };
+            let started = Instant::now();
+            let result = run_once(&fmu, &run_grid, &base, &extra, &compared, &counters);
+            let seconds = started.elapsed().as_secs_f64();
+            rows.push(match result {
+                Ok((samples, n_steps, n_rhs)) => Row { solver: name.clone(), setting, value, n_steps, n_rhs, seconds, error: relative_error(&samples, &reference), status: "ok".into() },
+                Err(e) => Row { solver: name.clone(), setting, value, n_steps: f64::NAN, n_rhs: f64::NAN, seconds, error: f64::INFINITY, status: e },
+            });
+        }
+    }
+
+    let mut writer = csv_writer(Some(&options.out))?;
+    let csv_err = |e: csv::Error| format!("cannot write {}: {e}", options.out.display());
+    writer.write_record(["solver", "setting", "value", "n_steps", "n_rhs", "seconds", "max_relative_error", "status"]).map_err(csv_err)?;
+    for r in &rows {
+        writer
+            .write_record([r.solver.clone(), r.setting.into(), r.value.to_string(), r.n_steps.to_string(), r.n_rhs.to_string(), format!("{:.6}", r.seconds), r.error.to_string(), r.status.clone()])
+            .map_err(csv_err)?;
+    }
+    writer.flush().map_err(|e| format!("cannot write {}: {e}", options.out.display()))?;
+
+    println!("{}: error = max over outputs of |y - y_ref| / max|y_ref|, y_ref from DOPRI5 at rtol {REFERENCE_RTOL:e}", md.model_name);
+    println!("cheapest setting tried that reaches the target error {:e}:", options.target_error);
+    println!("{:<8} {:<24} {:>10} {:>12} {:>10} {:>12}", "solver", "setting", "steps", "rhs evals", "time (s)", "error");
+    for (name, _) in &plan {
+        let best = rows.iter().filter(|r| &r.solver == name && r.error <= options.target_error).min_by(|a, b| a.n_rhs.total_cmp(&b.n_rhs));
+        match best {
+            Some(r) => println!("{:<8} {:<24} {:>10} {:>12} {:>10.4} {:>12.3e}", name, format!("{} = {:e}", r.setting, r.value), r.n_steps, r.n_rhs, r.seconds, r.error),
+            None => {
+                let closest = rows.iter().filter(|r| &r.solver == name).map(|r| r.error).fold(f64::INFINITY, f64::min);
+                println!("{name:<8} not reached by any setting tried (smallest error {closest:.3e})");
+            }
+        }
+    }
+
+    let series: Vec<Series> = plan
+        .iter()
+        .map(|(name, _)| Series {
+            label: name.clone(),
+            points: rows.iter().filter(|r| &r.solver == name && r.error.is_finite() && r.error > 0.0).map(|r| (r.n_rhs.log10(), r.error.log10())).collect(),
+        })
+        .collect();
+    let marks: Vec<Mark> = series
+        .iter()
+        .filter_map(|s| s.points.iter().copied().find(|p| p.1 <= options.target_error.log10()).map(|at| Mark { at, text: format!("{} reaches {:e}", s.label, options.target_error) }))
+        .collect();
+    plot::lines(&options.plot, &format!("{}: work-precision (error against right-hand-side evaluations)", md.model_name), "log10(rhs evaluations)", "log10(max relative error)", &series, &marks)?;
+    println!("wrote {} and {}", options.out.display(), options.plot.display());
+    Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::relative_error;
+
+    #[test]
+    fn error_is_relative_to_each_outputs_peak_and_nan_is_infinite() {
+        let reference = vec![vec![1.0, 100.0], vec![2.0, -200.0]];
+        let run = vec![vec![1.0, 100.0], vec![2.002, -200.0]];
+        assert!((relative_error(&run, &reference) - 1e-3).abs() < 1e-12);
+        let run = vec![vec![1.0, f64::NAN], vec![2.0, -200.0]];
+        assert_eq!(relative_error(&run, &reference), f64::INFINITY);
+        assert_eq!(relative_error(&run[..1], &reference), f64::INFINITY);
+    }
+}

@@ -28,6 +28,8 @@ pub struct UnitDef {
 
 /// One inch in metres (exact by definition).
 pub const INCH: f64 = 0.0254;
+/// One foot in metres (exact by definition).
+pub const FOOT: f64 = 0.3048;
 /// One pound-force in newtons (exact by definition: 0.45359237 kg x 9.80665 m/s^2).
 pub const LBF: f64 = 4.448_221_615_260_5;
 /// One ounce-force in newtons.
@@ -55,7 +57,7 @@ pub const UNITS: &[UnitDef] = &[
     UnitDef { name: "kg", base: b(1, 0, 0, 0), display_units: &[d("lbf.s2/in", LBF / INCH)] },
     UnitDef { name: "kg.m2", base: b(1, 2, 0, 0), display_units: &[] },
     UnitDef { name: "N", base: b(1, 1, -2, 0), display_units: &[d("lbf", LBF), d("ozf", OZF)] },
-    UnitDef { name: "N/m", base: b(1, 0, -2, 0), display_units: &[d("lbf/in", LBF / INCH)] },
+    UnitDef { name: "N/m", base: b(1, 0, -2, 0), display_units: &[d("lbf/in", LBF / INCH), d("lbf/ft", LBF / FOOT)] },
     UnitDef { name: "N.s/m", base: b(1, 0, -1, 0), display_units: &[d("lbf.s/in", LBF / INCH)] },
     UnitDef { name: "N.m", base: b(1, 2, -2, 0), display_units: &[d("lbf.in", LBF * INCH), d("ozf.in", OZF * INCH)] },
     UnitDef { name: "N.m.s/rad", base: b(1, 2, -1, -1), display_units: &[] },

@@ -8,11 +8,7 @@ use serde::{Deserialize, Serialize};
 /// Rows of this model's variable table.
 type V = Variable<Trebuchet>;
 
-const INCH: f64 = 0.0254;
-const FOOT: f64 = 0.3048;
-const LBF: f64 = 4.448_221_615_260_5;
-const OZF: f64 = LBF / 16.0;
-const DEG: f64 = std::f64::consts::PI / 180.0;
+use fmu::units::{DEGREE as DEG, FOOT, INCH, LBF, OZF};
 
 /// Regimes (the `regime` output). Regime 2 (impact) is instantaneous: it happens inside the
 /// event handler at `t_impact`, so sampled outputs show 1, then 3 and 4.

@@ -1,183 +1,30 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
-use nalgebra::{Matrix2, Vector2};
-use serde::{Deserialize, Serialize};
+use fmu::units::RPM;
+use fmu::ModelInfo;
+use linkages::{SliderCrankParameters, SliderCrankPreset};
 
-/// Rows of this model's variable table.
-type V = Variable<CrankSlider>;
+/// Ex. 5A #1: the centred crank-slider (slider on the x-axis) on the shared slider-crank.
+#[derive(Debug, Clone)]
+pub struct Centred;
 
-/// Revolutions per minute in rad/s.
-const RPM: f64 = std::f64::consts::PI / 30.0;
-/// The run stops when |det A| / l_AB = |cos theta3| falls below this (a limit position).
-pub const SINGULAR: f64 = 1e-3;
-/// Newton iterations of the projection onto the loop closure.
-const NEWTON_ITERS: usize = 20;
+/// This FMU's model: the shared equations (crate `linkages`) with this preset.
+pub type CrankSlider = linkages::SliderCrank<Centred>;
 
-/// Mechanism #1: crank OA (input, angle theta) and connecting rod AB; the slider B moves
-/// on the line y = y_OC (the x-axis here). Loop r2 + r3 = r1 + r4, unknowns r1 (= x of B)
-/// and theta3 (angle of A->B). State vector [theta, r1, theta3, r1', theta3'].
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct CrankSlider {
-    pub l_oa: f64,
-    pub l_ab: f64,
-    /// Height of the slider's line (0 for the centred crank-slider).
-    pub y_oc: f64,
-    pub theta0: f64,
-    pub omega: f64,
-    pub branch: i32,
-    // Outputs.
-    pub r1_ddot: f64,
-    pub theta3_ddot: f64,
-    pub a_x: f64,
-    pub a_y: f64,
-    pub b_x: f64,
-    pub b_y: f64,
-    pub v_a_x: f64,
-    pub v_a_y: f64,
-    pub v_b_x: f64,
-    pub v_b_y: f64,
-    pub loop_residual: f64,
-}
+impl SliderCrankPreset for Centred {
+    const HAS_OFFSET: bool = false;
 
-impl Default for CrankSlider {
-    fn default() -> Self {
-        let mut m = CrankSlider {
+    fn parameters() -> SliderCrankParameters {
+        SliderCrankParameters {
             l_oa: 0.080,
             l_ab: 0.120,
             y_oc: 0.0,
             theta0: 60f64.to_radians(),
             omega: 10.0 * RPM,
             branch: 1,
-            r1_ddot: 0.0,
-            theta3_ddot: 0.0,
-            a_x: 0.0,
-            a_y: 0.0,
-            b_x: 0.0,
-            b_y: 0.0,
-            v_a_x: 0.0,
-            v_a_y: 0.0,
-            v_b_x: 0.0,
-            v_b_y: 0.0,
-            loop_residual: 0.0,
-        };
-        // Start values of the outputs: the assembled initial configuration.
-        let mut x = [0.0; 5];
-        if m.assemble(&mut x).is_ok() {
-            m.outputs(0.0, &x);
         }
-        m
     }
-}
-
-impl CrankSlider {
-    /// Loop-closure gap e = r2 + r3 - r1 - r4 (E.14, E.15).
-    pub fn gap(&self, theta: f64, r1: f64, th3: f64) -> Vector2<f64> {
-        Vector2::new(self.l_oa * theta.cos() + self.l_ab * th3.cos() - r1, self.l_oa * theta.sin() + self.l_ab * th3.sin() - self.y_oc)
-    }
-
-    /// A of A x' = b and A x'' = b, for x = [r1, theta3].
-    pub fn a_matrix(&self, th3: f64) -> Matrix2<f64> {
-        Matrix2::new(-1.0, -self.l_ab * th3.sin(), 0.0, self.l_ab * th3.cos())
-    }
-
-    /// b of the velocity equations (E.5, E.6 for this loop).
-    fn b_velocity(&self, theta: f64) -> Vector2<f64> {
-        Vector2::new(self.l_oa * self.omega * theta.sin(), -self.l_oa * self.omega * theta.cos())
-    }
-
-    /// b of the acceleration equations (E.10, E.11 for this loop; theta'' = 0).
-    fn b_acceleration(&self, theta: f64, th3: f64, th3_dot: f64) -> Vector2<f64> {
-        let w2 = self.omega * self.omega;
-        let t2 = th3_dot * th3_dot;
-        Vector2::new(self.l_oa * w2 * theta.cos() + self.l_ab * t2 * th3.cos(), self.l_oa * w2 * theta.sin() + self.l_ab * t2 * th3.sin())
-    }
-
-    /// x'' = A^-1 b; a singular A (only past the stop at a limit position) gives zeros, not NaN.
-    fn accelerations(&self, x: &[f64]) -> Vector2<f64> {
-        let b = self.b_acceleration(x[0], x[2], x[4]);
-        self.a_matrix(x[2]).lu().solve(&b).filter(|v| v.iter().all(|c| c.is_finite())).unwrap_or_else(Vector2::zeros)
-    }
-
-    /// Velocities consistent with the positions: A x' = b.
-    fn velocities(&self, theta: f64, th3: f64) -> Option<Vector2<f64>> {
-        self.a_matrix(th3).lu().solve(&self.b_velocity(theta))
-    }
-
-    /// Distance to the singularity of A, signed by the branch: |det A| / l_AB = branch cos theta3.
-    fn singularity_margin(&self, th3: f64) -> f64 {
-        self.branch as f64 * th3.cos()
-    }
-
-    /// Initial positions for `branch` (B at larger x than A for +1) and velocities from A x' = b.
-    fn assemble(&self, x: &mut [f64]) -> Result<(), ModelError> {
-        let (theta, l, b) = (self.theta0, self.l_ab, self.branch as f64);
-        let (ax, ay) = (self.l_oa * theta.cos(), self.l_oa * theta.sin());
-        let dy = self.y_oc - ay;
-        if dy.abs() >= l {
-            return Err(ModelError(format!(
-                "the mechanism cannot be assembled at theta0 = {:.4} deg: the rod l_AB = {} m cannot reach the slider line y_OC = {} m from A (l_OA = {} m), which is {} m away",
-                theta.to_degrees(),
-                l,
-                self.y_oc,
-                self.l_oa,
-                dy.abs()
-            )));
-        }
-        // E.3.1: the zero of the gap e, here in closed form (circle about A meets the line).
-        let dx = b * (l * l - dy * dy).sqrt();
-        let th3 = dy.atan2(dx);
-        if self.singularity_margin(th3) < SINGULAR {
-            return Err(ModelError(format!(
-                "theta0 = {:.4} deg is at a limit position of the mechanism (l_OA = {}, l_AB = {}, y_OC = {}): A is singular",
-                theta.to_degrees(),
-                self.l_oa,
-                l,
-                self.y_oc
-            )));
-        }
-        let v = self.velocities(theta, th3).ok_or_else(|| ModelError("A is singular at theta0".into()))?;
-        x.copy_from_slice(&[theta, ax + dx, th3, v[0], v[1]]);
-        Ok(())
-    }
-
-    /// Projects the positions back onto the loop closure by Newton's method on e = 0 (the
-    /// Jacobian of e with respect to the unknowns is A; the input angle is exact), then the
-    /// velocities onto A x' = b. Leaves x unchanged and returns false when Newton does not
-    /// converge on this branch with at least `min_margin` from the singularity.
-    fn project(&self, x: &mut [f64], min_margin: f64) -> bool {
-        let scale = self.l_oa + self.l_ab + self.y_oc.abs();
-        let mut q = Vector2::new(x[1], x[2]);
-        for _ in 0..NEWTON_ITERS {
-            let e = self.gap(x[0], q[0], q[1]);
-            if e.norm() <= 1e-15 * scale {
-                break;
-            }
-            match self.a_matrix(q[1]).lu().solve(&e) {
-                // The Jacobian of e with respect to (r1, theta3) is A itself.
-                Some(dq) => q -= dq,
-                None => break,
-            }
-        }
-        let closed = self.singularity_margin(q[1]) >= min_margin && self.gap(x[0], q[0], q[1]).norm() < 1e-12 * scale;
-        if !closed {
-            return false;
-        }
-        let Some(v) = self.velocities(x[0], q[1]) else {
-            return false;
-        };
-        x[1] = q[0];
-        x[2] = q[1];
-        x[3] = v[0];
-        x[4] = v[1];
-        true
-    }
-}
-
-impl Model for CrankSlider {
-    const N_STATES: usize = 5;
-    const N_EVENT_INDICATORS: usize = 1;
 
     fn info() -> ModelInfo {
         ModelInfo {
@@ -190,97 +37,6 @@ impl Model for CrankSlider {
             documentation: include_str!("../derivation.md"),
         }
     }
-
-    fn variables() -> Vec<Variable<Self>> {
-        vec![
-            V::parameter("l_OA", "Crank length OA", |s| s.l_oa, |s, v| s.l_oa = v).unit("m").display("mm"),
-            V::parameter("l_AB", "Connecting rod length AB", |s| s.l_ab, |s, v| s.l_ab = v).unit("m").display("mm"),
-            V::parameter("theta0", "Initial crank angle (counter-clockwise from +x)", |s| s.theta0, |s, v| s.theta0 = v).unit("rad").display("deg"),
-            V::parameter("omega", "Crank angular velocity (counter-clockwise, constant)", |s| s.omega, |s, v| s.omega = v).unit("rad/s").display("rpm"),
-            V::integer_parameter("branch", "Assembly: +1 puts B at larger x than A, -1 at smaller x", |s| s.branch, |s, v| s.branch = v),
-            V::state("theta", "Crank angle theta2", 0).unit("rad").display("deg"),
-            V::state("r1", "Slider position: x of B (vector r1 along the slider line)", 1).unit("m"),
-            V::state("theta3", "Angle of the connecting rod A->B", 2).unit("rad").display("deg"),
-            V::state("r1_dot", "Slider velocity", 3).unit("m/s"),
-            V::state("theta3_dot", "Angular velocity of the connecting rod", 4).unit("rad/s"),
-            V::output("r1_ddot", "Slider acceleration", |s| s.r1_ddot).unit("m/s2"),
-            V::output("theta3_ddot", "Angular acceleration of the connecting rod", |s| s.theta3_ddot).unit("rad/s2"),
-            V::output("A_x", "x of the crank pin A", |s| s.a_x).unit("m"),
-            V::output("A_y", "y of the crank pin A", |s| s.a_y).unit("m"),
-            V::output("B_x", "x of the slider pin B", |s| s.b_x).unit("m"),
-            V::output("B_y", "y of the slider pin B", |s| s.b_y).unit("m"),
-            V::output("v_A_x", "x velocity of A", |s| s.v_a_x).unit("m/s"),
-            V::output("v_A_y", "y velocity of A", |s| s.v_a_y).unit("m/s"),
-            V::output("v_B_x", "x velocity of B", |s| s.v_b_x).unit("m/s"),
-            V::output("v_B_y", "y velocity of B", |s| s.v_b_y).unit("m/s"),
-            V::output("loop_residual", "Vector-loop gap |e| (E.16)", |s| s.loop_residual).unit("m"),
-        ]
-    }
-
-    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        require_positive("l_OA", self.l_oa)?;
-        require_positive("l_AB", self.l_ab)?;
-        require_finite("y_OC", self.y_oc)?;
-        require_finite("theta0", self.theta0)?;
-        require_finite("omega", self.omega)?;
-        if self.branch != 1 && self.branch != -1 {
-            return Err(ModelError(format!("parameter branch = {} must be +1 or -1", self.branch)));
-        }
-        self.assemble(x)
-    }
-
-    fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
-        let acc = self.accelerations(x);
-        dx[0] = self.omega;
-        dx[1] = x[3];
-        dx[2] = x[4];
-        dx[3] = acc[0];
-        dx[4] = acc[1];
-    }
-
-    fn outputs(&mut self, _t: f64, x: &[f64]) {
-        let acc = self.accelerations(x);
-        self.r1_ddot = acc[0];
-        self.theta3_ddot = acc[1];
-        let (s, c) = x[0].sin_cos();
-        self.a_x = self.l_oa * c;
-        self.a_y = self.l_oa * s;
-        self.v_a_x = -self.l_oa * self.omega * s;
-        self.v_a_y = self.l_oa * self.omega * c;
-        self.b_x = x[1];
-        self.b_y = self.y_oc;
-        self.v_b_x = x[3];
-        self.v_b_y = 0.0;
-        self.loop_residual = self.gap(x[0], x[1], x[2]).norm();
-    }
-
-    fn event_indicators(&self, _t: f64, x: &[f64], z: &mut [f64]) {
-        z[0] = self.singularity_margin(x[2]) - SINGULAR;
-    }
-
-    fn on_event(&mut self, _t: f64, x: &mut [f64], fired: &[bool]) -> Result<EventOutcome, ModelError> {
-        if fired[0] && self.singularity_margin(x[2]) <= 2.0 * SINGULAR {
-            // Close the loop at the stop too (matters for the fixed-step solvers, whose last
-            // step may have drifted); if that fails on this branch the state is left as is.
-            self.project(x, 0.0);
-            return Ok(EventOutcome::Stop {
-                reason: format!(
-                    "limit position at theta = {:.4} deg: the connecting rod AB is perpendicular to the slider line (A singular), the crank cannot turn further",
-                    x[0].to_degrees()
-                ),
-            });
-        }
-        Ok(EventOutcome::Continue)
-    }
-
-    /// At every communication point: project onto the constraints (see `project`); a point
-    /// that cannot be projected on this branch is a limit position.
-    fn communication_point(&mut self, _t: f64, x: &mut [f64]) -> Result<EventOutcome, ModelError> {
-        if self.project(x, SINGULAR) {
-            return Ok(EventOutcome::Continue);
-        }
-        Ok(EventOutcome::Stop { reason: format!("limit position at theta = {:.4} deg: the loop can no longer be closed on this branch", x[0].to_degrees()) })
-    }
 }
 
 fmu::export_fmu!(CrankSlider);
@@ -288,6 +44,8 @@ fmu::export_fmu!(CrankSlider);
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[allow(unused_imports)]
+    use fmu::Model;
     use fmu::harness::Harness;
     use fmu::logging::Status;
     use std::f64::consts::PI;

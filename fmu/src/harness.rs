@@ -53,6 +53,17 @@ impl<M: Model> Harness<M> {
         Harness { instance: Instance::new("harness", logger), messages }
     }
 
+    /// A fresh instance with `params` set by name, initialized at relative tolerance
+    /// `tolerance` (`None`: the model's default): the start of most model tests.
+    pub fn started(params: &[(&str, f64)], tolerance: Option<f64>) -> Result<Harness<M>, String> {
+        let mut h = Harness::new();
+        for (name, value) in params {
+            h.set(name, *value)?;
+        }
+        h.initialize(tolerance)?;
+        Ok(h)
+    }
+
     /// Everything logged so far.
     pub fn messages(&self) -> Vec<String> {
         self.messages.lock().expect("log lock").clone()

@@ -244,9 +244,7 @@ impl<P: FourBarPreset> Model for FourBar<P> {
         require_finite("theta_CO", self.theta_co)?;
         require_finite("theta0", self.theta0)?;
         require_finite("omega", self.omega)?;
-        if self.branch != 1 && self.branch != -1 {
-            return Err(ModelError(format!("parameter branch = {} must be +1 or -1", self.branch)));
-        }
+        crate::check_branch(self.branch)?;
         self.assemble(x)
     }
 
@@ -263,11 +261,7 @@ impl<P: FourBarPreset> Model for FourBar<P> {
         let acc = self.accelerations(x);
         self.theta3_ddot = acc[0];
         self.theta4_ddot = acc[1];
-        let (s, c) = x[0].sin_cos();
-        self.a_x = self.l_oa * c;
-        self.a_y = self.l_oa * s;
-        self.v_a_x = -self.l_oa * self.omega * s;
-        self.v_a_y = self.l_oa * self.omega * c;
+        (self.a_x, self.a_y, self.v_a_x, self.v_a_y) = crate::crank_point(self.l_oa, x[0], self.omega);
         let (s4, c4) = x[2].sin_cos();
         let pc = self.c();
         self.b_x = pc[0] + self.l_bc * c4;

@@ -10,7 +10,23 @@ pub mod slider_crank;
 pub use four_bar::FourBar;
 pub use slider_crank::SliderCrank;
 
-use fmu::ModelInfo;
+use fmu::{ModelError, ModelInfo};
+
+/// Refuses any assembly choice but +1 and -1.
+pub fn check_branch(branch: i32) -> Result<(), ModelError> {
+    if branch == 1 || branch == -1 {
+        Ok(())
+    } else {
+        Err(ModelError(format!("parameter branch = {branch} must be +1 or -1")))
+    }
+}
+
+/// Position and velocity of the crank pin A of an input link of length `l_oa` at angle
+/// `theta` turning at `omega`: (A_x, A_y, v_A_x, v_A_y).
+pub fn crank_point(l_oa: f64, theta: f64, omega: f64) -> (f64, f64, f64, f64) {
+    let (s, c) = theta.sin_cos();
+    (l_oa * c, l_oa * s, -l_oa * omega * s, l_oa * omega * c)
+}
 
 /// Default parameters of a four-bar FMU.
 #[derive(Debug, Clone, Copy)]

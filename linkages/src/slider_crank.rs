@@ -222,9 +222,7 @@ impl<P: SliderCrankPreset> Model for SliderCrank<P> {
         require_finite("y_OC", self.y_oc)?;
         require_finite("theta0", self.theta0)?;
         require_finite("omega", self.omega)?;
-        if self.branch != 1 && self.branch != -1 {
-            return Err(ModelError(format!("parameter branch = {} must be +1 or -1", self.branch)));
-        }
+        crate::check_branch(self.branch)?;
         self.assemble(x)
     }
 
@@ -241,11 +239,7 @@ impl<P: SliderCrankPreset> Model for SliderCrank<P> {
         let acc = self.accelerations(x);
         self.r1_ddot = acc[0];
         self.theta3_ddot = acc[1];
-        let (s, c) = x[0].sin_cos();
-        self.a_x = self.l_oa * c;
-        self.a_y = self.l_oa * s;
-        self.v_a_x = -self.l_oa * self.omega * s;
-        self.v_a_y = self.l_oa * self.omega * c;
+        (self.a_x, self.a_y, self.v_a_x, self.v_a_y) = crate::crank_point(self.l_oa, x[0], self.omega);
         self.b_x = x[1];
         self.b_y = self.y_oc;
         self.v_b_x = x[3];

@@ -171,13 +171,9 @@ mod tests {
     }
 
     fn tight(params: &[(&str, f64)]) -> Harness<Bumper> {
-        let mut h = Harness::<Bumper>::new();
-        for (name, value) in params {
-            h.set(name, *value).unwrap();
-        }
-        h.set("abs_tol", 1e-13).unwrap();
-        h.initialize(Some(1e-11)).unwrap();
-        h
+        let mut all = params.to_vec();
+        all.push(("abs_tol", 1e-13));
+        Harness::started(&all, Some(1e-11)).unwrap()
     }
 
     /// derivation.md's numbers: zeta = 1.99 (overdamped) and the formula

@@ -101,12 +101,7 @@ mod tests {
     ];
 
     fn harness(params: &[(&str, f64)]) -> Harness<FourBar> {
-        let mut h = Harness::<FourBar>::new();
-        for (n, v) in params {
-            h.set(n, *v).unwrap();
-        }
-        h.initialize(None).unwrap();
-        h
+        Harness::started(params, None).unwrap()
     }
 
     /// Both branches over two revolutions (2401 points, default tolerance) against the law-of-

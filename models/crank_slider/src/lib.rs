@@ -88,12 +88,7 @@ mod tests {
     ];
 
     fn harness(params: &[(&str, f64)], tol: Option<f64>) -> Harness<CrankSlider> {
-        let mut h = Harness::<CrankSlider>::new();
-        for (n, v) in params {
-            h.set(n, *v).unwrap();
-        }
-        h.initialize(tol).unwrap();
-        h
+        Harness::started(params, tol).unwrap()
     }
 
     fn wrap(a: f64) -> f64 {

@@ -85,12 +85,7 @@ mod tests {
     ];
 
     fn harness(params: &[(&str, f64)]) -> Harness<OffsetCrankSlider> {
-        let mut h = Harness::<OffsetCrankSlider>::new();
-        for (n, v) in params {
-            h.set(n, *v).unwrap();
-        }
-        h.initialize(None).unwrap();
-        h
+        Harness::started(params, None).unwrap()
     }
 
     fn wrap(a: f64) -> f64 {

@@ -561,13 +561,9 @@ mod tests {
     const G: f64 = 9.81;
 
     fn tight(params: &[(&str, f64)]) -> Harness<Trebuchet> {
-        let mut h = Harness::<Trebuchet>::new();
-        for (name, value) in params {
-            h.set(name, *value).unwrap();
-        }
-        h.set("abs_tol", 1e-12).unwrap();
-        h.initialize(Some(1e-10)).unwrap();
-        h
+        let mut all = params.to_vec();
+        all.push(("abs_tol", 1e-12));
+        Harness::started(&all, Some(1e-10)).unwrap()
     }
 
     fn pt(h: &mut Harness<Trebuchet>, p: &str) -> [f64; 2] {

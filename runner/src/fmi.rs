@@ -3,7 +3,7 @@
 //! who exported the FMU beyond the standard.
 
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use fmu::description::{ModelDescription, ScalarVariable, TypeKind};
@@ -148,9 +148,23 @@ pub struct Fmu {
     _dir: tempfile::TempDir,
 }
 
-impl Fmu {
-    /// Unpacks and loads the `.fmu` at `path`.
-    pub fn load(path: &Path) -> Result<Fmu, String> {
+/// An FMU archive unpacked into a temporary directory and checked up to the point of loading its
+/// binary: everything the runner reads from a file it did not write, before running any of it.
+pub struct Unpacked {
+    /// The parsed modelDescription.xml.
+    pub description: ModelDescription,
+    /// The Co-Simulation modelIdentifier.
+    pub identifier: String,
+    /// The shared library for this platform inside `dir`.
+    pub binary: PathBuf,
+    /// The directory the archive was extracted into (deleted on drop).
+    pub dir: tempfile::TempDir,
+}
+
+impl Unpacked {
+    /// Extracts `path` safely, parses its modelDescription.xml and finds the binary for this
+    /// platform.
+    pub fn open(path: &Path) -> Result<Unpacked, String> {
         if !path.is_file() {
             return Err(format!("FMU file {} does not exist", path.display()));
         }
@@ -168,6 +182,14 @@ impl Fmu {
                 platforms(&dir.path().join("binaries"))
             ));
         }
+        Ok(Unpacked { description, identifier, binary, dir })
+    }
+}
+
+impl Fmu {
+    /// Unpacks and loads the `.fmu` at `path`.
+    pub fn load(path: &Path) -> Result<Fmu, String> {
+        let Unpacked { description, identifier, binary, dir } = Unpacked::open(path)?;
         let library = Library::open(&binary)?;
         let api = Api::resolve(&library).map_err(|e| format!("{}: {e} (FMI 2.0 requires it)", path.display()))?;
         // SAFETY: both return static C strings per the standard.

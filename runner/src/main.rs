@@ -1,25 +1,12 @@
 //! `runner`: builds, inspects, simulates, sweeps and compares FMI 2.0 Co-Simulation FMUs.
 
-mod archive;
-mod compare;
-mod experiment;
-mod fmi;
-mod info;
-mod library;
-mod metrics;
-mod package;
-mod plot;
-mod sim;
-mod simulate;
-mod sweep;
-mod variables;
-mod workspace;
 
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
-use crate::experiment::RunDefaults;
+use runner::experiment::RunDefaults;
+use runner::{compare, experiment, fmi, info, package, simulate, sweep};
 
 /// Build and run FMI 2.0 Co-Simulation FMUs.
 #[derive(Parser)]

@@ -219,12 +219,20 @@ impl<M: Model> Instance<M> {
         Ok(())
     }
 
-    /// Makes the outputs current before any read.
-    fn refresh(&mut self) -> CallResult {
+    /// Makes the values of `vrs` current before they are read. `Model::outputs` runs only when
+    /// one of them is computed by it: reading states, parameters or inputs (what a sweep's
+    /// metrics mostly read) costs no model evaluation.
+    fn refresh(&mut self, vrs: &[u32]) -> CallResult {
         if self.state == FmiState::InitializationMode {
             self.ensure_initial_state()?;
         }
-        if self.core.outputs_dirty {
+        let computed = |vr: &u32| {
+            self.table.row(*vr).is_some_and(|r| {
+                matches!(r.slot, Slot::Model(Access::Real { .. } | Access::Integer { .. } | Access::Boolean { .. }))
+                    && !matches!(r.causality, Causality::Parameter | Causality::Input)
+            })
+        };
+        if self.core.outputs_dirty && vrs.iter().any(computed) {
             let Core { model, t, x, .. } = &mut self.core;
             model.outputs(*t, x);
             self.core.outputs_dirty = false;
@@ -250,7 +258,7 @@ impl<M: Model> Instance<M> {
     /// `fmi2GetReal`.
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> CallResult {
         self.check(Call::GetReal)?;
-        self.refresh()?;
+        self.refresh(vrs)?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
             *value = match self.table.row(*vr).map(|r| &r.slot) {
                 Some(Slot::Model(Access::State(i))) => self.core.x[*i],
@@ -265,7 +273,7 @@ impl<M: Model> Instance<M> {
     /// `fmi2GetInteger`.
     pub fn get_integer(&mut self, vrs: &[u32], values: &mut [i32]) -> CallResult {
         self.check(Call::GetInteger)?;
-        self.refresh()?;
+        self.refresh(vrs)?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
             *value = match self.table.row(*vr).map(|r| &r.slot) {
                 Some(Slot::Model(Access::Integer { get, .. })) => get(&self.core.model),
@@ -280,7 +288,7 @@ impl<M: Model> Instance<M> {
     /// `fmi2GetBoolean`.
     pub fn get_boolean(&mut self, vrs: &[u32], values: &mut [bool]) -> CallResult {
         self.check(Call::GetBoolean)?;
-        self.refresh()?;
+        self.refresh(vrs)?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
             *value = match self.table.row(*vr).map(|r| &r.slot) {
                 Some(Slot::Model(Access::Boolean { get, .. })) => get(&self.core.model),

@@ -17,20 +17,22 @@ pub enum Status {
 pub struct Category {
     pub name: &'static str,
     pub description: &'static str,
+    /// A debug category: delivered only while debug logging is on.
+    pub debug: bool,
 }
 
 /// Events: mode changes, located crossings, early ends of a step.
-pub const LOG_EVENTS: Category = Category { name: "logEvents", description: "Events: located crossings, mode changes, early ends" };
+pub const LOG_EVENTS: Category = Category { name: "logEvents", description: "Events: located crossings, mode changes, early ends", debug: true };
 /// Every FMI call with its arguments (verbose).
-pub const LOG_CALLS: Category = Category { name: "logCalls", description: "Every FMI function call and its arguments" };
+pub const LOG_CALLS: Category = Category { name: "logCalls", description: "Every FMI function call and its arguments", debug: true };
 /// Warnings.
-pub const LOG_WARNING: Category = Category { name: "logStatusWarning", description: "Calls that returned fmi2Warning" };
+pub const LOG_WARNING: Category = Category { name: "logStatusWarning", description: "Calls that returned fmi2Warning", debug: false };
 /// A step ended early or a value was refused but the instance can go on.
-pub const LOG_DISCARD: Category = Category { name: "logStatusDiscard", description: "Calls that returned fmi2Discard" };
+pub const LOG_DISCARD: Category = Category { name: "logStatusDiscard", description: "Calls that returned fmi2Discard", debug: false };
 /// Errors: illegal call sequences, refused arguments or parameters, solver failures.
-pub const LOG_ERROR: Category = Category { name: "logStatusError", description: "Calls that returned fmi2Error" };
+pub const LOG_ERROR: Category = Category { name: "logStatusError", description: "Calls that returned fmi2Error", debug: false };
 /// Fatal errors.
-pub const LOG_FATAL: Category = Category { name: "logStatusFatal", description: "Calls that returned fmi2Fatal" };
+pub const LOG_FATAL: Category = Category { name: "logStatusFatal", description: "Calls that returned fmi2Fatal", debug: false };
 
 /// All categories, in the order `LogCategories` declares them.
 pub const CATEGORIES: &[Category] = &[LOG_EVENTS, LOG_CALLS, LOG_WARNING, LOG_DISCARD, LOG_ERROR, LOG_FATAL];
@@ -85,9 +87,11 @@ impl Logger {
 
     /// True when a message of `category` would be delivered (lets callers skip formatting).
     pub fn wants(&self, category: Category) -> bool {
-        let Some(i) = CATEGORIES.iter().position(|c| *c == category) else { return false };
-        let is_debug = category == LOG_EVENTS || category == LOG_CALLS;
-        self.sink.is_some() && self.enabled[i] && (!is_debug || self.debug_on)
+        // Asked before every call is traced: the cheap tests come first.
+        if self.sink.is_none() || (category.debug && !self.debug_on) {
+            return false;
+        }
+        CATEGORIES.iter().position(|c| c.name == category.name).is_some_and(|i| self.enabled[i])
     }
 
     /// Delivers `message` if its category is enabled.

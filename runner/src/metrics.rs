@@ -112,7 +112,9 @@ fn eval(e: &Expr, acc: &[Accumulator]) -> f64 {
 /// Streaming statistics of one source.
 #[derive(Debug, Clone)]
 pub struct Accumulator {
-    from: f64,
+    /// Samples before this time are skipped: `from` less a rounding allowance, so `from = 5`
+    /// includes the grid point 4.999999999999999.
+    threshold: f64,
     count: usize,
     min: f64,
     max: f64,
@@ -123,13 +125,12 @@ pub struct Accumulator {
 
 impl Accumulator {
     fn new(from: f64) -> Accumulator {
-        Accumulator { from, count: 0, min: f64::INFINITY, max: f64::NEG_INFINITY, sum: 0.0, sum_squares: 0.0, last: f64::NAN }
+        Accumulator { threshold: from - 1e-9 * from.abs().max(1.0), count: 0, min: f64::INFINITY, max: f64::NEG_INFINITY, sum: 0.0, sum_squares: 0.0, last: f64::NAN }
     }
 
     /// Adds the sample `x` taken at time `t`.
     pub fn add(&mut self, t: f64, x: f64) {
-        // A small allowance so `from = 5` includes the grid point 5.000000000000001.
-        if t < self.from - 1e-9 * self.from.abs().max(1.0) {
+        if t < self.threshold {
             return;
         }
         self.count += 1;

@@ -54,7 +54,12 @@ impl Grid {
 
     /// Communication point `i`, computed from `i` rather than accumulated so it does not drift.
     pub fn time(&self, i: usize) -> f64 {
-        if i >= self.steps() {
+        self.time_of(i, self.steps())
+    }
+
+    /// [`Grid::time`] for a grid of `steps` steps, so a loop computes `steps()` only once.
+    fn time_of(&self, i: usize, steps: usize) -> f64 {
+        if i >= steps {
             self.stop
         } else {
             self.start + i as f64 * self.interval
@@ -92,7 +97,7 @@ pub fn run(
     sample(grid.start, &values)?;
     let n = grid.steps();
     for i in 0..n {
-        let (t, t_next) = (grid.time(i), grid.time(i + 1));
+        let (t, t_next) = (grid.time_of(i, n), grid.time_of(i + 1, n));
         match instance.do_step(t, t_next - t)? {
             Step::Done => {
                 instance.read(&mut reader, &mut values)?;

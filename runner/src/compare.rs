@@ -11,7 +11,7 @@ use crate::experiment::{self, RunDefaults};
 use crate::fmi::{Fmu, Value};
 use crate::plot::{self, Mark, Series};
 use crate::sim::{self, Grid};
-use crate::simulate::csv_writer;
+use crate::output;
 use crate::variables;
 
 /// Relative tolerance of the reference run (DOPRI5): far below any error the table reports.
@@ -146,7 +146,7 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
         }
     }
 
-    let mut writer = csv_writer(Some(&options.out))?;
+    let mut writer = output::csv_writer(Some(&options.out))?;
     let csv_err = |e: csv::Error| format!("cannot write {}: {e}", options.out.display());
     writer.write_record(["solver", "setting", "value", "n_steps", "n_rhs", "seconds", "max_relative_error", "status"]).map_err(csv_err)?;
     for r in &rows {
@@ -154,7 +154,7 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
             .write_record([r.solver.clone(), r.setting.into(), r.value.to_string(), r.n_steps.to_string(), r.n_rhs.to_string(), format!("{:.6}", r.seconds), r.error.to_string(), r.status.clone()])
             .map_err(csv_err)?;
     }
-    writer.flush().map_err(|e| format!("cannot write {}: {e}", options.out.display()))?;
+    output::finish_csv(writer)?;
 
     println!("{}: error = max over outputs of |y - y_ref| / max|y_ref|, y_ref from DOPRI5 at rtol {REFERENCE_RTOL:e}", md.model_name);
     println!("cheapest setting tried that reaches the target error {:e}:", options.target_error);

@@ -12,6 +12,7 @@ use fmu::ffi::{CallbackFunctions, LoggerFn, TERMINATED};
 use crate::archive;
 use crate::library::Library;
 use crate::package::PLATFORM;
+use crate::progress;
 
 /// fmi2Status values.
 const OK: c_int = 0;
@@ -56,7 +57,6 @@ unsafe fn c_text<'a>(p: *const c_char) -> std::borrow::Cow<'a, str> {
 /// name on stderr and remembers problems (discard and worse) for the call's error message.
 #[no_mangle]
 pub unsafe extern "C" fn runner_log_message(env: *mut c_void, instance: *const c_char, status: c_int, category: *const c_char, text: *const c_char) {
-    use std::io::Write;
     let (instance, category, text) = (c_text(instance), c_text(category), c_text(text));
     let level = match status {
         OK => "info",
@@ -66,8 +66,8 @@ pub unsafe extern "C" fn runner_log_message(env: *mut c_void, instance: *const c
         FATAL => "fatal",
         _ => "log",
     };
-    // A failed write to stderr has nowhere to be reported, and must not unwind into C.
-    let _ = writeln!(std::io::stderr(), "[{instance}] {level} ({category}): {text}");
+    // Above the progress bar, if one is drawn; this never panics (it must not unwind into C).
+    progress::eprint_line(&format!("[{instance}] {level} ({category}): {text}"));
     if status >= DISCARD && !env.is_null() {
         let context = &*(env as *const LogContext);
         if let Ok(mut last) = context.last_problem.lock() {
@@ -174,6 +174,10 @@ impl Unpacked {
         let xml = std::fs::read_to_string(&xml_path).map_err(|e| format!("{}: no readable modelDescription.xml: {e}", path.display()))?;
         let description = ModelDescription::from_xml(&xml).map_err(|e| format!("{}: modelDescription.xml: {e}", path.display()))?;
         let identifier = description.co_simulation().map_err(|e| format!("{}: {e}", path.display()))?.model_identifier.clone();
+        // The identifier names the binary to load: with a '/' it could name any library on disk.
+        if identifier.is_empty() || identifier.contains(['/', '\0']) {
+            return Err(format!("{}: modelIdentifier \"{identifier}\" is not a file name (FMI requires a C identifier)", path.display()));
+        }
         let binary = dir.path().join("binaries").join(PLATFORM).join(format!("{identifier}.so"));
         if !binary.is_file() {
             return Err(format!(
@@ -444,5 +448,31 @@ impl Reader {
         r.integer_buf = vec![0; r.integer_vrs.len()];
         r.boolean_buf = vec![0; r.boolean_vrs.len()];
         Ok(r)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::archive::{write_zip, Entry};
+
+    #[test]
+    fn a_model_identifier_with_a_path_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let fmu = dir.path().join("traversal.fmu");
+        let xml = r#"<fmiModelDescription fmiVersion="2.0" modelName="m" guid="g">
+  <CoSimulation modelIdentifier="../../m"/>
+  <ModelVariables/>
+  <ModelStructure/>
+</fmiModelDescription>"#;
+        // Without the check, binaries/linux64/../../m.so would resolve to the archive's m.so.
+        let entries = [
+            Entry { path: "modelDescription.xml", bytes: xml.as_bytes() },
+            Entry { path: "binaries/linux64/other.so", bytes: b"\x7fELF" },
+            Entry { path: "m.so", bytes: b"\x7fELF" },
+        ];
+        write_zip(&fmu, &entries).unwrap();
+        let error = Unpacked::open(&fmu).err().expect("the FMU must be refused");
+        assert!(error.contains("traversal.fmu") && error.contains("modelIdentifier \"../../m\" is not a file name"), "{error}");
     }
 }

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::{Args, Parser, Subcommand};
 
 use runner::experiment::RunDefaults;
-use runner::{compare, experiment, fmi, info, package, simulate, sweep};
+use runner::{compare, experiment, fmi, info, interrupt, package, simulate, sweep};
 
 /// Build and run FMI 2.0 Co-Simulation FMUs.
 #[derive(Parser)]
@@ -148,6 +148,7 @@ struct CompareArgs {
 
 fn main() {
     let cli = Cli::parse();
+    interrupt::install();
     let result = match cli.command {
         Cmd::Build { models } => package::build(&models).map(|paths| {
             for p in paths {
@@ -158,8 +159,8 @@ fn main() {
         Cmd::Simulate { fmu, run, out, plot, log } => simulate::run(&simulate::Options { fmu, run: run.defaults(), out, plot, log }),
         Cmd::Sweep { fmu, params, metrics, threads, run, out, plot } => {
             match sweep::run(&sweep::Options { fmu, params, metrics, threads, run: run.defaults(), out, plot }) {
-                Ok(0) => Ok(()),
-                Ok(failed) => Err(format!("{failed} sweep point(s) failed; see the status column")),
+                Ok(s) if s.failed == 0 => Ok(()),
+                Ok(s) => Err(format!("{} of {} sweep point(s) failed; see the status column", s.failed, s.points)),
                 Err(e) => Err(e),
             }
         }
@@ -172,6 +173,6 @@ fn main() {
     };
     if let Err(e) = result {
         eprintln!("error: {e}");
-        std::process::exit(1);
+        std::process::exit(if interrupt::requested() { interrupt::EXIT_CODE } else { 1 });
     }
 }

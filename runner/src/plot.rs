@@ -5,6 +5,8 @@ use std::path::Path;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
+use crate::output;
+
 /// One named line of a plot.
 pub struct Series {
     /// Legend text.
@@ -32,13 +34,20 @@ fn padded_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
 }
 
 /// Draws `series` as lines into an SVG at `path`, with axis labels, a legend and the marks.
+/// The file is written whole, once drawn (see `output`).
 pub fn lines(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[Series], marks: &[Mark]) -> Result<(), String> {
-    let err = |e: &dyn std::fmt::Display| format!("cannot draw {}: {e}", path.display());
+    let mut svg = String::new();
+    draw(&mut svg, title, x_label, y_label, series, marks).map_err(|e| format!("cannot draw {}: {e}", path.display()))?;
+    output::write_file(path, svg.as_bytes())
+}
+
+fn draw(svg: &mut String, title: &str, x_label: &str, y_label: &str, series: &[Series], marks: &[Mark]) -> Result<(), String> {
+    let err = |e: &dyn std::fmt::Display| e.to_string();
     // x spans the data exactly (time from start to stop); only a single point gets padding.
     let x_range = padded_range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
     let x_range = x_range.start + (x_range.end - x_range.start) / 22.0..x_range.end - (x_range.end - x_range.start) / 22.0;
     let y_range = padded_range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)).chain(marks.iter().map(|m| m.at.1)));
-    let root = SVGBackend::new(path, (960, 600)).into_drawing_area();
+    let root = SVGBackend::with_string(svg, (960, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 22))

@@ -1,12 +1,12 @@
 //! `runner simulate`: one run, written as CSV in fmpy's layout (`time`, then the outputs).
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use fmu::description::TypeKind;
 
 use crate::experiment::{self, RunDefaults};
 use crate::fmi::Fmu;
+use crate::output;
 use crate::plot::{self, Series};
 use crate::sim::{self, Grid};
 use crate::variables;
@@ -25,15 +25,6 @@ pub struct Options {
     pub log: bool,
 }
 
-/// Opens `path` for a CSV writer, or stdout when `None`.
-pub fn csv_writer(path: Option<&PathBuf>) -> Result<csv::Writer<Box<dyn Write>>, String> {
-    let sink: Box<dyn Write> = match path {
-        Some(p) => Box::new(std::fs::File::create(p).map_err(|e| format!("cannot create {}: {e}", p.display()))?),
-        None => Box::new(std::io::stdout().lock()),
-    };
-    Ok(csv::Writer::from_writer(sink))
-}
-
 /// Runs `runner simulate`.
 pub fn run(options: &Options) -> Result<(), String> {
     let target = experiment::resolve(&options.fmu)?;
@@ -43,7 +34,7 @@ pub fn run(options: &Options) -> Result<(), String> {
     set_texts.extend(options.run.set.iter().cloned());
     let assignments = variables::parse_sets(&fmu.description, &set_texts)?;
     let outputs: Vec<_> = fmu.description.outputs().filter(|v| v.type_kind() != TypeKind::String).collect();
-    let mut writer = csv_writer(options.out.as_ref())?;
+    let mut writer = output::csv_writer(options.out.as_deref())?;
     let mut header = vec!["time".to_owned()];
     header.extend(outputs.iter().map(|v| v.name.clone()));
     writer.write_record(&header).map_err(|e| format!("cannot write CSV: {e}"))?;
@@ -59,7 +50,7 @@ pub fn run(options: &Options) -> Result<(), String> {
         }
         writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
     })?;
-    writer.flush().map_err(|e| format!("cannot write CSV: {e}"))?;
+    output::finish_csv(writer)?;
     if let Some(reason) = &outcome.ended_early {
         eprintln!("{}: stopped before the stop time {} s: {reason}", fmu.identifier, grid.stop);
     }

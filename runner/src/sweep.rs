@@ -1,20 +1,22 @@
 //! `runner sweep`: the cartesian product of parameter ranges, one FMU instance per point run in
 //! parallel (rayon, one dlopen for the whole sweep), metrics per point, one CSV row per point.
 
-use std::io::IsTerminal;
+use std::collections::BTreeMap;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc;
 use std::time::Instant;
 
 use fmu::description::{ScalarVariable, TypeKind};
-use indicatif::{ProgressBar, ProgressStyle};
-use rayon::prelude::*;
 
 use crate::experiment::{self, RunDefaults};
 use crate::fmi::{Fmu, Value};
+use crate::interrupt;
 use crate::metrics::Metrics;
+use crate::output;
 use crate::plot::{self, Mark, Series};
+use crate::progress::{self, Progress};
 use crate::sim::{self, Grid};
-use crate::simulate::csv_writer;
 use crate::variables;
 
 /// Options of `runner sweep`; empty lists and `None`s fall back to the model's experiment.toml.
@@ -66,13 +68,35 @@ pub fn parse_range(text: &str) -> Result<(String, Vec<f64>), String> {
     Ok((name.to_owned(), values))
 }
 
-/// The points of the cartesian product, the last parameter varying fastest.
-fn cartesian(values: &[Vec<f64>]) -> Vec<Vec<f64>> {
-    let mut points = vec![Vec::new()];
-    for list in values {
-        points = points.iter().flat_map(|p| list.iter().map(move |&v| [p.as_slice(), &[v]].concat())).collect();
+/// Largest number of points a sweep may have (the product of its ranges).
+pub const MAX_POINTS: usize = 100_000_000;
+
+/// The swept points, the cartesian product of the ranges with the last parameter varying
+/// fastest. Point `i` is decoded from `i`, so no list of points is ever held.
+struct Space {
+    ranges: Vec<(String, Vec<f64>)>,
+    len: usize,
+}
+
+impl Space {
+    fn new(ranges: Vec<(String, Vec<f64>)>) -> Result<Space, String> {
+        let len = ranges.iter().try_fold(1usize, |n, (_, v)| n.checked_mul(v.len())).filter(|&n| n <= MAX_POINTS);
+        let len = len.ok_or_else(|| {
+            let sizes: Vec<String> = ranges.iter().map(|(n, v)| format!("{} values of {n}", v.len())).collect();
+            format!("the sweep has more than {MAX_POINTS} points ({}); narrow the ranges", sizes.join(" x "))
+        })?;
+        Ok(Space { ranges, len })
     }
-    points
+
+    /// The parameter values of point `i`, in `--param` order.
+    fn point(&self, mut i: usize, out: &mut Vec<f64>) {
+        out.clear();
+        out.resize(self.ranges.len(), 0.0);
+        for (slot, (_, values)) in out.iter_mut().zip(&self.ranges).rev() {
+            *slot = values[i % values.len()];
+            i /= values.len();
+        }
+    }
 }
 
 /// Result of one point: its metric values (when it ran) and `ok` or the error.
@@ -85,6 +109,9 @@ struct PointResult {
 fn run_point(fmu: &Fmu, name: &str, grid: &Grid, assignments: &[(&ScalarVariable, Value)], metrics: &Metrics, sources: &[&ScalarVariable]) -> PointResult {
     let mut acc = metrics.accumulators();
     let result = sim::run(fmu, name, grid, assignments, sources, false, |t, values| {
+        if interrupt::requested() {
+            return Err("interrupted".to_owned());
+        }
         for (a, &x) in acc.iter_mut().zip(values) {
             a.add(t, x);
         }
@@ -94,7 +121,7 @@ fn run_point(fmu: &Fmu, name: &str, grid: &Grid, assignments: &[(&ScalarVariable
         Err(e) => PointResult { metrics: None, status: e },
         Ok(outcome) => {
             if let Some(reason) = outcome.ended_early {
-                eprintln!("{name}: {reason}; metrics are over the samples up to there");
+                progress::eprint_line(&format!("{name}: {reason}; metrics are over the samples up to there"));
             }
             let values = metrics.evaluate(&acc);
             let bad: Vec<String> = metrics.metrics.iter().zip(&values).filter(|(_, v)| !v.is_finite()).map(|((n, _), v)| format!("metric {n} is {v}")).collect();
@@ -104,8 +131,17 @@ fn run_point(fmu: &Fmu, name: &str, grid: &Grid, assignments: &[(&ScalarVariable
     }
 }
 
-/// Runs `runner sweep`; returns the number of failed points.
-pub fn run(options: &Options) -> Result<usize, String> {
+/// What a finished sweep reports.
+pub struct Summary {
+    /// Number of points.
+    pub points: usize,
+    /// Points whose status is not `ok`.
+    pub failed: usize,
+}
+
+/// Runs `runner sweep`. The CSV is streamed in point order as points finish; it is renamed into
+/// place only when complete, and an interrupted sweep (Ctrl-C) commits nothing.
+pub fn run(options: &Options) -> Result<Summary, String> {
     let target = experiment::resolve(&options.fmu)?;
     let defaults = &target.experiment.sweep;
     let pick = |cli: &Vec<String>, file: &Vec<String>| if cli.is_empty() { file.clone() } else { cli.clone() };
@@ -147,88 +183,137 @@ pub fn run(options: &Options) -> Result<usize, String> {
             Ok(v)
         })
         .collect::<Result<Vec<_>, String>>()?;
-    let points = cartesian(&ranges.iter().map(|(_, v)| v.clone()).collect::<Vec<_>>());
+    let space = Space::new(ranges)?;
+    let n = space.len;
 
     let threads = options.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     if threads == 0 {
         return Err("--threads must be at least 1".to_owned());
     }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("cannot start {threads} threads: {e}"))?;
-    let progress = if std::io::stderr().is_terminal() {
-        let bar = ProgressBar::new(points.len() as u64);
-        if let Ok(style) = ProgressStyle::with_template("{bar:40} {pos}/{len} points, {elapsed} elapsed, ~{eta} left") {
-            bar.set_style(style);
-        }
-        bar
-    } else {
-        ProgressBar::hidden()
-    };
-    let clock = Instant::now();
-    let results: Vec<PointResult> = pool.install(|| {
-        points
-            .par_iter()
-            .map(|point| {
-                let mut assignments = fixed.clone();
-                let mut label = Vec::new();
-                for (v, &x) in swept.iter().zip(point) {
-                    // Checked above, before any run.
-                    let value = variables::number_value(v, x).expect("value checked before the sweep");
-                    assignments.push((v, value));
-                    label.push(format!("{}={x}", v.name));
-                }
-                let name = format!("{}[{}]", fmu.identifier, label.join(","));
-                let r = run_point(&fmu, &name, &grid, &assignments, &metrics, &sources);
-                progress.inc(1);
-                r
-            })
-            .collect()
-    });
-    progress.finish_and_clear();
-    let elapsed = clock.elapsed().as_secs_f64();
-
-    let out = options.out.clone().or_else(|| defaults.out.clone());
-    let mut writer = csv_writer(out.as_ref())?;
-    let mut header: Vec<String> = ranges.iter().map(|(n, _)| n.clone()).collect();
+    let out_path = options.out.clone().or_else(|| defaults.out.clone());
+    let mut writer = output::csv_writer(out_path.as_deref())?;
+    let mut header: Vec<String> = space.ranges.iter().map(|(n, _)| n.clone()).collect();
     header.extend(metrics.metrics.iter().map(|(n, _)| n.clone()));
     header.push("status".to_owned());
     writer.write_record(&header).map_err(|e| format!("cannot write CSV: {e}"))?;
-    for (point, r) in points.iter().zip(&results) {
-        let mut row: Vec<String> = point.iter().map(|x| format!("{x:?}")).collect();
-        match &r.metrics {
-            Some(values) => row.extend(values.iter().map(|x| format!("{x:?}"))),
-            None => row.extend(metrics.metrics.iter().map(|_| String::new())),
-        }
-        row.push(r.status.clone());
-        writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))?;
-    }
-    writer.flush().map_err(|e| format!("cannot write CSV: {e}"))?;
-    drop(writer);
 
-    let failed = results.iter().filter(|r| r.status != "ok").count();
-    eprintln!("{} points in {elapsed:.2} s on {threads} thread(s); {failed} failed{}", points.len(), out.as_ref().map_or(String::new(), |p| format!("; wrote {}", p.display())));
-    let x_name = &ranges[0].0;
-    let x_unit = d.unit_of(swept[0]).map_or(String::new(), |u| format!(" {u}"));
+    // Workers take points in order from a shared counter (dynamic scheduling: points differ in
+    // cost), so results arrive nearly in order and the reorder buffer stays a few rows long
+    // whatever the sweep's size. Only the metric values are kept, for the peaks and the plot.
+    let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    let (sender, receiver) = mpsc::sync_channel::<(usize, PointResult)>(4 * threads);
+    let progress = Progress::start(n as u64, "points");
+    let clock = Instant::now();
+    let m = metrics.metrics.len();
+    let mut kept: Vec<f64> = Vec::with_capacity(n * m);
+    let mut failed = 0usize;
+    let written: Result<(), String> = std::thread::scope(|scope| {
+        scope.spawn(|| {
+            pool.broadcast(|_| {
+                let sender = sender.clone();
+                let mut point = Vec::new();
+                loop {
+                    if stop.load(Ordering::Relaxed) || interrupt::requested() {
+                        break;
+                    }
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= n {
+                        break;
+                    }
+                    space.point(i, &mut point);
+                    let mut assignments = fixed.clone();
+                    let mut label = Vec::with_capacity(point.len());
+                    for (v, &x) in swept.iter().zip(&point) {
+                        // Checked above, before any run.
+                        let value = variables::number_value(v, x).expect("value checked before the sweep");
+                        assignments.push((*v, value));
+                        label.push(format!("{}={x}", v.name));
+                    }
+                    let name = format!("{}[{}]", fmu.identifier, label.join(","));
+                    let result = run_point(&fmu, &name, &grid, &assignments, &metrics, &sources);
+                    if sender.send((i, result)).is_err() {
+                        break;
+                    }
+                }
+            });
+            drop(sender);
+        });
+        let mut waiting: BTreeMap<usize, PointResult> = BTreeMap::new();
+        let mut row_index = 0;
+        let mut point = Vec::new();
+        let mut row: Vec<String> = Vec::with_capacity(header.len());
+        let mut outcome = Ok(());
+        for (i, result) in receiver.iter() {
+            if outcome.is_err() || interrupt::requested() {
+                continue; // drain, so no worker blocks on a full channel
+            }
+            waiting.insert(i, result);
+            while let Some(r) = waiting.remove(&row_index) {
+                space.point(row_index, &mut point);
+                row.clear();
+                row.extend(point.iter().map(|x| format!("{x:?}")));
+                match &r.metrics {
+                    Some(values) => {
+                        row.extend(values.iter().map(|x| format!("{x:?}")));
+                        kept.extend(values);
+                    }
+                    None => {
+                        row.extend(std::iter::repeat_n(String::new(), m));
+                        kept.extend(std::iter::repeat_n(f64::NAN, m));
+                    }
+                }
+                failed += usize::from(r.status != "ok");
+                row.push(r.status);
+                if let Err(e) = writer.write_record(&row) {
+                    outcome = Err(format!("cannot write CSV: {e}"));
+                    stop.store(true, Ordering::Relaxed);
+                    break;
+                }
+                row_index += 1;
+                progress.inc(1);
+            }
+        }
+        outcome
+    });
+    drop(progress);
+    written?;
+    let elapsed = clock.elapsed().as_secs_f64();
+    if interrupt::requested() {
+        let done = kept.len() / m.max(1);
+        return Err(format!("interrupted after {done} of {n} points{}", if out_path.is_some() { "; no file written" } else { "" }));
+    }
+    let destination = writer.get_ref().describe();
+    output::finish_csv(writer)?;
+
+    eprintln!("{n} points in {elapsed:.2} s on {threads} thread(s); {failed} failed; wrote {destination}");
+    let metric_of = |i: usize, k: usize| kept[i * m + k];
+    let mut point = Vec::new();
     for (k, (name, _)) in metrics.metrics.iter().enumerate() {
-        let best = points.iter().zip(&results).filter_map(|(p, r)| Some((p, r.metrics.as_ref()?[k]))).filter(|(_, v)| v.is_finite()).max_by(|a, b| a.1.total_cmp(&b.1));
-        if let Some((p, v)) = best {
-            let at: Vec<String> = ranges.iter().zip(p).map(|((n, _), x)| format!("{n} = {x}")).collect();
-            println!("{name}: peak {v:?} at {}", at.join(", "));
+        let best = (0..n).filter(|&i| metric_of(i, k).is_finite()).max_by(|&a, &b| metric_of(a, k).total_cmp(&metric_of(b, k)));
+        if let Some(i) = best {
+            space.point(i, &mut point);
+            let at: Vec<String> = space.ranges.iter().zip(&point).map(|((n, _), x)| format!("{n} = {x}")).collect();
+            println!("{name}: peak {:?} at {}", metric_of(i, k), at.join(", "));
         }
     }
     let plot_path = options.plot.clone().or_else(|| defaults.plot.clone());
     if let Some(path) = plot_path {
+        let x_name = &space.ranges[0].0;
+        let x_unit = d.unit_of(swept[0]).map_or(String::new(), |u| format!(" {u}"));
         let mut series = Vec::new();
         let mut marks = Vec::new();
         for (k, (metric, _)) in metrics.metrics.iter().enumerate() {
             // One line per combination of the other parameters, in point order.
             let mut lines: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
-            for (p, r) in points.iter().zip(&results) {
-                let others: Vec<String> = ranges.iter().zip(p).skip(1).map(|((n, _), x)| format!("{n}={x}")).collect();
+            for i in 0..n {
+                space.point(i, &mut point);
+                let others: Vec<String> = space.ranges.iter().zip(&point).skip(1).map(|((n, _), x)| format!("{n}={x}")).collect();
                 let label = if others.is_empty() { metric.clone() } else { format!("{metric} ({})", others.join(", ")) };
-                let y = r.metrics.as_ref().map_or(f64::NAN, |m| m[k]);
                 match lines.iter_mut().find(|(l, _)| *l == label) {
-                    Some((_, pts)) => pts.push((p[0], y)),
-                    None => lines.push((label, vec![(p[0], y)])),
+                    Some((_, pts)) => pts.push((point[0], metric_of(i, k))),
+                    None => lines.push((label, vec![(point[0], metric_of(i, k))])),
                 }
             }
             for (label, points) in lines {
@@ -247,7 +332,7 @@ pub fn run(options: &Options) -> Result<usize, String> {
         plot::lines(&path, &title, &x_label, &y_label, &series, &marks)?;
         eprintln!("wrote {}", path.display());
     }
-    Ok(failed)
+    Ok(Summary { points: n, failed })
 }
 
 #[cfg(test)]
@@ -275,7 +360,21 @@ mod tests {
 
     #[test]
     fn cartesian_product_varies_the_last_fastest() {
-        let p = cartesian(&[vec![1.0, 2.0], vec![10.0, 20.0, 30.0]]);
-        assert_eq!(p, vec![vec![1.0, 10.0], vec![1.0, 20.0], vec![1.0, 30.0], vec![2.0, 10.0], vec![2.0, 20.0], vec![2.0, 30.0]]);
+        let space = Space::new(vec![("a".into(), vec![1.0, 2.0]), ("b".into(), vec![10.0, 20.0, 30.0])]).unwrap();
+        let mut p = Vec::new();
+        let points: Vec<Vec<f64>> = (0..space.len).map(|i| {
+            space.point(i, &mut p);
+            p.clone()
+        }).collect();
+        assert_eq!(points, vec![vec![1.0, 10.0], vec![1.0, 20.0], vec![1.0, 30.0], vec![2.0, 10.0], vec![2.0, 20.0], vec![2.0, 30.0]]);
+    }
+
+    #[test]
+    fn a_product_too_large_is_refused_before_anything_runs() {
+        let big = |name: &str| (name.to_owned(), vec![0.0; 100_000]);
+        let err = Space::new(vec![big("a"), big("b")]).err().unwrap();
+        assert!(err.contains("100000 values of a x 100000 values of b"), "{err}");
+        let err = Space::new(vec![big("a"), big("b"), big("c"), big("d")]).err().unwrap();
+        assert!(err.contains("more than"), "overflowing products are caught too: {err}");
     }
 }

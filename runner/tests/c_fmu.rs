@@ -62,7 +62,7 @@ fn sweep_records_failures_and_is_independent_of_thread_count() {
     };
     let o = runner(dir.path(), &args("2", "two.csv"));
     let err = fails(o);
-    assert!(err.contains("3 sweep point(s) failed"), "{err}");
+    assert!(err.contains("3 of 12 sweep point(s) failed"), "{err}");
     let (header, rows) = read_csv(&dir.path().join("two.csv"));
     assert_eq!(header, ["k", "x0", "end", "drop", "status"]);
     assert_eq!(rows.len(), 12, "4 x 3 points");
@@ -155,4 +155,36 @@ fn a_missing_function_is_named() {
     let fmu = c_fmu(dir.path(), "nostep.fmu", "linux64", &["-DOMIT_DO_STEP"]);
     let err = fails(runner(dir.path(), &["simulate", fmu.to_str().unwrap()]));
     assert!(err.contains("does not export the function fmi2DoStep"), "{err}");
+}
+
+/// Ctrl-C during a long sweep: the workers stop, the exit code is 130, the previous result
+/// file is left untouched and no temporary `.partial` file remains.
+#[test]
+fn an_interrupted_sweep_leaves_the_previous_file_and_no_partial_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+    let out = dir.path().join("big.csv");
+    std::fs::write(&out, "the previous, complete result\n").unwrap();
+    // 500,001 points: minutes of work, so the interrupt lands mid-sweep.
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_runner"))
+        .current_dir(dir.path())
+        .args(["sweep", fmu.to_str().unwrap(), "--param", "k=0.5:1:0.000001", "--metric", "end=final(x)", "--threads", "2", "--out", "big.csv"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let partial = || std::fs::read_dir(dir.path()).unwrap().filter_map(|e| e.ok()).any(|e| e.file_name().to_string_lossy().ends_with(".partial"));
+    let started = std::time::Instant::now();
+    while !partial() {
+        assert!(started.elapsed().as_secs() < 60, "the sweep never started writing");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    // SAFETY: signalling our own child process.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(130), "exit code of an interrupted command: {err}");
+    assert!(err.contains("interrupted after") && err.contains("of 500001 points; no file written"), "{err}");
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "the previous, complete result\n", "the old file is untouched");
+    assert!(!partial(), "the temporary file was removed");
 }

@@ -1,15 +1,21 @@
 //! `runner compare`: Ex. 4's question "which solver is cheapest for a given accuracy?",
 //! answered through the FMI interface alone: each run sets the toolkit's solver controls
 //! (`solver`, `fixed_step`, tolerance, `abs_tol`) and reads the counters `n_steps`, `n_rhs`.
+//! Errors are measured against the model's closed-form solution where its experiment.toml gives
+//! one (`[compare.reference]`), else against DOPRI5 at a tolerance far below the table's.
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use fmu::description::{ModelDescription, ScalarVariable, TypeKind, Variability};
+use fmu::description::{Causality, ModelDescription, ScalarVariable, TypeKind, Variability};
 
 use crate::experiment::{self, RunDefaults};
 use crate::fmi::{Fmu, Value};
+use crate::interrupt;
+use crate::metrics::Formula;
 use crate::plot::{self, Mark, Series};
+use crate::progress::Progress;
 use crate::sim::{self, Grid};
 use crate::output;
 use crate::variables;
@@ -85,6 +91,56 @@ fn run_once(fmu: &Fmu, grid: &Grid, base: &[(&ScalarVariable, Value)], extra: &[
     Ok((samples, last.0, last.1))
 }
 
+/// The outputs named in `[compare.reference]` and their exact values on the grid. A formula
+/// reads `t` and parameters: their start values, overridden by the assignments `base`.
+fn closed_form<'a>(md: &'a ModelDescription, formulas: &BTreeMap<String, String>, base: &[(&ScalarVariable, Value)], grid: &Grid) -> Result<(Vec<&'a ScalarVariable>, Vec<Vec<f64>>), String> {
+    let mut compared = Vec::new();
+    let mut parsed = Vec::new();
+    for (output, text) in formulas {
+        let v = variables::find(md, output)?;
+        if !(v.type_kind() == TypeKind::Real && v.causality() == Causality::Output) {
+            return Err(format!("[compare.reference] gives '{output}', which is not a Real output of {}", md.model_name));
+        }
+        let formula = Formula::parse(text).map_err(|e| format!("[compare.reference] {output}: {e}"))?;
+        // Bind each name once: `t` varies per sample, parameters are constants of the run.
+        let mut bound = Vec::new();
+        for name in &formula.names {
+            if name == "t" {
+                bound.push(None);
+                continue;
+            }
+            let variable = md.variable(name).filter(|p| p.causality() == Causality::Parameter).ok_or_else(|| {
+                format!("[compare.reference] {output} = {text}: '{name}' is neither t nor a parameter of {}", md.model_name)
+            })?;
+            let value = match base.iter().rev().find(|(p, _)| p.name == *name).map(|(_, value)| value) {
+                Some(Value::Real(x)) => Some(*x),
+                Some(Value::Integer(i)) => Some(*i as f64),
+                Some(Value::Boolean(b)) => Some(*b as i32 as f64),
+                Some(Value::String(_)) => None,
+                None => variable.real_start().or(variable.integer_start().map(f64::from)).or(variable.boolean_start().map(|b| b as i32 as f64)),
+            };
+            bound.push(Some(value.ok_or_else(|| format!("[compare.reference] {output}: parameter '{name}' has no numeric value"))?));
+        }
+        compared.push(v);
+        parsed.push((formula, bound));
+    }
+    let mut values = Vec::new();
+    let reference = (0..=grid.steps())
+        .map(|i| {
+            let t = grid.time(i);
+            parsed
+                .iter()
+                .map(|(formula, bound)| {
+                    values.clear();
+                    values.extend(bound.iter().map(|b| b.unwrap_or(t)));
+                    formula.evaluate(&values)
+                })
+                .collect()
+        })
+        .collect();
+    Ok((compared, reference))
+}
+
 /// Max over outputs of the sample-wise error relative to the output's peak in the reference.
 fn relative_error(run: &[Vec<f64>], reference: &[Vec<f64>]) -> f64 {
     if run.len() != reference.len() {
@@ -111,6 +167,7 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
     let md = &fmu.description;
     let grid = Grid::choose(&fmu, &options.run, &target.experiment.simulate)?;
     let mut set_texts = target.experiment.simulate.set.clone();
+    set_texts.extend(target.experiment.compare.set.iter().cloned());
     set_texts.extend(options.run.set.iter().cloned());
     let base = variables::parse_sets(md, &set_texts)?;
     let (solver, fixed_step, abs_tol) = (control(md, "solver")?, control(md, "fixed_step")?, control(md, "abs_tol")?);
@@ -123,14 +180,28 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
     let plan: Vec<(String, (i32, &'static str, Vec<f64>))> =
         options.solvers.iter().map(|s| settings(s.trim(), grid.interval).map(|p| (s.trim().to_owned(), p))).collect::<Result<_, _>>()?;
 
-    let reference_grid = Grid { tolerance: Some(REFERENCE_RTOL), ..grid };
-    let reference_settings = [(solver, Value::Integer(2)), (abs_tol, Value::Real(REFERENCE_RTOL * 1e-2))];
-    let (reference, _, _) = run_once(&fmu, &reference_grid, &base, &reference_settings, &compared, &counters)
-        .map_err(|e| format!("the reference run (DOPRI5 at rtol {REFERENCE_RTOL}) failed: {e}"))?;
+    let analytical = &target.experiment.compare;
+    let (compared, reference, reference_name) = if analytical.reference.is_empty() || !options.run.set.is_empty() {
+        if !analytical.reference.is_empty() {
+            eprintln!("note: the closed-form reference in experiment.toml holds for its own parameter values; with --set the reference is DOPRI5 at rtol {REFERENCE_RTOL:e}");
+        }
+        let reference_grid = Grid { tolerance: Some(REFERENCE_RTOL), ..grid };
+        let reference_settings = [(solver, Value::Integer(2)), (abs_tol, Value::Real(REFERENCE_RTOL * 1e-2))];
+        let (reference, _, _) = run_once(&fmu, &reference_grid, &base, &reference_settings, &compared, &counters)
+            .map_err(|e| format!("the reference run (DOPRI5 at rtol {REFERENCE_RTOL}) failed: {e}"))?;
+        (compared, reference, format!("DOPRI5 at rtol {REFERENCE_RTOL:e}"))
+    } else {
+        let (compared, reference) = closed_form(md, &analytical.reference, &base, &grid)?;
+        (compared, reference, "the closed-form solution of experiment.toml".to_owned())
+    };
 
     let mut rows = Vec::new();
+    let progress = Progress::start(plan.iter().map(|(_, (_, _, v))| v.len() as u64).sum(), "runs");
     for (name, (code, setting, values)) in &plan {
         for &value in values {
+            if interrupt::requested() {
+                return Err(format!("interrupted after {} runs; no file written", rows.len()));
+            }
             let (run_grid, extra) = if *setting == "fixed_step" {
                 (grid, vec![(solver, Value::Integer(*code)), (fixed_step, Value::Real(value))])
             } else {
@@ -143,8 +214,10 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
                 Ok((samples, n_steps, n_rhs)) => Row { solver: name.clone(), setting, value, n_steps, n_rhs, seconds, error: relative_error(&samples, &reference), status: "ok".into() },
                 Err(e) => Row { solver: name.clone(), setting, value, n_steps: f64::NAN, n_rhs: f64::NAN, seconds, error: f64::INFINITY, status: e },
             });
+            progress.inc(1);
         }
     }
+    drop(progress);
 
     let mut writer = output::csv_writer(Some(&options.out))?;
     let csv_err = |e: csv::Error| format!("cannot write {}: {e}", options.out.display());
@@ -156,7 +229,8 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
     }
     output::finish_csv(writer)?;
 
-    println!("{}: error = max over outputs of |y - y_ref| / max|y_ref|, y_ref from DOPRI5 at rtol {REFERENCE_RTOL:e}", md.model_name);
+    let names: Vec<&str> = compared.iter().map(|v| v.name.as_str()).collect();
+    println!("{}: error = max over {} of |y - y_ref| / max|y_ref|, y_ref from {reference_name}", md.model_name, names.join(", "));
     println!("cheapest setting tried that reaches the target error {:e}:", options.target_error);
     println!("{:<8} {:<24} {:>10} {:>12} {:>10} {:>12}", "solver", "setting", "steps", "rhs evals", "time (s)", "error");
     for (name, _) in &plan {

@@ -1,6 +1,7 @@
 //! Finding the FMU a command names, and the experiment defaults kept as data next to a model
 //! (`models/<id>/experiment.toml`), so the runner has no special cases for any model.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
@@ -54,6 +55,18 @@ impl SweepDefaults {
     }
 }
 
+/// `[compare]`: the closed-form solution `runner compare` measures errors against.
+#[derive(Debug, Default, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompareDefaults {
+    /// `NAME=VALUE` assignments the reference holds for, applied to every run of the comparison.
+    #[serde(default)]
+    pub set: Vec<String>,
+    /// Output name to its exact solution: an expression of `t` and the FMU's parameters.
+    #[serde(default)]
+    pub reference: BTreeMap<String, String>,
+}
+
 /// The whole `experiment.toml`.
 #[derive(Debug, Default, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -64,6 +77,9 @@ pub struct Experiment {
     /// Defaults of `runner sweep`.
     #[serde(default)]
     pub sweep: SweepDefaults,
+    /// The analytical reference of `runner compare`.
+    #[serde(default)]
+    pub compare: CompareDefaults,
 }
 
 /// Reads `path` (a missing file means no defaults).

@@ -116,8 +116,10 @@ enum Cmd {
     /// Compare solvers: steps, rhs evaluations and time each needs to reach a target error.
     ///
     /// Runs the FMU with forward Euler and RK4 over fixed steps from the output interval down,
-    /// and DOPRI5 over tolerances 1e-3..1e-11, measures each run's error against DOPRI5 at
-    /// rtol 1e-12 (max over continuous outputs of |y - y_ref| / max|y_ref|), prints the cheapest
+    /// and DOPRI5 over tolerances 1e-3..1e-11, measures each run's error against a reference
+    /// (max over the compared outputs of |y - y_ref| / max|y_ref|): the closed-form solution of
+    /// the model's experiment.toml `[compare.reference]` when it has one and no --set changes
+    /// its parameters, else DOPRI5 at rtol 1e-12 over the continuous outputs. Prints the cheapest
     /// setting that reaches --target-error per solver, and writes the work-precision table
     /// (CSV) and plot (SVG). Answers Ex. 4's question on solver effort, for any of our models.
     ///

@@ -2,6 +2,10 @@
 //! (`max(z_s)`, `min`, `final`, `mean`, `peak_to_peak`, `rms`; an optional second argument
 //! `max(z_s, 5)` only counts samples from t = 5 s on) with + - * / and parentheses. Summaries are
 //! updated sample by sample, so no trajectory is stored.
+//!
+//! The same grammar, with names instead of summaries, gives [`Formula`]: closed-form
+//! expressions of `t` and parameters, such as the analytical references of `runner compare`.
+//! Both also take `^` and the functions of [`FUNCTIONS`].
 
 /// A per-run statistic of one variable.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -31,6 +35,18 @@ pub struct Source {
     pub from: f64,
 }
 
+/// Functions an expression may call, with one argument each.
+pub const FUNCTIONS: &[(&str, fn(f64) -> f64)] = &[
+    ("exp", f64::exp),
+    ("log", f64::ln),
+    ("sqrt", f64::sqrt),
+    ("sin", f64::sin),
+    ("cos", f64::cos),
+    ("tan", f64::tan),
+    ("atan", f64::atan),
+    ("abs", f64::abs),
+];
+
 /// A parsed expression.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Expr {
@@ -38,10 +54,25 @@ pub enum Expr {
     Number(f64),
     /// A statistic of source number `.1` (index into [`Metrics::sources`]).
     Summary(Stat, usize),
+    /// Name number `.0` of a [`Formula`] (index into [`Formula::names`]).
+    Name(usize),
+    /// Function number `.0` of [`FUNCTIONS`] applied to the argument.
+    Call(usize, Box<Expr>),
     /// Unary minus.
     Negate(Box<Expr>),
-    /// A binary operation: one of + - * /.
+    /// A binary operation: one of + - * / ^.
     Binary(char, Box<Expr>, Box<Expr>),
+}
+
+/// Parses the whole of `text` in `mode`.
+fn parse_all(text: &str, mode: Mode) -> Result<Expr, String> {
+    let mut parser = Parser { text, pos: 0, mode };
+    let expr = parser.expression()?;
+    parser.skip_space();
+    if parser.pos < text.len() {
+        return Err(parser.error("expected an operator (+ - * / ^) or the end"));
+    }
+    Ok(expr)
 }
 
 /// Parsed metrics and the sources their summaries read.
@@ -66,16 +97,7 @@ impl Metrics {
             if m.metrics.iter().any(|(n, _)| n == name) {
                 return Err(format!("metric '{name}' is defined twice"));
             }
-            let mut parser = Parser { text, pos: 0, sources: &mut m.sources };
-            let expr = parser.expression().and_then(|e| {
-                parser.skip_space();
-                if parser.pos < text.len() {
-                    Err(parser.error("expected an operator (+ - * /) or the end"))
-                } else {
-                    Ok(e)
-                }
-            });
-            let expr = expr.map_err(|e| format!("metric '{name}': {e}"))?;
+            let expr = parse_all(text, Mode::Metric(&mut m.sources)).map_err(|e| format!("metric '{name}': {e}"))?;
             m.metrics.push((name.to_owned(), expr));
         }
         Ok(m)
@@ -88,21 +110,48 @@ impl Metrics {
 
     /// Evaluates every metric over finished accumulators.
     pub fn evaluate(&self, acc: &[Accumulator]) -> Vec<f64> {
-        self.metrics.iter().map(|(_, e)| eval(e, acc)).collect()
+        self.metrics.iter().map(|(_, e)| eval(e, &|leaf| if let Expr::Summary(stat, i) = leaf { acc[*i].value(*stat) } else { f64::NAN })).collect()
     }
 }
 
-fn eval(e: &Expr, acc: &[Accumulator]) -> f64 {
+/// A closed-form expression of named quantities (`t`, parameters), e.g. `2*exp(-3*t)`.
+#[derive(Debug, Clone)]
+pub struct Formula {
+    /// The text it was parsed from.
+    pub text: String,
+    expr: Expr,
+    /// The names it reads, in order of first use; `evaluate` takes their values in this order.
+    pub names: Vec<String>,
+}
+
+impl Formula {
+    /// Parses `text`.
+    pub fn parse(text: &str) -> Result<Formula, String> {
+        let mut names = Vec::new();
+        let expr = parse_all(text, Mode::Formula(&mut names))?;
+        Ok(Formula { text: text.to_owned(), expr, names })
+    }
+
+    /// The value, given the values of [`Formula::names`] in order.
+    pub fn evaluate(&self, values: &[f64]) -> f64 {
+        eval(&self.expr, &|leaf| if let Expr::Name(i) = leaf { values[*i] } else { f64::NAN })
+    }
+}
+
+/// Evaluates `e`; `leaf` gives the value of summaries and names.
+fn eval(e: &Expr, leaf: &dyn Fn(&Expr) -> f64) -> f64 {
     match e {
         Expr::Number(x) => *x,
-        Expr::Summary(stat, i) => acc[*i].value(*stat),
-        Expr::Negate(a) => -eval(a, acc),
+        Expr::Summary(..) | Expr::Name(_) => leaf(e),
+        Expr::Call(f, a) => (FUNCTIONS[*f].1)(eval(a, leaf)),
+        Expr::Negate(a) => -eval(a, leaf),
         Expr::Binary(op, a, b) => {
-            let (a, b) = (eval(a, acc), eval(b, acc));
+            let (a, b) = (eval(a, leaf), eval(b, leaf));
             match op {
                 '+' => a + b,
                 '-' => a - b,
                 '*' => a * b,
+                '^' => a.powf(b),
                 _ => a / b,
             }
         }
@@ -158,12 +207,20 @@ impl Accumulator {
     }
 }
 
-/// Recursive descent over `expr := term (('+'|'-') term)*`, `term := factor (('*'|'/') factor)*`,
-/// `factor := NUMBER | '-' factor | '(' expr ')' | STAT '(' VARIABLE [',' NUMBER] ')'`.
+/// What leaves an expression may have: summaries of variables (metrics) or bare names (formulas).
+enum Mode<'s> {
+    Metric(&'s mut Vec<Source>),
+    Formula(&'s mut Vec<String>),
+}
+
+/// Recursive descent over `expr := term (('+'|'-') term)*`, `term := unary (('*'|'/') unary)*`,
+/// `unary := '-' unary | power`, `power := atom ['^' unary]` (so -x^2 = -(x^2), 2^-1 = 0.5),
+/// `atom := NUMBER | '(' expr ')' | FUNCTION '(' expr ')' | leaf`, where a leaf is
+/// `STAT '(' VARIABLE [',' NUMBER] ')'` for metrics and `NAME` for formulas.
 struct Parser<'t, 's> {
     text: &'t str,
     pos: usize,
-    sources: &'s mut Vec<Source>,
+    mode: Mode<'s>,
 }
 
 impl Parser<'_, '_> {
@@ -209,7 +266,7 @@ impl Parser<'_, '_> {
     }
 
     fn term(&mut self) -> Result<Expr, String> {
-        let mut left = self.factor()?;
+        let mut left = self.unary()?;
         loop {
             let op = if self.eat('*') {
                 '*'
@@ -218,14 +275,22 @@ impl Parser<'_, '_> {
             } else {
                 return Ok(left);
             };
-            left = Expr::Binary(op, Box::new(left), Box::new(self.factor()?));
+            left = Expr::Binary(op, Box::new(left), Box::new(self.unary()?));
         }
     }
 
-    fn factor(&mut self) -> Result<Expr, String> {
+    fn unary(&mut self) -> Result<Expr, String> {
         if self.eat('-') {
-            return Ok(Expr::Negate(Box::new(self.factor()?)));
+            return Ok(Expr::Negate(Box::new(self.unary()?)));
         }
+        let base = self.atom()?;
+        if self.eat('^') {
+            return Ok(Expr::Binary('^', Box::new(base), Box::new(self.unary()?)));
+        }
+        Ok(base)
+    }
+
+    fn atom(&mut self) -> Result<Expr, String> {
         if self.eat('(') {
             let e = self.expression()?;
             if !self.eat(')') {
@@ -239,9 +304,44 @@ impl Parser<'_, '_> {
             return Ok(Expr::Number(self.number()?));
         }
         if matches!(c, Some(c) if c.is_alphabetic() || c == '_') {
-            return self.summary();
+            return self.word();
         }
-        Err(self.error("expected a number, '(' or a summary such as max(x)"))
+        Err(self.error(match self.mode {
+            Mode::Metric(_) => "expected a number, '(' or a summary such as max(x)",
+            Mode::Formula(_) => "expected a number, '(', a function such as exp(...) or a name",
+        }))
+    }
+
+    /// A word: a function call, a summary (metrics) or a name (formulas).
+    fn word(&mut self) -> Result<Expr, String> {
+        let len: usize = self.rest().chars().take_while(|&c| c.is_alphanumeric() || c == '_').map(char::len_utf8).sum();
+        let word = self.rest()[..len].to_owned();
+        let called = self.rest()[len..].trim_start().starts_with('(');
+        if let Some(f) = FUNCTIONS.iter().position(|(n, _)| *n == word.as_str()).filter(|_| called) {
+            self.pos += len;
+            self.eat('(');
+            let argument = self.expression()?;
+            if !self.eat(')') {
+                return Err(self.error("expected ')'"));
+            }
+            return Ok(Expr::Call(f, Box::new(argument)));
+        }
+        if let Mode::Formula(names) = &mut self.mode {
+            if called {
+                let known: Vec<&str> = FUNCTIONS.iter().map(|(n, _)| *n).collect();
+                return Err(format!("'{word}' at column {} of '{}' is not a function; use one of {}", self.pos + 1, self.text, known.join(", ")));
+            }
+            let index = match names.iter().position(|n| *n == word) {
+                Some(i) => i,
+                None => {
+                    names.push(word);
+                    names.len() - 1
+                }
+            };
+            self.pos += len;
+            return Ok(Expr::Name(index));
+        }
+        self.summary()
     }
 
     fn number(&mut self) -> Result<f64, String> {
@@ -304,11 +404,12 @@ impl Parser<'_, '_> {
             return Err(self.error("expected ')'"));
         }
         let source = Source { variable, from };
-        let index = match self.sources.iter().position(|s| *s == source) {
+        let Mode::Metric(sources) = &mut self.mode else { unreachable!("summaries are parsed in metric mode only") };
+        let index = match sources.iter().position(|s| *s == source) {
             Some(i) => i,
             None => {
-                self.sources.push(source);
-                self.sources.len() - 1
+                sources.push(source);
+                sources.len() - 1
             }
         };
         Ok(Expr::Summary(stat, index))
@@ -342,6 +443,27 @@ mod tests {
         assert_eq!(run("a=1.5e1/3", s).unwrap(), 5.0);
         assert_eq!(run("a=max(x, 1.5)", s).unwrap(), 2.0, "the window starts after the peak at t = 1");
         assert!((run("a=rms(x)", s).unwrap() - (14.0f64 / 3.0).sqrt()).abs() < 1e-15);
+    }
+
+    #[test]
+    fn functions_and_powers_in_metrics() {
+        let s: &[(f64, &[f64])] = &[(0.0, &[4.0])];
+        assert_eq!(run("a=sqrt(max(x)) + 2^3", s).unwrap(), 10.0);
+        assert_eq!(run("a=-2^2", s).unwrap(), -4.0, "unary minus binds looser than ^");
+        assert_eq!(run("a=2^-1", s).unwrap(), 0.5);
+        assert_eq!(run("a=2^3^2", s).unwrap(), 512.0, "^ is right-associative");
+    }
+
+    #[test]
+    fn formulas_read_names_and_call_functions() {
+        let f = Formula::parse("a * exp(-2*t) + sin(t)^2 + cos(t)^2").unwrap();
+        assert_eq!(f.names, ["a", "t"]);
+        let (a, t) = (7.5f64, 0.3f64);
+        assert!((f.evaluate(&[a, t]) - (a * (-2.0 * t).exp() + 1.0)).abs() < 1e-15);
+        assert!(Formula::parse("exq(t)").unwrap_err().contains("'exq' at column 1 of 'exq(t)' is not a function; use one of exp"));
+        assert!(Formula::parse("max(t)").unwrap_err().contains("not a function"), "summaries belong to metrics only");
+        assert!(Formula::parse("2 t").unwrap_err().contains("expected an operator"));
+        assert!(Metrics::parse(&["a=t".into()]).unwrap_err().contains("'t' at column 1 of 't' is not a summary"), "metrics take no bare names");
     }
 
     #[test]

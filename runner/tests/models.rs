@@ -150,3 +150,26 @@ fn compare_shows_each_methods_order_and_the_cheapest_solver() {
     let msg = fails(runner(dir.path(), &["compare", second_order.to_str().unwrap(), "--target-error", "0"]));
     assert!(msg.contains("--target-error"), "{msg}");
 }
+
+/// With a model name, `compare` measures errors against the closed form in the model's
+/// experiment.toml. The closed form is independent of every solver, so DOPRI5 at tight
+/// tolerance must agree with it to about its tolerance (1e-9 bound: rtol 1e-10 plus the error
+/// made between communication points is well below that), and RK4 still shows order 4. With
+/// --set the closed form no longer applies and the reference is DOPRI5.
+#[test]
+fn compare_uses_the_closed_form_reference_of_the_experiment_file() {
+    fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let out = ok(runner(dir.path(), &["compare", "second_order", "--out", "w.csv", "--plot", "w.svg"]));
+    assert!(out.contains("max over q, q_dot, u of") && out.contains("y_ref from the closed-form solution of experiment.toml"), "{out}");
+    let (header, rows) = read_csv(&dir.path().join("w.csv"));
+    let j = header.iter().position(|h| h == "max_relative_error").unwrap();
+    let error = |solver: &str, value: &str| rows.iter().find(|r| r[0] == solver && r[2] == value).map(|r| r[j].parse::<f64>().unwrap()).unwrap();
+    let tight = error("dopri5", "0.0000000001");
+    assert!(tight < 1e-9, "DOPRI5 at rtol 1e-10 against the closed form: {tight}");
+    let ratio = error("rk4", "0.01") / error("rk4", "0.005");
+    assert!((13.0..19.0).contains(&ratio), "RK4 halving ratio {ratio}");
+    let o = runner(dir.path(), &["compare", "second_order", "--set", "q0=1", "--out", "w2.csv", "--plot", "w2.svg"]);
+    assert!(o.status.success() && String::from_utf8_lossy(&o.stdout).contains("y_ref from DOPRI5 at rtol 1e-12"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("holds for its own parameter values"), "{}", stderr(&o));
+}

@@ -127,7 +127,10 @@ impl Integrator {
                 self.n_rejected += 1;
                 continue;
             }
-            let fac = (fac11 / self.err_old.powf(BETA) / SAFE).clamp(1.0 / FAC_MAX, 1.0 / FAC_MIN);
+            if w.err_old_pow.0 != self.err_old {
+                w.err_old_pow = (self.err_old, self.err_old.powf(BETA));
+            }
+            let fac = (fac11 / w.err_old_pow.1 / SAFE).clamp(1.0 / FAC_MAX, 1.0 / FAC_MIN);
             let mut h_new = hs / fac;
             if self.last_rejected {
                 h_new = h_new.min(hs);

@@ -205,6 +205,9 @@ struct Work {
     za: Vec<f64>,
     zb: Vec<f64>,
     zm: Vec<f64>,
+    /// (err_old, err_old^BETA): while steps are clipped to communication points err_old does
+    /// not change, so the controller's second `powf` per step is usually a lookup.
+    err_old_pow: (f64, f64),
 }
 
 impl Work {
@@ -221,6 +224,7 @@ impl Work {
             za: z(),
             zb: z(),
             zm: z(),
+            err_old_pow: (f64::NAN, f64::NAN),
         }
     }
 }

@@ -285,6 +285,7 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         return Err(format!("interrupted after {done} of {n} points{}", if out_path.is_some() { "; no file written" } else { "" }));
     }
     let destination = writer.get_ref().describe();
+    let csv_on_stdout = matches!(writer.get_ref(), output::Output::Stdout(_));
     output::finish_csv(writer)?;
 
     eprintln!("{n} points in {elapsed:.2} s on {threads} thread(s); {failed} failed; wrote {destination}");
@@ -295,7 +296,13 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         if let Some(i) = best {
             space.point(i, &mut point);
             let at: Vec<String> = space.ranges.iter().zip(&point).map(|((n, _), x)| format!("{n} = {x}")).collect();
-            println!("{name}: peak {:?} at {}", metric_of(i, k), at.join(", "));
+            let line = format!("{name}: peak {:?} at {}", metric_of(i, k), at.join(", "));
+            // Keep a CSV on stdout clean: the summary goes to stderr then.
+            if csv_on_stdout {
+                eprintln!("{line}");
+            } else {
+                println!("{line}");
+            }
         }
     }
     let plot_path = options.plot.clone().or_else(|| defaults.plot.clone());

@@ -166,7 +166,7 @@ fn an_interrupted_sweep_leaves_the_previous_file_and_no_partial_one() {
     let out = dir.path().join("big.csv");
     std::fs::write(&out, "the previous, complete result\n").unwrap();
     // 500,001 points: minutes of work, so the interrupt lands mid-sweep.
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_runner"))
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_runner"))
         .current_dir(dir.path())
         .args(["sweep", fmu.to_str().unwrap(), "--param", "k=0.5:1:0.000001", "--metric", "end=final(x)", "--threads", "2", "--out", "big.csv"])
         .stderr(std::process::Stdio::piped())
@@ -187,4 +187,24 @@ fn an_interrupted_sweep_leaves_the_previous_file_and_no_partial_one() {
     assert!(err.contains("interrupted after") && err.contains("of 500001 points; no file written"), "{err}");
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "the previous, complete result\n", "the old file is untouched");
     assert!(!partial(), "the temporary file was removed");
+}
+
+/// Without --out the CSV streams to stdout, and nothing else goes there: the peak summary moves
+/// to stderr so the output can be piped into another tool.
+#[test]
+fn a_sweep_to_stdout_is_pure_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+    let o = runner(dir.path(), &["sweep", fmu.to_str().unwrap(), "--param", "k=0.5,1", "--metric", "end=final(x)", "--threads", "2"]);
+    let err = stderr(&o);
+    let stdout = ok(o);
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.len(), 3, "a header and two rows, nothing else: {stdout}");
+    assert_eq!(lines[0], "k,end,status");
+    for (line, k) in lines[1..].iter().zip([0.5f64, 1.0]) {
+        let fields: Vec<&str> = line.split(',').collect();
+        assert_eq!((fields[0].parse::<f64>().unwrap(), fields[2]), (k, "ok"), "{line}");
+        assert!(fields[1].parse::<f64>().unwrap() > 0.0, "{line}");
+    }
+    assert!(err.contains("end: peak"), "{err}");
 }

@@ -84,7 +84,8 @@ enum Cmd {
     /// Every --param adds a dimension; the points are the cartesian product (the last --param
     /// varies fastest). A metric is NAME=EXPR over per-run summaries (max, min, final, mean,
     /// peak_to_peak, rms) of any variable, optionally from a time on as in max(x, 5), combined
-    /// with the operators `+ - * /` and parentheses. The CSV has one row per point: parameters,
+    /// with the operators `+ - * / ^`, parentheses and the functions exp, log, sqrt, sin, cos,
+    /// tan, atan, abs. The CSV has one row per point: parameters,
     /// metrics, status (`ok` or the error). Failed points are recorded and the others still
     /// run; the exit code is 1 if any failed. With a model name and no options, the model's
     /// experiment.toml gives the sweep.

@@ -1,0 +1,182 @@
+"""The Ex. 4 quarter-car sweep done four ways in one invocation, with costs side by side.
+
+Every way runs the same experiment: one run per road speed, relative tolerance 1e-9, stop time
+10 s, samples every 1e-3 s, transmissibility = max(z_s) / max(z_r) over the run:
+
+  bare     tests/bench/bare_loop: the toolkit's DOPRI5 called directly on quarter_car's
+           right-hand side, no FMI layer, no output handling (the limit).
+  runner   `runner sweep` on the FMU, 1 and 2 threads.
+  fmpy     fmpy.simulate_fmu on the same FMU, 1 and 2 worker processes (peers.py).
+  scipy    solve_ivp RK45 on the equations ported to Python (peers.py), a few speeds.
+
+Costs are wall-clock seconds per run, from the whole command (process start included, which
+favours nobody: it is milliseconds against seconds of work). The machine is noisy, so each
+Rust measurement is repeated and the fastest kept. Every way's transmissibility is compared with
+the runner's at the speeds it ran; the largest difference is printed, because a benchmark that
+compares different work is worthless.
+
+Then: 2 threads against 1 on a 1000-point sweep, and the peak RSS of a 100-point and a
+10,000-point sweep (stop time 1 s: memory does not depend on the run's length, and it keeps the
+big sweep short).
+"""
+
+import argparse
+import csv
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+RUNNER = ROOT / "target/release/runner"
+BARE = ROOT / "target/release/bare_loop"
+FMU = ROOT / "target/fmu/quarter_car.fmu"
+PEERS = Path(__file__).with_name("peers.py")
+
+# The handbook's sweep: 99 speeds.
+SPEEDS = [1 + 0.5 * i for i in range(99)]
+EX4 = ["--tolerance", "1e-9", "--stop-time", "10", "--output-interval", "1e-3",
+       "--metric", "transmissibility=max(z_s)/max(z_r)"]
+
+
+def timed(cmd, cwd=None):
+    """Runs `cmd`; returns (wall seconds, stdout). Fails loudly."""
+    start = time.perf_counter()
+    proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out, err = proc.communicate()
+    wall = time.perf_counter() - start
+    if proc.returncode != 0:
+        sys.exit(f"{' '.join(map(str, cmd))} failed ({proc.returncode}):\n{err}")
+    return wall, out
+
+
+def peak_rss_kib(cmd, cwd=None):
+    """Peak resident set size of `cmd` (KiB), read from the kernel's accounting of that child."""
+    proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    if os.waitstatus_to_exitcode(status) != 0:
+        sys.exit(f"{' '.join(map(str, cmd))} failed: {proc.stderr.read().decode()}")
+    return usage.ru_maxrss
+
+
+def best_of(repeats, fn):
+    """The fastest of `repeats` calls of fn() -> (seconds, result)."""
+    runs = [fn() for _ in range(repeats)]
+    return min(runs, key=lambda r: r[0])
+
+
+def runner_sweep(speeds_arg, threads, workdir):
+    """One `runner sweep`: (seconds, {speed: transmissibility})."""
+    out_csv = Path(workdir) / f"sweep_{threads}.csv"
+    cmd = [RUNNER, "sweep", FMU, "--param", f"speed={speeds_arg}", *EX4, "--threads", str(threads), "--out", out_csv]
+    wall, _ = timed(cmd)
+    with open(out_csv) as f:
+        rows = list(csv.DictReader(f))
+    bad = [r for r in rows if r["status"] != "ok"]
+    if bad:
+        sys.exit(f"runner sweep: failed points {bad[:3]}")
+    return wall, {float(r["speed"]): float(r["transmissibility"]) for r in rows}
+
+
+def json_tool(cmd, own_clock):
+    """A tool printing one JSON object: (seconds, parsed object). The Rust tools are timed like
+    the runner, as whole processes; the Python peers by their own clock, which leaves out the
+    interpreter's start and imports (in their favour)."""
+    wall, out = timed(cmd)
+    result = json.loads(out)
+    result["transmissibility"] = {float(k): v for k, v in result["transmissibility"].items()}
+    return (result["wall_seconds"] if own_clock else wall), result
+
+
+def largest_difference(values, reference):
+    """Largest relative difference over the speeds both have."""
+    return max(abs(v / reference[s] - 1) for s, v in values.items())
+
+
+def machine():
+    cpu = "unknown CPU"
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    rustc = subprocess.run(["rustc", "--version"], capture_output=True, text=True).stdout.strip()
+    return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}; {rustc}; Python {platform.python_version()}"
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--python", default=sys.executable, help="Python with fmpy and scipy, for peers.py")
+    parser.add_argument("--repeats", type=int, default=3, help="repetitions of each Rust measurement (fastest kept)")
+    parser.add_argument("--fmpy-speeds", type=int, default=10, help="speeds run by fmpy (spread over 1..50 m/s)")
+    parser.add_argument("--scipy-speeds", type=int, default=5, help="speeds run by scipy")
+    args = parser.parse_args()
+
+    all_speeds = "1:50:0.5"
+    pick = lambda n: [SPEEDS[round(i * (len(SPEEDS) - 1) / max(n - 1, 1))] for i in range(n)]
+    fmpy_speeds = ",".join(f"{s:g}" for s in pick(args.fmpy_speeds))
+    scipy_speeds = ",".join(f"{s:g}" for s in pick(args.scipy_speeds))
+    print(f"machine: {machine()}")
+    print(f"Ex. 4 sweep: rtol 1e-9, 10 s, samples every 1 ms; {len(SPEEDS)} speeds 1..50 m/s "
+          f"(fmpy {args.fmpy_speeds}, scipy {args.scipy_speeds} of them); fastest of {args.repeats} for Rust\n", flush=True)
+
+    rows = []  # (label, runs, seconds per run, transmissibility)
+    with tempfile.TemporaryDirectory() as work:
+        sec, bare = best_of(args.repeats, lambda: json_tool([BARE, all_speeds], own_clock=False))
+        rows.append(("bare DOPRI5 loop (the limit)", len(SPEEDS), sec / len(SPEEDS), bare["transmissibility"]))
+        for threads in (1, 2):
+            sec, t = best_of(args.repeats, lambda: runner_sweep(all_speeds, threads, work))
+            rows.append((f"runner sweep, {threads} thread{'s' if threads > 1 else ''}", len(SPEEDS), sec / len(SPEEDS), t))
+        for processes in (1, 2):
+            sec, r = json_tool([args.python, PEERS, "fmpy", "--fmu", FMU, "--speeds", fmpy_speeds, "--processes", str(processes)], own_clock=True)
+            rows.append((f"fmpy simulate_fmu, {processes} process{'es' if processes > 1 else ''}", r["runs"], sec / r["runs"], r["transmissibility"]))
+        sec, r = json_tool([args.python, PEERS, "scipy", "--speeds", scipy_speeds], own_clock=True)
+        rows.append(("scipy solve_ivp RK45 (Python port)", r["runs"], sec / r["runs"], r["transmissibility"]))
+
+        reference = rows[1][3]  # runner, 1 thread
+        base = rows[1][2]
+        print(f"{'way':<38}{'runs':>6}{'ms per run':>13}{'x runner 1 thread':>20}{'max |rel. diff| of transmissibility':>38}")
+        for label, runs, per_run, values in rows:
+            print(f"{label:<38}{runs:>6}{per_run * 1e3:>13.3f}{per_run / base:>20.2f}{largest_difference(values, reference):>38.1e}")
+        disagreement = max(largest_difference(values, reference) for *_, values in rows)
+
+        # Thread scaling on 1000 points (speed 1..50.95 step 0.05).
+        many = "1:50.95:0.05"
+        one, _ = best_of(max(args.repeats - 1, 1), lambda: runner_sweep(many, 1, work))
+        two, _ = best_of(max(args.repeats - 1, 1), lambda: runner_sweep(many, 2, work))
+
+        # Memory: 100 against 10,000 points, 1 s runs.
+        def rss(points):
+            step = 49 / (points - 1)
+            return peak_rss_kib([RUNNER, "sweep", FMU, "--param", f"speed=1:50:{step!r}", *EX4[:2], "--stop-time", "1",
+                                 *EX4[4:], "--threads", "2", "--out", Path(work) / f"rss_{points}.csv"])
+        rss_small, rss_big = rss(100), rss(10_000)
+
+    per = {label: per_run for label, _, per_run, _ in rows}
+    r1 = per["runner sweep, 1 thread"]
+    checks = [
+        ("runner (1 thread) within 1.3x of the bare loop", r1 / per["bare DOPRI5 loop (the limit)"], "<=", 1.3),
+        ("fmpy (1 process) per run / runner (1 thread)", per["fmpy simulate_fmu, 1 process"] / r1, ">=", 20),
+        ("scipy RK45 per run / runner (1 thread)", per["scipy solve_ivp RK45 (Python port)"] / r1, ">=", 300),
+        ("2 threads against 1 on 1000 points", one / two, ">=", 1.8),
+        ("peak RSS, 10,000 points / 100 points", rss_big / rss_small, "<=", 1.1),
+        ("largest transmissibility difference", disagreement, "<=", 1e-6),
+    ]
+    print(f"\n1000 points: {one:.2f} s on 1 thread, {two:.2f} s on 2 threads")
+    print(f"peak RSS: {rss_small / 1024:.1f} MiB for 100 points, {rss_big / 1024:.1f} MiB for 10,000 points\n")
+    missed = 0
+    for what, value, op, target in checks:
+        met = value <= target if op == "<=" else value >= target
+        missed += not met
+        print(f"{'met ' if met else 'MISS'}  {what}: {value:.3g} (target {op} {target:g})")
+    sys.exit(1 if missed else 0)
+
+
+if __name__ == "__main__":
+    main()

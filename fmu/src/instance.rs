@@ -196,10 +196,12 @@ impl<M: Model> Instance<M> {
         self.ensure_initial_state()?;
         let rtol = self.core.tolerance.unwrap_or(M::info().tolerance);
         let settings = self.core.controls.settings(rtol).map_err(Failure::error)?;
-        self.core.integrator = Some(Integrator::new(settings, M::N_STATES, M::N_EVENT_INDICATORS));
         self.core.t = self.core.start_time;
+        if let Some(bad) = self.first_non_finite() {
+            return Err(Failure::error(format!("the parameters give {bad} at the start, which is not finite: check the parameters")));
+        }
+        self.core.integrator = Some(Integrator::new(settings, M::N_STATES, M::N_EVENT_INDICATORS));
         self.core.last_successful_time = self.core.t;
-        self.core.outputs_dirty = true;
         self.state = FmiState::StepComplete;
         Ok(())
     }
@@ -240,8 +242,13 @@ impl<M: Model> Instance<M> {
         Ok(())
     }
 
+    /// Refuses `vr` for a call on `kind` variables, naming the variable when `vr` is one of
+    /// another type (the usual mistake: a value reference from the wrong list).
     fn unknown(&self, vr: u32, kind: &str) -> Failure {
-        Failure::error(format!("value reference {vr} is not a {kind} variable of this FMU"))
+        match self.table.row(vr) {
+            Some(row) => Failure::error(format!("value reference {vr} is '{}' of type {:?}, not a {kind} variable", row.name, row.base_type)),
+            None => Failure::error(format!("value reference {vr} is not a {kind} variable of this FMU")),
+        }
     }
 
     fn control_value(&self, c: Control) -> f64 {
@@ -266,6 +273,21 @@ impl<M: Model> Instance<M> {
                 Some(Slot::Control(c)) if !c.is_integer() => self.control_value(*c),
                 _ => return Err(self.unknown(*vr, "Real")),
             };
+        }
+        // Never a silent NaN or inf. The solver refuses non-finite states during a step, but
+        // outputs are computed lazily, here: one that overflowed means the solution diverged,
+        // and the instance goes to the Error state as after a failed step.
+        if let Some((vr, value)) = vrs.iter().zip(values.iter()).find(|(_, v)| !v.is_finite()) {
+            let name = self.table.rows[*vr as usize].name;
+            let t = self.core.t;
+            // While initializing, the parameters can still be corrected: no Error state then.
+            if !matches!(self.state, FmiState::Instantiated | FmiState::InitializationMode) {
+                self.state = FmiState::Error;
+            }
+            return Err(Failure::error(format!(
+                "fmi2GetReal: {name} = {value} at t = {t} s is not finite: the solution diverged (the model may be unstable, or the step too \
+                 large: with euler or rk4 reduce fixed_step, with dopri5 reduce tolerance/abs_tol); the instance is now in the Error state"
+            )));
         }
         Ok(())
     }
@@ -310,6 +332,9 @@ impl<M: Model> Instance<M> {
     /// Checks that the row of `vr` may be set now; returns its index.
     fn settable(&self, vr: u32, call: Call) -> CallResult<usize> {
         let row = self.table.row(vr).ok_or_else(|| Failure::error(format!("{}: value reference {vr} is not a variable of this FMU", call.name())))?;
+        if row.variability == Variability::Constant {
+            return Err(Failure::error(format!("{}: '{}' is a constant and can never be set", call.name(), row.name)));
+        }
         if !row.is_settable() {
             let what = match row.causality {
                 Causality::Output => "an output",
@@ -321,17 +346,15 @@ impl<M: Model> Instance<M> {
         }
         let initializing = matches!(self.state, FmiState::Instantiated | FmiState::InitializationMode);
         let allowed = match (row.causality, row.variability) {
-            (_, Variability::Constant) => false,
             (Causality::Input, _) => true,
             (_, Variability::Tunable) => true,
             _ => initializing,
         };
         if !allowed {
             return Err(Failure::error(format!(
-                "{}: parameter '{}' is {} and can be set only before fmi2ExitInitializationMode (now in state {})",
+                "{}: parameter '{}' is fixed and can be set only before fmi2ExitInitializationMode (now in state {})",
                 call.name(),
                 row.name,
-                if row.variability == Variability::Constant { "constant" } else { "fixed" },
                 self.state.name()
             )));
         }
@@ -350,7 +373,8 @@ impl<M: Model> Instance<M> {
         }
     }
 
-    /// `fmi2SetReal`. Non-finite values are refused at once, naming the variable.
+    /// `fmi2SetReal`. Non-finite values are refused at once, naming the variable. All or
+    /// nothing: every value is checked before any is stored, so a refused call changes nothing.
     pub fn set_real(&mut self, vrs: &[u32], values: &[f64]) -> CallResult {
         self.check(Call::SetReal)?;
         for (vr, value) in vrs.iter().zip(values.iter()) {
@@ -360,56 +384,72 @@ impl<M: Model> Instance<M> {
                 return Err(Failure::error(format!("fmi2SetReal: {name} = {value} refused: the value must be finite")));
             }
             match &self.table.rows[i].slot {
-                Slot::Model(Access::Real { set: Some(set), .. }) => set(&mut self.core.model, *value),
+                Slot::Model(Access::Real { set: Some(_), .. }) => {}
                 Slot::Control(Control::FixedStep) => {
                     if *value <= 0.0 {
                         return Err(Failure::error(format!("fmi2SetReal: fixed_step = {value} refused: the step must be greater than zero")));
                     }
-                    self.core.controls.fixed_step = *value;
                 }
                 Slot::Control(Control::AbsTol) => {
                     if *value < 0.0 {
                         return Err(Failure::error(format!("fmi2SetReal: abs_tol = {value} refused: the tolerance must not be negative")));
                     }
-                    self.core.controls.abs_tol = *value;
                 }
                 _ => return Err(self.unknown(*vr, "settable Real")),
+            }
+        }
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            match &self.table.rows[*vr as usize].slot {
+                Slot::Model(Access::Real { set: Some(set), .. }) => set(&mut self.core.model, *value),
+                Slot::Control(Control::FixedStep) => self.core.controls.fixed_step = *value,
+                Slot::Control(Control::AbsTol) => self.core.controls.abs_tol = *value,
+                _ => unreachable!("checked above"),
             }
         }
         self.after_set();
         Ok(())
     }
 
-    /// `fmi2SetInteger`.
+    /// `fmi2SetInteger` (all or nothing, like [`Instance::set_real`]).
     pub fn set_integer(&mut self, vrs: &[u32], values: &[i32]) -> CallResult {
         self.check(Call::SetInteger)?;
         for (vr, value) in vrs.iter().zip(values.iter()) {
             let i = self.settable(*vr, Call::SetInteger)?;
             match &self.table.rows[i].slot {
-                Slot::Model(Access::Integer { set: Some(set), .. }) => set(&mut self.core.model, *value),
+                Slot::Model(Access::Integer { set: Some(_), .. }) => {}
                 Slot::Control(Control::Solver) => {
                     if crate::solver::Method::from_code(*value).is_none() {
                         return Err(Failure::error(format!(
                             "fmi2SetInteger: solver = {value} refused: use 0 (forward Euler), 1 (classical RK4) or 2 (Dormand-Prince 5(4))"
                         )));
                     }
-                    self.core.controls.solver = *value;
                 }
                 _ => return Err(self.unknown(*vr, "settable Integer")),
+            }
+        }
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            match &self.table.rows[*vr as usize].slot {
+                Slot::Model(Access::Integer { set: Some(set), .. }) => set(&mut self.core.model, *value),
+                Slot::Control(Control::Solver) => self.core.controls.solver = *value,
+                _ => unreachable!("checked above"),
             }
         }
         self.after_set();
         Ok(())
     }
 
-    /// `fmi2SetBoolean`.
+    /// `fmi2SetBoolean` (all or nothing, like [`Instance::set_real`]).
     pub fn set_boolean(&mut self, vrs: &[u32], values: &[bool]) -> CallResult {
         self.check(Call::SetBoolean)?;
-        for (vr, value) in vrs.iter().zip(values.iter()) {
+        for vr in vrs {
             let i = self.settable(*vr, Call::SetBoolean)?;
-            match &self.table.rows[i].slot {
-                Slot::Model(Access::Boolean { set: Some(set), .. }) => set(&mut self.core.model, *value),
-                _ => return Err(self.unknown(*vr, "settable Boolean")),
+            if !matches!(self.table.rows[i].slot, Slot::Model(Access::Boolean { set: Some(_), .. })) {
+                return Err(self.unknown(*vr, "settable Boolean"));
+            }
+        }
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            if let Slot::Model(Access::Boolean { set: Some(set), .. }) = &self.table.rows[*vr as usize].slot {
+                set(&mut self.core.model, *value);
             }
         }
         self.after_set();
@@ -425,11 +465,41 @@ impl<M: Model> Instance<M> {
         }
     }
 
-    /// Ends the experiment early at the current time: `fmi2Discard`, `fmi2Terminated` true.
-    fn stop_early(&mut self, reason: &str) -> CallResult<Status> {
+    /// Computes the outputs at the current time and state (so a read right after costs
+    /// nothing more) and names the first state or computed Real that is not finite:
+    /// `Some("name = value")`. Parameters and inputs are finite by construction.
+    fn first_non_finite(&mut self) -> Option<String> {
+        let Core { model, t, x, .. } = &mut self.core;
+        model.outputs(*t, x);
+        self.core.outputs_dirty = false;
+        let (model, x) = (&self.core.model, &self.core.x);
+        self.table.rows.iter().find_map(|row| {
+            let value = match &row.slot {
+                Slot::Model(Access::State(i)) => x[*i],
+                Slot::Model(Access::Real { get, .. }) if !matches!(row.causality, Causality::Parameter | Causality::Input) => get(model),
+                _ => return None,
+            };
+            (!value.is_finite()).then(|| format!("{} = {value}", row.name))
+        })
+    }
+
+    /// The message for a step whose result is not finite.
+    fn diverged(bad: &str, t0: f64, t_end: f64) -> String {
+        format!(
+            "the solution diverged between t = {t0} and t = {t_end}: {bad} is not finite \
+             (the model may be unstable, or the step too large: with euler or rk4 reduce fixed_step, with dopri5 reduce tolerance/abs_tol)"
+        )
+    }
+
+    /// Ends the experiment early at the current time: `fmi2Discard`, `fmi2Terminated` true;
+    /// an `fmi2Error` instead if the state or the outputs there are not finite.
+    fn stop_early(&mut self, t_start: f64, reason: &str) -> CallResult<Status> {
+        if let Some(bad) = self.first_non_finite() {
+            let message = Self::diverged(&bad, t_start, self.core.t);
+            return Err(self.fail_step(t_start, message));
+        }
         self.core.terminated = true;
         self.core.last_successful_time = self.core.t;
-        self.core.outputs_dirty = true;
         self.state = FmiState::StepFailed;
         self.core.last_step_status = Status::Discard as i32;
         let msg = format!("the simulation ended at t = {} s: {reason}", self.core.t);
@@ -491,7 +561,7 @@ impl<M: Model> Instance<M> {
                     }
                     match outcome {
                         Ok(EventOutcome::Continue) => {}
-                        Ok(EventOutcome::Stop { reason }) => return self.stop_early(&reason),
+                        Ok(EventOutcome::Stop { reason }) => return self.stop_early(t0, &reason),
                         Err(e) => return Err(self.fail_step(t0, format!("the model failed at the event at t = {te}: {e}"))),
                     }
                 }
@@ -509,13 +579,15 @@ impl<M: Model> Instance<M> {
             }
         }
         self.core.outputs_dirty = true;
-        self.core.last_successful_time = self.core.t;
         match outcome {
             Ok(EventOutcome::Continue) => {
+                // The solver checks the states; outputs (which can overflow first, an energy
+                // ~ omega^2) are computed only when read, and get_real refuses a non-finite one.
+                self.core.last_successful_time = self.core.t;
                 self.core.last_step_status = Status::Ok as i32;
                 Ok(Status::Ok)
             }
-            Ok(EventOutcome::Stop { reason }) => self.stop_early(&reason),
+            Ok(EventOutcome::Stop { reason }) => self.stop_early(t0, &reason),
             Err(e) => Err(self.fail_step(t0, format!("the model failed at t = {t_end}: {e}"))),
         }
     }
@@ -567,5 +639,145 @@ impl<M: Model> Instance<M> {
     /// Marks the instance unusable after a panic in model code.
     pub fn poison(&mut self) {
         self.state = FmiState::Error;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::harness::Harness;
+    use crate::model::{ModelError, ModelInfo, Variable};
+
+    /// x' = rate x from x0, with the output `square` = scale x^2, which overflows long before
+    /// x does, plus one parameter of each type and a constant.
+    #[derive(Debug, Clone, Serialize, Deserialize)]
+    struct Growth {
+        rate: f64,
+        x0: f64,
+        scale: f64,
+        n: i32,
+        flag: bool,
+        square: f64,
+    }
+
+    impl Default for Growth {
+        fn default() -> Self {
+            Growth { rate: 1.0, x0: 1.0, scale: 1.0, n: 1, flag: false, square: 1.0 }
+        }
+    }
+
+    impl Model for Growth {
+        const N_STATES: usize = 1;
+
+        fn info() -> ModelInfo {
+            ModelInfo { identifier: "growth", description: "exponential growth", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
+        }
+
+        fn variables() -> Vec<Variable<Self>> {
+            vec![
+                Variable::parameter("rate", "", |m| m.rate, |m, v| m.rate = v),
+                Variable::parameter("x0", "", |m| m.x0, |m, v| m.x0 = v),
+                Variable::parameter("scale", "", |m| m.scale, |m, v| m.scale = v),
+                Variable::integer_parameter("n", "", |m| m.n, |m, v| m.n = v),
+                Variable::boolean_parameter("flag", "", |m| m.flag, |m, v| m.flag = v),
+                Variable::state("x", "", 0),
+                Variable::output("square", "", |m| m.square),
+                Variable::output("one", "", |_| 1.0).variability(Variability::Constant),
+            ]
+        }
+
+        fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
+            x[0] = self.x0;
+            Ok(())
+        }
+
+        fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
+            dx[0] = self.rate * x[0];
+        }
+
+        fn outputs(&mut self, _t: f64, x: &[f64]) {
+            self.square = self.scale * x[0] * x[0];
+        }
+    }
+
+    fn vr(h: &Harness<Growth>, name: &str) -> u32 {
+        h.instance.table().value_reference(name).unwrap()
+    }
+
+    /// Forward Euler at h rate = 1000 multiplies x by 1001 per step: x^2 overflows at step 52
+    /// while x stays finite until step 103, so the solver's own state check cannot see it.
+    /// Outputs are computed when read, so the read after step 52 must refuse square = inf,
+    /// naming it, and leave the instance in the Error state (no further step).
+    #[test]
+    fn an_output_that_overflows_is_refused_when_read_and_stops_the_instance() {
+        let mut h = Harness::<Growth>::started(&[("solver", 0.0), ("fixed_step", 1.0), ("rate", 1e3)], None).unwrap();
+        let mut k = 0;
+        let err = loop {
+            k += 1;
+            assert_eq!(h.step(1.0).unwrap(), Status::Ok);
+            assert!(h.get("x").unwrap().is_finite(), "states stay finite: the solver checks them");
+            match h.get("square") {
+                Ok(square) => assert!(square.is_finite()),
+                Err(e) => break e,
+            }
+        };
+        assert_eq!(k, 52);
+        assert!(err.contains("square = inf") && err.contains("diverged"), "{err}");
+        assert_eq!(h.instance.state(), FmiState::Error);
+        assert!(h.step(1.0).is_err(), "no step after the divergence");
+    }
+
+    /// Finite parameters whose initial outputs overflow are refused at initialization, and a
+    /// read during initialization mode refuses to hand out the inf.
+    #[test]
+    fn initial_outputs_that_overflow_are_refused() {
+        let mut h = Harness::<Growth>::new();
+        h.set("scale", 1e300).unwrap();
+        h.set("x0", 1e10).unwrap();
+        h.instance.setup_experiment(None, 0.0, None).unwrap();
+        h.instance.enter_initialization_mode().unwrap();
+        let err = h.get("square").unwrap_err();
+        assert!(err.contains("square = inf") && err.contains("not finite"), "{err}");
+        let err = h.instance.exit_initialization_mode().unwrap_err().message;
+        assert!(err.contains("square = inf"), "{err}");
+        assert_eq!(h.instance.state(), FmiState::InitializationMode);
+        h.set("scale", 1.0).unwrap();
+        h.instance.exit_initialization_mode().unwrap();
+    }
+
+    /// A set call with one bad value changes nothing, not even the good values before it.
+    #[test]
+    fn refused_set_calls_change_nothing() {
+        let mut h = Harness::<Growth>::new();
+        let (rate, x0, n, flag, solver, x) = (vr(&h, "rate"), vr(&h, "x0"), vr(&h, "n"), vr(&h, "flag"), vr(&h, "solver"), vr(&h, "x"));
+        let e = h.instance.set_real(&[rate, x0], &[2.0, f64::NAN]).unwrap_err();
+        assert!(e.message.contains("x0 = NaN"), "{}", e.message);
+        assert!(h.instance.set_real(&[rate, vr(&h, "fixed_step")], &[2.0, 0.0]).is_err());
+        assert!(h.instance.set_integer(&[n, solver], &[5, 9]).is_err());
+        assert!(h.instance.set_boolean(&[flag, x], &[true, true]).is_err());
+        h.instance.setup_experiment(None, 0.0, None).unwrap();
+        h.instance.enter_initialization_mode().unwrap();
+        assert_eq!(h.get("rate").unwrap(), 1.0);
+        assert_eq!(h.get("n").unwrap(), 1.0);
+        assert_eq!(h.get("flag").unwrap(), 0.0);
+        assert_eq!(h.get("solver").unwrap(), 2.0);
+        // Good calls still apply every value.
+        h.instance.set_real(&[rate, x0], &[2.0, 3.0]).unwrap();
+        assert_eq!((h.get("rate").unwrap(), h.get("x").unwrap()), (2.0, 3.0));
+    }
+
+    /// A constant is refused as such; a value reference of another type is named.
+    #[test]
+    fn constants_and_wrongly_typed_references_are_named() {
+        let mut h = Harness::<Growth>::new();
+        let one = vr(&h, "one");
+        let e = h.instance.set_real(&[one], &[1.0]).unwrap_err().message;
+        assert!(e.contains("'one' is a constant and can never be set"), "{e}");
+        h.initialize(None).unwrap();
+        let rate = vr(&h, "rate");
+        let e = h.instance.get_integer(&[rate], &mut [0]).unwrap_err().message;
+        assert!(e.contains(&format!("value reference {rate} is 'rate' of type Real, not a Integer variable")), "{e}");
+        let e = h.instance.get_real(&[999], &mut [0.0]).unwrap_err().message;
+        assert!(e.contains("value reference 999 is not a Real variable"), "{e}");
     }
 }

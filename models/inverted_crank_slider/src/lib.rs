@@ -210,9 +210,22 @@ impl Model for InvertedCrankSlider {
                 self.r2, self.r1
             )));
         }
+        // C-B at the start: where `assemble` puts B (r3 of the closed form).
+        let r3_0 = (self.r1 + self.r2 * self.theta2_0.cos()).hypot(self.r2 * self.theta2_0.sin());
+        if self.l3 <= r3_0 {
+            return Err(ModelError(format!(
+                "the mechanism cannot be assembled at theta2_0 = {:.4} deg: link BD (L3 = {} m) does not reach through the collar, \
+                 C is {r3_0} m from B (r1 = {} m, r2 = {} m); L3 must exceed r1 + r2 for the crank to turn",
+                self.theta2_0.to_degrees(),
+                self.l3,
+                self.r1,
+                self.r2
+            )));
+        }
         if self.r1 + self.r2 >= self.l3 {
             return Err(ModelError(format!(
-                "parameters r1 = {} m, r2 = {} m, L3 = {} m: link BD must be longer than the largest C-B distance r1 + r2 to stay in the collar",
+                "parameters r1 = {} m, r2 = {} m, L3 = {} m: link BD would leave the collar during the crank's turn; \
+                 it must be longer than the largest C-B distance r1 + r2 (at theta2 = 0)",
                 self.r1, self.r2, self.l3
             )));
         }
@@ -237,7 +250,9 @@ impl Model for InvertedCrankSlider {
     }
 
     /// Projects (r3, theta3) back onto the loop closure by Newton's method (Jacobian A), then
-    /// the velocities onto A x' = b.
+    /// the velocities onto A x' = b. If Newton does not close the loop on the assembly
+    /// r3 > 0 (only after a step far too large for the solver), the step fails saying so,
+    /// rather than continuing on garbage or on the mirror solution r3 < 0.
     fn communication_point(&mut self, _t: f64, x: &mut [f64]) -> Result<EventOutcome, ModelError> {
         let mut q = Vector2::new(x[1], x[2]);
         for _ in 0..NEWTON_ITERS {
@@ -251,7 +266,16 @@ impl Model for InvertedCrankSlider {
                 None => break,
             }
         }
-        let v = Self::a_matrix(q[0], q[1]).lu().solve(&self.b_velocity(x[0])).ok_or_else(|| ModelError("A is singular".into()))?;
+        let closed = q[0] > 0.0 && self.gap(x[0], q[0], q[1]).norm() <= 1e-12 * (self.r1 + self.r2);
+        let v = Self::a_matrix(q[0], q[1]).lu().solve(&self.b_velocity(x[0])).filter(|v| closed && v.iter().all(|c| c.is_finite())).ok_or_else(|| {
+            ModelError(format!(
+                "the vector loop could not be closed at theta2 = {:.4} deg (Newton's method from r3 = {} m, theta3 = {} rad): \
+                 the state drifted too far in one step; reduce fixed_step or the tolerance",
+                x[0].to_degrees(),
+                x[1],
+                x[2]
+            ))
+        })?;
         x[1] = q[0];
         x[2] = q[1];
         x[3] = v[0];
@@ -456,6 +480,34 @@ mod tests {
             let err = h.initialize(None).unwrap_err();
             assert!(err.contains(expect), "{err}");
         }
+    }
+
+    /// L3 = 0.3 m is shorter than C-B = r1 + r2 = 0.32 m at theta2_0 = 0: BD cannot even be
+    /// put through the collar, and the refusal says so. At theta2_0 = 180 deg (C-B = 0.16 m)
+    /// L3 = 0.2 m assembles but BD would leave the collar half a turn later: refused too,
+    /// saying that instead.
+    #[test]
+    fn a_link_too_short_for_the_collar_is_refused_saying_why() {
+        let err = Harness::<InvertedCrankSlider>::started(&[("L3", 0.3)], None).err().unwrap();
+        assert!(err.contains("cannot be assembled at theta2_0 = 0.0000 deg") && err.contains("L3 = 0.3 m"), "{err}");
+        let err = Harness::<InvertedCrankSlider>::started(&[("L3", 0.2), ("theta2_0", PI)], None).err().unwrap();
+        assert!(err.contains("would leave the collar") && err.contains("L3 = 0.2 m"), "{err}");
+    }
+
+    /// Forward Euler with half a crank turn per step drifts so far that Newton cannot close
+    /// the loop on r3 > 0: the step fails with fmi2Error saying so (it used to report only
+    /// "A is singular"), and r3 never goes negative on the way.
+    #[test]
+    fn a_step_too_large_to_close_the_loop_fails_saying_so() {
+        let mut h = Harness::<InvertedCrankSlider>::started(&[("solver", 0.0), ("fixed_step", 0.5)], None).unwrap();
+        let err = loop {
+            match h.step(1.0) {
+                Ok(_) => assert!(h.get("r3").unwrap() > 0.0),
+                Err(e) => break e,
+            }
+        };
+        assert!(err.starts_with("Error") && err.contains("could not be closed"), "{err}");
+        assert!(h.get("r3").unwrap() > 0.0);
     }
 
     #[test]

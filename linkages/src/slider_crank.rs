@@ -272,7 +272,12 @@ impl<P: SliderCrankPreset> Model for SliderCrank<P> {
         if self.project(x, SINGULAR) {
             return Ok(EventOutcome::Continue);
         }
-        Ok(EventOutcome::Stop { reason: format!("limit position at theta = {:.4} deg: the loop can no longer be closed on this branch", x[0].to_degrees()) })
+        Ok(EventOutcome::Stop {
+            reason: format!(
+                "the loop can no longer be closed on this branch at theta = {:.4} deg: a limit position, or a step too large for the solver (with euler or rk4, reduce fixed_step)",
+                x[0].to_degrees()
+            ),
+        })
     }
 }
 

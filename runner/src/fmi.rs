@@ -176,7 +176,7 @@ impl Unpacked {
         let identifier = description.co_simulation().map_err(|e| format!("{}: {e}", path.display()))?.model_identifier.clone();
         // The identifier names the binary to load: with a '/' it could name any library on disk.
         if identifier.is_empty() || identifier.contains(['/', '\0']) {
-            return Err(format!("{}: modelIdentifier \"{identifier}\" is not a file name (FMI requires a C identifier)", path.display()));
+            return Err(format!("{}: modelIdentifier {identifier:?} is not a file name (FMI requires a C identifier)", path.display()));
         }
         let binary = dir.path().join("binaries").join(PLATFORM).join(format!("{identifier}.so"));
         if !binary.is_file() {

@@ -1,0 +1,73 @@
+//! Archives that crashed the `fmu_archive` fuzz target, and the hand-made hostile ones it was
+//! seeded with (see fuzz/src/seeds.rs), replayed through `Unpacked::open`.
+//!
+//! Every file in `tests/fuzz_regressions/` must load or fail without a panic, and leave nothing
+//! behind. `NAME.expect`, when present, holds text that the error for `NAME` must contain:
+//! those inputs must be refused, with a message that says why.
+
+use std::path::{Path, PathBuf};
+
+use runner::fmi::Unpacked;
+
+/// Every path under `dir`, sorted.
+fn tree(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap().flatten() {
+            if entry.file_type().unwrap().is_dir() {
+                stack.push(entry.path());
+            }
+            out.push(entry.path());
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn fuzz_regressions_load_or_fail_cleanly() {
+    let inputs = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&inputs)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_none_or(|x| x != "expect"))
+        .collect();
+    files.sort();
+    assert!(!files.is_empty(), "no inputs in {}", inputs.display());
+
+    // Extraction goes into a temporary directory a few levels into a scratch tree of our own,
+    // so an entry that escaped it would show up in the tree. This is the only test in this
+    // binary, so setting TMPDIR races with no other thread.
+    let scratch = tempfile::tempdir().unwrap();
+    let tmp = scratch.path().join("a/b/c/tmp");
+    std::fs::create_dir_all(&tmp).unwrap();
+    std::env::set_var("TMPDIR", &tmp);
+    let before = tree(scratch.path());
+
+    let mut failures = Vec::new();
+    for file in &files {
+        let name = file.file_name().unwrap().to_string_lossy().into_owned();
+        let expect = std::fs::read_to_string(file.with_file_name(format!("{name}.expect"))).ok();
+        let outcome = std::panic::catch_unwind(|| Unpacked::open(file).map(|u| u.identifier));
+        match (outcome, expect) {
+            (Err(_), _) => failures.push(format!("{name}: panicked")),
+            (Ok(Ok(id)), Some(expect)) => failures.push(format!("{name}: loaded (identifier {id}) but should fail with '{}'", expect.trim())),
+            (Ok(Err(message)), Some(expect)) if !message.contains(expect.trim()) => {
+                failures.push(format!("{name}: error does not mention '{}': {message}", expect.trim()))
+            }
+            (Ok(Err(message)), _) if !message.contains(&file.display().to_string()) => {
+                failures.push(format!("{name}: error does not name the file: {message}"))
+            }
+            _ => {}
+        }
+        let after = tree(scratch.path());
+        if after != before {
+            failures.push(format!("{name}: the scratch tree changed: {after:?}"));
+            for p in after.iter().filter(|p| !before.contains(p)) {
+                let _ = std::fs::remove_dir_all(p).or_else(|_| std::fs::remove_file(p));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{} of {} inputs failed:\n  {}", failures.len(), files.len(), failures.join("\n  "));
+}

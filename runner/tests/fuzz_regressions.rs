@@ -1,9 +1,13 @@
-//! Archives that crashed the `fmu_archive` fuzz target, and the hand-made hostile ones it was
-//! seeded with (see fuzz/src/seeds.rs), replayed through `Unpacked::open`.
+//! The hand-made hostile archives the `fmu_archive` fuzz target is seeded with
+//! (tests/hostile/archives.rs, built here at test time), plus any archive the fuzzer found
+//! crashing, kept in `tests/fuzz_regressions/` (none so far), replayed through `Unpacked::open`.
 //!
-//! Every file in `tests/fuzz_regressions/` must load or fail without a panic, and leave nothing
-//! behind. `NAME.expect`, when present, holds text that the error for `NAME` must contain:
-//! those inputs must be refused, with a message that says why.
+//! Every input must load or fail without a panic, and leave nothing behind. A hostile archive
+//! must be refused with a message containing its expected text; a kept file with a
+//! `NAME.expect` beside it likewise.
+
+#[path = "hostile/archives.rs"]
+mod hostile;
 
 use std::path::{Path, PathBuf};
 
@@ -27,14 +31,26 @@ fn tree(dir: &Path) -> Vec<PathBuf> {
 
 #[test]
 fn fuzz_regressions_load_or_fail_cleanly() {
-    let inputs = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions");
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&inputs)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_none_or(|x| x != "expect"))
+    // (archive, text its error must contain)
+    let built = tempfile::tempdir().unwrap();
+    let mut inputs: Vec<(PathBuf, Option<String>)> = hostile::hostile_archives()
+        .into_iter()
+        .map(|(name, bytes, expect)| {
+            let path = built.path().join(name);
+            std::fs::write(&path, bytes).unwrap();
+            (path, Some(expect.to_owned()))
+        })
         .collect();
-    files.sort();
-    assert!(!files.is_empty(), "no inputs in {}", inputs.display());
+    let kept = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz_regressions");
+    if let Ok(dir) = std::fs::read_dir(&kept) {
+        let mut files: Vec<PathBuf> = dir.map(|e| e.unwrap().path()).filter(|p| p.extension().is_none_or(|x| x != "expect")).collect();
+        files.sort();
+        for file in files {
+            let name = file.file_name().unwrap().to_string_lossy().into_owned();
+            let expect = std::fs::read_to_string(file.with_file_name(format!("{name}.expect"))).ok();
+            inputs.push((file, expect));
+        }
+    }
 
     // Extraction goes into a temporary directory a few levels into a scratch tree of our own,
     // so an entry that escaped it would show up in the tree. This is the only test in this
@@ -46,9 +62,9 @@ fn fuzz_regressions_load_or_fail_cleanly() {
     let before = tree(scratch.path());
 
     let mut failures = Vec::new();
-    for file in &files {
+    for (file, expect) in &inputs {
         let name = file.file_name().unwrap().to_string_lossy().into_owned();
-        let expect = std::fs::read_to_string(file.with_file_name(format!("{name}.expect"))).ok();
+        let expect = expect.clone();
         let outcome = std::panic::catch_unwind(|| Unpacked::open(file).map(|u| u.identifier));
         match (outcome, expect) {
             (Err(_), _) => failures.push(format!("{name}: panicked")),
@@ -69,5 +85,5 @@ fn fuzz_regressions_load_or_fail_cleanly() {
             }
         }
     }
-    assert!(failures.is_empty(), "{} of {} inputs failed:\n  {}", failures.len(), files.len(), failures.join("\n  "));
+    assert!(failures.is_empty(), "{} of {} inputs failed:\n  {}", failures.len(), inputs.len(), failures.join("\n  "));
 }

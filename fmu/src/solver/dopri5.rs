@@ -199,40 +199,37 @@ pub(super) fn step<S: OdeSystem>(
     rtol: f64,
     atol: f64,
 ) -> f64 {
-    let n = x0.len();
+    // `dim()` is a constant once `step` is instantiated for a model, so every slice below has
+    // a known length: the stage loops unroll, and neither they nor an inlined right-hand side
+    // keep bounds checks (which also makes the right-hand side cheap enough to inline).
+    let n = sys.dim();
     let [k2, k3, k4, k5, k6, k7] = k;
-    // Re-slicing to n lets the compiler drop bounds checks in the stage loops.
-    let (k1, xs, x1) = (&k1[..n], &mut xs[..n], &mut x1[..n]);
+    let (x0, k1, xs, x1) = (&x0[..n], &k1[..n], &mut xs[..n], &mut x1[..n]);
+    let (k2, k3, k4, k5, k6, k7) = (&mut k2[..n], &mut k3[..n], &mut k4[..n], &mut k5[..n], &mut k6[..n], &mut k7[..n]);
     for i in 0..n {
         xs[i] = x0[i] + h * (A21 * k1[i]);
     }
     sys.rhs(t + C2 * h, xs, k2);
-    let k2 = &k2[..n];
     for i in 0..n {
         xs[i] = x0[i] + h * (A31 * k1[i] + A32 * k2[i]);
     }
     sys.rhs(t + C3 * h, xs, k3);
-    let k3 = &k3[..n];
     for i in 0..n {
         xs[i] = x0[i] + h * (A41 * k1[i] + A42 * k2[i] + A43 * k3[i]);
     }
     sys.rhs(t + C4 * h, xs, k4);
-    let k4 = &k4[..n];
     for i in 0..n {
         xs[i] = x0[i] + h * (A51 * k1[i] + A52 * k2[i] + A53 * k3[i] + A54 * k4[i]);
     }
     sys.rhs(t + C5 * h, xs, k5);
-    let k5 = &k5[..n];
     for i in 0..n {
         xs[i] = x0[i] + h * (A61 * k1[i] + A62 * k2[i] + A63 * k3[i] + A64 * k4[i] + A65 * k5[i]);
     }
     sys.rhs(t1, xs, k6);
-    let k6 = &k6[..n];
     for i in 0..n {
         x1[i] = x0[i] + h * (A71 * k1[i] + A73 * k3[i] + A74 * k4[i] + A75 * k5[i] + A76 * k6[i]);
     }
     sys.rhs(t1, x1, k7);
-    let k7 = &k7[..n];
     let mut sum = 0.0;
     for i in 0..n {
         let e = h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);

@@ -105,6 +105,11 @@ pub(super) fn rk4_step<S: OdeSystem>(
     xs: &mut [f64],
     x1: &mut [f64],
 ) -> bool {
+    // Slices of the model's constant size, as in Dopri5's `step`: unrolled loops, no bounds
+    // checks, and a right-hand side cheap enough to inline.
+    let n = sys.dim();
+    let (x0, k1, xs, x1) = (&x0[..n], &k1[..n], &mut xs[..n], &mut x1[..n]);
+    let (k2, k3, k4) = (&mut k2[..n], &mut k3[..n], &mut k4[..n]);
     let hh = 0.5 * h;
     let tm = t + hh;
     for ((y, &x), &a) in xs.iter_mut().zip(x0).zip(k1) {
@@ -120,8 +125,6 @@ pub(super) fn rk4_step<S: OdeSystem>(
     }
     sys.rhs(t1, xs, k4);
     let h6 = h / 6.0;
-    let n = x0.len();
-    let (x1, k1, k2, k3, k4) = (&mut x1[..n], &k1[..n], &k2[..n], &k3[..n], &k4[..n]);
     let mut ok = true;
     for i in 0..n {
         x1[i] = x0[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);

@@ -191,6 +191,8 @@ pub const EVENT_TOL: f64 = 1e-10;
 /// so they are skipped by serde and rebuilt on first use.
 #[derive(Debug, Clone, Default)]
 struct Work {
+    /// The settings were checked and the buffers sized by `advance` (false after construction
+    /// and deserialization).
     ready: bool,
     /// State at the current time.
     cur: Vec<f64>,
@@ -277,7 +279,8 @@ impl Integrator {
             k1: vec![0.0; dim],
             signs_valid: false,
             z_left: vec![0.0; n_event_indicators],
-            work: Work::new(dim, n_event_indicators),
+            // Not `ready`: the first `advance` checks the settings (and rebuilds the buffers).
+            work: Work { ready: false, ..Work::new(dim, n_event_indicators) },
         }
     }
 
@@ -338,17 +341,22 @@ impl Integrator {
         t_end: f64,
     ) -> Result<Advance, SolverError> {
         self.check_call(sys, *t, x, t_end)?;
+        if !self.work.ready {
+            // First use after construction or deserialization (a serialized state may carry
+            // any settings): checked here once rather than on every call.
+            self.settings.validate()?;
+            self.work = Work::new(self.dim, self.n_ind);
+        }
         if t_end == *t {
             return Ok(Advance::Reached);
-        }
-        if !self.work.ready {
-            // First use after deserialization.
-            self.work = Work::new(self.dim, self.n_ind);
         }
         if (self.fsal_valid || self.signs_valid) && *t != self.t_cur {
             self.invalidate();
         }
-        self.work.cur.copy_from_slice(x);
+        // `check_call` made sure x has `sys.dim()` elements, a constant for a given model: the
+        // copies become a few moves instead of calls to memcpy.
+        let n = sys.dim();
+        self.work.cur[..n].copy_from_slice(&x[..n]);
         if self.n_ind > 0 && !self.signs_valid {
             sys.event_indicators(*t, &self.work.cur, &mut self.z_left);
             self.signs_valid = true;
@@ -362,14 +370,13 @@ impl Integrator {
             Ok((tr, adv)) => (tr, Ok(adv)),
             Err((tr, e)) => (tr, Err(e)),
         };
-        x.copy_from_slice(&self.work.cur);
+        x[..n].copy_from_slice(&self.work.cur[..n]);
         *t = t_reached;
         self.t_cur = t_reached;
         outcome
     }
 
     fn check_call<S: OdeSystem>(&self, sys: &S, t: f64, x: &[f64], t_end: f64) -> Result<(), SolverError> {
-        self.settings.validate()?;
         if x.len() != self.dim || sys.dim() != self.dim || sys.n_event_indicators() != self.n_ind {
             return Err(SolverError::InvalidSettings(format!(
                 "the integrator was built for {} states and {} event indicators, but the system has {} states \

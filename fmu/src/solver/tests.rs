@@ -197,6 +197,8 @@ fn invalid_settings_name_the_control() {
         "{e}"
     );
     assert_eq!((t, x), (0.0, [1.0]));
+    // Settings are checked once, on first use; a refused first call does not count as that.
+    assert!(matches!(integ.advance(&Decay { lambda: 1.0 }, &mut t, &mut x, 1.0), Err(SolverError::InvalidSettings(_))));
 
     // A wrong state length or a t_end in the past is rejected, not a panic.
     let mut integ = Integrator::new(settings(Method::Rk4, 0.1, 1e-6, 1e-8), 2, 0);

@@ -130,24 +130,13 @@ impl Integrator {
                 w.err_old_pow = (self.err_old, self.err_old.powf(BETA));
             }
             let err_old_pow = w.err_old_pow.1;
-            // The next step from this error: h_new = hs / fac.
-            let fac = |fac11: f64| (fac11 / err_old_pow / SAFE).clamp(1.0 / FAC_MAX, 1.0 / FAC_MIN);
             if hs < h_prop {
                 // Clipped to land on t_end: the short step says nothing about the
                 // step the solution allows, so neither shrink the proposal nor
                 // let its small error enter the controller memory.
-                //
-                // The proposal then only changes if h_new > h_prop, that is fac < hs / h_prop.
-                // For err <= 1, err^EXPO1 >= err^(1/4), so when the fourth root already rules
-                // that out (the usual case when the communication interval limits the steps)
-                // the powf, a tenth of the time of a step, is not needed. After a rejection
-                // h_new <= hs < h_prop anyway.
-                let may_grow = !self.last_rejected && fac(err.sqrt().sqrt()) < hs / h_prop;
-                if may_grow {
-                    self.h = h_prop.max(hs / fac(err.powf(EXPO1)));
-                }
+                self.h = proposal_after_clipped_step(err, err_old_pow, hs, h_prop, self.last_rejected);
             } else {
-                let mut h_new = hs / fac(err.powf(EXPO1));
+                let mut h_new = hs / step_factor(err.powf(EXPO1), err_old_pow);
                 if self.last_rejected {
                     h_new = h_new.min(hs);
                 }
@@ -188,6 +177,29 @@ impl Integrator {
                 return Ok((t_end, Advance::Reached));
             }
         }
+    }
+}
+
+/// The PI controller's divisor for the next step (h_next = h / factor), from err^EXPO1 of an
+/// accepted step and err_old^BETA.
+#[inline]
+fn step_factor(err_pow: f64, err_old_pow: f64) -> f64 {
+    (err_pow / err_old_pow / SAFE).clamp(1.0 / FAC_MAX, 1.0 / FAC_MIN)
+}
+
+/// The proposal after an accepted step of size `hs` clipped below the proposal `h_prop`: the
+/// larger of h_prop and the controller's next step, which after a rejection is at most hs.
+///
+/// That next step only exceeds h_prop if step_factor < hs / h_prop. For err <= 1,
+/// err^EXPO1 >= err^(1/4), so when the fourth root already rules that out (the usual case when
+/// the communication interval limits the steps) the powf, a tenth of a step's time, is skipped.
+#[inline]
+pub(super) fn proposal_after_clipped_step(err: f64, err_old_pow: f64, hs: f64, h_prop: f64, last_rejected: bool) -> f64 {
+    let may_grow = !last_rejected && step_factor(err.sqrt().sqrt(), err_old_pow) < hs / h_prop;
+    if may_grow {
+        h_prop.max(hs / step_factor(err.powf(EXPO1), err_old_pow))
+    } else {
+        h_prop
     }
 }
 

@@ -2,6 +2,10 @@
 //! A variable's value reference is its index here, so the C glue, the XML and the
 //! documentation all number variables the same way.
 
+use std::any::TypeId;
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
+
 use crate::controls::{Control, CONTROLS};
 use crate::model::{Access, BaseType, Causality, Initial, Model, Variability, Variable};
 
@@ -150,25 +154,38 @@ fn fingerprint<M: Model>() -> String {
     s
 }
 
+/// The model's GUID and its 64-bit hash, computed once per model and process: the fingerprint
+/// formats the whole table (about 30 us), and a sweep instantiates, checking the GUID, once
+/// per point.
+fn identity<M: Model>() -> &'static (String, u64) {
+    // One entry per model type: a cdylib holds one model, a test binary several.
+    static IDENTITIES: OnceLock<Mutex<HashMap<TypeId, &'static (String, u64)>>> = OnceLock::new();
+    let mut identities = IDENTITIES.get_or_init(Default::default).lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    identities.entry(TypeId::of::<M>()).or_insert_with(|| {
+        let text = fingerprint::<M>();
+        let a = fnv1a(0xcbf2_9ce4_8422_2325, text.as_bytes());
+        let b = fnv1a(0x6c62_272e_07bb_0142, text.as_bytes());
+        let guid = format!(
+            "{{{:08x}-{:04x}-{:04x}-{:04x}-{:012x}}}",
+            a >> 32,
+            (a >> 16) & 0xffff,
+            a & 0xffff,
+            b >> 48,
+            b & 0xffff_ffff_ffff
+        );
+        Box::leak(Box::new((guid, a)))
+    })
+}
+
 /// A 64-bit hash of the model's interface, used to tag FMU states.
 pub fn guid_hash<M: Model>() -> u64 {
-    fnv1a(0xcbf2_9ce4_8422_2325, fingerprint::<M>().as_bytes())
+    identity::<M>().1
 }
 
 /// The FMU's GUID: derived from the model's interface, so the XML and the binary built from
 /// the same table always agree, and a changed table gets a new GUID.
-pub fn guid<M: Model>() -> String {
-    let text = fingerprint::<M>();
-    let a = fnv1a(0xcbf2_9ce4_8422_2325, text.as_bytes());
-    let b = fnv1a(0x6c62_272e_07bb_0142, text.as_bytes());
-    format!(
-        "{{{:08x}-{:04x}-{:04x}-{:04x}-{:012x}}}",
-        a >> 32,
-        (a >> 16) & 0xffff,
-        a & 0xffff,
-        b >> 48,
-        b & 0xffff_ffff_ffff
-    )
+pub fn guid<M: Model>() -> &'static str {
+    &identity::<M>().0
 }
 
 /// A start value as the XML and the documentation show it.

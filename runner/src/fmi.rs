@@ -290,16 +290,22 @@ impl<'a> Instance<'a> {
         }
     }
 
+    /// Ok for fmi2OK and fmi2Warning, else the failure with the FMU's logged reason. Inlined
+    /// (it follows every doStep and read), with the failure path kept out of line.
+    #[inline]
     fn check(&mut self, call: &str, status: c_int) -> Result<(), String> {
         match status {
             OK | WARNING => Ok(()),
-            _ => {
-                if status == FATAL {
-                    self.fatal = true;
-                }
-                Err(self.failure(call, &format!("returned {}", status_name(status))))
-            }
+            _ => Err(self.refused(call, status)),
         }
+    }
+
+    #[cold]
+    fn refused(&mut self, call: &str, status: c_int) -> String {
+        if status == FATAL {
+            self.fatal = true;
+        }
+        self.failure(call, &format!("returned {}", status_name(status)))
     }
 
     /// fmi2SetupExperiment with an optional relative tolerance and a defined stop time.

@@ -578,9 +578,10 @@ impl<M: Model> Instance<M> {
         self.x_before[..n].copy_from_slice(&self.core.x[..n]);
         let Core { model, x, t, integrator, .. } = &mut self.core;
         let outcome = model.communication_point(*t, x);
+        // Bitwise: any change at all counts (and integer compares of a constant count vectorize).
         let mut projected = false;
         for i in 0..n {
-            projected |= x[i] != self.x_before[i];
+            projected |= x[i].to_bits() != self.x_before[i].to_bits();
         }
         if projected {
             if let Some(integrator) = integrator.as_mut() {

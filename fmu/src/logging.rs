@@ -86,6 +86,7 @@ impl Logger {
     }
 
     /// True when a message of `category` would be delivered (lets callers skip formatting).
+    #[inline]
     pub fn wants(&self, category: Category) -> bool {
         // Asked before every call is traced: the cheap tests come first.
         if self.sink.is_none() || (category.debug && !self.debug_on) {

@@ -351,6 +351,14 @@ impl<'a> Instance<'a> {
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         let c = self.component;
         let api = &self.fmu.api;
+        if reader.integer_vrs.is_empty() && reader.boolean_vrs.is_empty() && out.len() == reader.real_vrs.len() {
+            // Only Reals (the usual sweep): they are in `out`'s order, so read straight into it.
+            if !out.is_empty() {
+                let status = unsafe { (api.get_real)(c, reader.real_vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
+                self.check("fmi2GetReal", status)?;
+            }
+            return Ok(());
+        }
         if !reader.real_vrs.is_empty() {
             let status = unsafe { (api.get_real)(c, reader.real_vrs.as_ptr(), reader.real_vrs.len(), reader.real_buf.as_mut_ptr()) };
             self.check("fmi2GetReal", status)?;

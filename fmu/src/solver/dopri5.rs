@@ -190,12 +190,14 @@ fn step_factor(err_pow: f64, err_old_pow: f64) -> f64 {
 /// The proposal after an accepted step of size `hs` clipped below the proposal `h_prop`: the
 /// larger of h_prop and the controller's next step, which after a rejection is at most hs.
 ///
-/// That next step only exceeds h_prop if step_factor < hs / h_prop. For err <= 1,
-/// err^EXPO1 >= err^(1/4), so when the fourth root already rules that out (the usual case when
-/// the communication interval limits the steps) the powf, a tenth of a step's time, is skipped.
+/// That next step only exceeds h_prop if err^EXPO1 / err_old_pow / SAFE < hs / h_prop. For
+/// err <= 1, err^EXPO1 >= err^(1/4), so when the fourth root already rules that out (the usual
+/// case when the communication interval limits the steps) the powf, a tenth of a step's time,
+/// is skipped; so it is when h_prop is beyond the largest growth, FAC_MAX hs. The test is
+/// written without divisions: it sits between one step and the next.
 #[inline]
 pub(super) fn proposal_after_clipped_step(err: f64, err_old_pow: f64, hs: f64, h_prop: f64, last_rejected: bool) -> f64 {
-    let may_grow = !last_rejected && step_factor(err.sqrt().sqrt(), err_old_pow) < hs / h_prop;
+    let may_grow = !last_rejected && FAC_MAX * hs > h_prop && err.sqrt().sqrt() * h_prop < hs * err_old_pow * SAFE;
     if may_grow {
         h_prop.max(hs / step_factor(err.powf(EXPO1), err_old_pow))
     } else {

@@ -10,10 +10,10 @@ Every way runs the same experiment: one run per road speed, relative tolerance 1
   scipy    solve_ivp RK45 on the equations ported to Python (peers.py), a few speeds.
 
 Costs are wall-clock seconds per run, from the whole command (process start included, which
-favours nobody: it is milliseconds against seconds of work). The machine is noisy, so each
-Rust measurement is repeated and the fastest kept. Every way's transmissibility is compared with
-the runner's at the speeds it ran; the largest difference is printed, because a benchmark that
-compares different work is worthless.
+favours nobody: it is milliseconds against seconds of work). The machine is noisy, so every
+way is run in several interleaved rounds and keeps its fastest. Every way's transmissibility is
+compared with the runner's at the speeds it ran; the largest difference is printed, because a
+benchmark that compares different work is worthless.
 
 Then: 2 threads against 1 on a 1000-point sweep, and the peak RSS of a 100-point and a
 10,000-point sweep (stop time 1 s: memory does not depend on the run's length, and it keeps the
@@ -63,12 +63,6 @@ def peak_rss_kib(cmd, cwd=None):
     return usage.ru_maxrss
 
 
-def best_of(repeats, fn):
-    """The fastest of `repeats` calls of fn() -> (seconds, result)."""
-    runs = [fn() for _ in range(repeats)]
-    return min(runs, key=lambda r: r[0])
-
-
 def runner_sweep(speeds_arg, threads, workdir):
     """One `runner sweep`: (seconds, {speed: transmissibility})."""
     out_csv = Path(workdir) / f"sweep_{threads}.csv"
@@ -113,7 +107,7 @@ def machine():
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--python", default=sys.executable, help="Python with fmpy and scipy, for peers.py")
-    parser.add_argument("--repeats", type=int, default=3, help="repetitions of each Rust measurement (fastest kept)")
+    parser.add_argument("--repeats", type=int, default=3, help="interleaved repetitions of every way (the fastest of each kept)")
     parser.add_argument("--fmpy-speeds", type=int, default=10, help="speeds run by fmpy (spread over 1..50 m/s)")
     parser.add_argument("--scipy-speeds", type=int, default=5, help="speeds run by scipy")
     args = parser.parse_args()
@@ -124,20 +118,43 @@ def main():
     scipy_speeds = ",".join(f"{s:g}" for s in pick(args.scipy_speeds))
     print(f"machine: {machine()}")
     print(f"Ex. 4 sweep: rtol 1e-9, 10 s, samples every 1 ms; {len(SPEEDS)} speeds 1..50 m/s "
-          f"(fmpy {args.fmpy_speeds}, scipy {args.scipy_speeds} of them); fastest of {args.repeats} for Rust\n", flush=True)
+          f"(fmpy {args.fmpy_speeds}, scipy {args.scipy_speeds} of them); fastest of {args.repeats} interleaved rounds\n", flush=True)
 
     rows = []  # (label, runs, seconds per run, transmissibility)
     with tempfile.TemporaryDirectory() as work:
-        sec, bare = best_of(args.repeats, lambda: json_tool([BARE, all_speeds], own_clock=False))
-        rows.append(("bare DOPRI5 loop (the limit)", len(SPEEDS), sec / len(SPEEDS), bare["transmissibility"]))
-        for threads in (1, 2):
-            sec, t = best_of(args.repeats, lambda: runner_sweep(all_speeds, threads, work))
-            rows.append((f"runner sweep, {threads} thread{'s' if threads > 1 else ''}", len(SPEEDS), sec / len(SPEEDS), t))
-        for processes in (1, 2):
-            sec, r = json_tool([args.python, PEERS, "fmpy", "--fmu", FMU, "--speeds", fmpy_speeds, "--processes", str(processes)], own_clock=True)
-            rows.append((f"fmpy simulate_fmu, {processes} process{'es' if processes > 1 else ''}", r["runs"], sec / r["runs"], r["transmissibility"]))
-        sec, r = json_tool([args.python, PEERS, "scipy", "--speeds", scipy_speeds], own_clock=True)
-        rows.append(("scipy solve_ivp RK45 (Python port)", r["runs"], sec / r["runs"], r["transmissibility"]))
+        # Every way is measured `repeats` times in interleaved rounds (all ways once, then again),
+        # and each keeps its fastest: a slow spell of the machine then hits every way alike
+        # instead of whichever happened to run during it.
+        def tool(cmd, own_clock):
+            def run():
+                sec, r = json_tool(cmd, own_clock)
+                return sec, (r["runs"], r["transmissibility"])
+            return run
+
+        def runner(threads):
+            def run():
+                sec, t = runner_sweep(all_speeds, threads, work)
+                return sec, (len(t), t)
+            return run
+
+        peer = [args.python, PEERS]
+        ways = [
+            ("bare DOPRI5 loop (the limit)", tool([BARE, all_speeds], own_clock=False)),
+            ("runner sweep, 1 thread", runner(1)),
+            ("runner sweep, 2 threads", runner(2)),
+            ("fmpy simulate_fmu, 1 process", tool([*peer, "fmpy", "--fmu", FMU, "--speeds", fmpy_speeds, "--processes", "1"], own_clock=True)),
+            ("fmpy simulate_fmu, 2 processes", tool([*peer, "fmpy", "--fmu", FMU, "--speeds", fmpy_speeds, "--processes", "2"], own_clock=True)),
+            ("scipy solve_ivp RK45 (Python port)", tool([*peer, "scipy", "--speeds", scipy_speeds], own_clock=True)),
+        ]
+        best = {}
+        for _ in range(args.repeats):
+            for label, run in ways:
+                sec, result = run()
+                if label not in best or sec < best[label][0]:
+                    best[label] = (sec, result)
+        for label, _ in ways:
+            sec, (runs, values) = best[label]
+            rows.append((label, runs, sec / runs, values))
 
         reference = rows[1][3]  # runner, 1 thread
         base = rows[1][2]
@@ -148,8 +165,10 @@ def main():
 
         # Thread scaling on 1000 points (speed 1..50.95 step 0.05).
         many = "1:50.95:0.05"
-        one, _ = best_of(max(args.repeats - 1, 1), lambda: runner_sweep(many, 1, work))
-        two, _ = best_of(max(args.repeats - 1, 1), lambda: runner_sweep(many, 2, work))
+        one = two = float("inf")
+        for _ in range(max(args.repeats - 1, 1)):
+            one = min(one, runner_sweep(many, 1, work)[0])
+            two = min(two, runner_sweep(many, 2, work)[0])
 
         # Memory: 100 against 10,000 points, 1 s runs.
         def rss(points):

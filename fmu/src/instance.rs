@@ -230,12 +230,7 @@ impl<M: Model> Instance<M> {
         if self.state == FmiState::InitializationMode {
             self.ensure_initial_state()?;
         }
-        let computed = |vr: &u32| {
-            self.table.row(*vr).is_some_and(|r| {
-                matches!(r.slot, Slot::Model(Access::Real { .. } | Access::Integer { .. } | Access::Boolean { .. }))
-                    && !matches!(r.causality, Causality::Parameter | Causality::Input)
-            })
-        };
+        let computed = |vr: &u32| self.table.computed.get(*vr as usize).copied().unwrap_or(false);
         if self.core.outputs_dirty && vrs.iter().any(computed) {
             let Core { model, t, x, .. } = &mut self.core;
             model.outputs(*t, x);
@@ -268,6 +263,7 @@ impl<M: Model> Instance<M> {
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> CallResult {
         self.check(Call::GetReal)?;
         self.refresh(vrs)?;
+        let mut all_finite = true;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
             *value = match self.table.row(*vr).map(|r| &r.slot) {
                 Some(Slot::Model(Access::State(i))) => self.core.x[*i],
@@ -275,10 +271,14 @@ impl<M: Model> Instance<M> {
                 Some(Slot::Control(c)) if !c.is_integer() => self.control_value(*c),
                 _ => return Err(self.unknown(*vr, "Real")),
             };
+            all_finite &= value.is_finite();
         }
         // Never a silent NaN or inf. The solver refuses non-finite states during a step, but
         // outputs are computed lazily, here: one that overflowed means the solution diverged,
         // and the instance goes to the Error state as after a failed step.
+        if all_finite {
+            return Ok(());
+        }
         if let Some((vr, value)) = vrs.iter().zip(values.iter()).find(|(_, v)| !v.is_finite()) {
             let name = self.table.rows[*vr as usize].name;
             let t = self.core.t;

@@ -71,6 +71,9 @@ impl<M> Row<M> {
 /// The FMU's variables in value-reference order.
 pub struct Table<M> {
     pub rows: Vec<Row<M>>,
+    /// Per row: its value is computed by `Model::outputs` (a model variable that is neither a
+    /// parameter, an input nor a state). Kept apart because every read asks.
+    pub computed: Vec<bool>,
 }
 
 impl<M: Model> Table<M> {
@@ -78,7 +81,14 @@ impl<M: Model> Table<M> {
     pub fn new() -> Table<M> {
         let mut rows: Vec<Row<M>> = M::variables().into_iter().map(Row::from_variable).collect();
         rows.extend(CONTROLS.iter().map(|&c| Row::from_control(c)));
-        Table { rows }
+        let computed = rows
+            .iter()
+            .map(|r| {
+                matches!(r.slot, Slot::Model(Access::Real { .. } | Access::Integer { .. } | Access::Boolean { .. }))
+                    && !matches!(r.causality, Causality::Parameter | Causality::Input)
+            })
+            .collect();
+        Table { rows, computed }
     }
 
     /// Problems with the model's table (duplicate names, bad state indices, unknown units):

@@ -96,8 +96,9 @@ pub fn run(
     instance.read(&mut reader, &mut values)?;
     sample(grid.start, &values)?;
     let n = grid.steps();
+    let mut t = grid.time_of(0, n);
     for i in 0..n {
-        let (t, t_next) = (grid.time_of(i, n), grid.time_of(i + 1, n));
+        let t_next = grid.time_of(i + 1, n);
         match instance.do_step(t, t_next - t)? {
             Step::Done => {
                 instance.read(&mut reader, &mut values)?;
@@ -112,6 +113,7 @@ pub fn run(
                 return Ok(Outcome { ended_early: Some(reason) });
             }
         }
+        t = t_next;
     }
     Ok(Outcome { ended_early: None })
 }

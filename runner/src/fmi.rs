@@ -348,17 +348,23 @@ impl<'a> Instance<'a> {
     }
 
     /// Reads the variables of `reader` into `out` (one f64 per variable, Booleans as 0/1).
+    #[inline]
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
-        let c = self.component;
-        let api = &self.fmu.api;
         if reader.integer_vrs.is_empty() && reader.boolean_vrs.is_empty() && out.len() == reader.real_vrs.len() {
             // Only Reals (the usual sweep): they are in `out`'s order, so read straight into it.
             if !out.is_empty() {
-                let status = unsafe { (api.get_real)(c, reader.real_vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
+                let status = unsafe { (self.fmu.api.get_real)(self.component, reader.real_vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
                 self.check("fmi2GetReal", status)?;
             }
             return Ok(());
         }
+        self.read_mixed(reader, out)
+    }
+
+    /// [`Instance::read`] for variables of several types, through the reader's buffers.
+    fn read_mixed(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
+        let c = self.component;
+        let api = &self.fmu.api;
         if !reader.real_vrs.is_empty() {
             let status = unsafe { (api.get_real)(c, reader.real_vrs.as_ptr(), reader.real_vrs.len(), reader.real_buf.as_mut_ptr()) };
             self.check("fmi2GetReal", status)?;
@@ -382,12 +388,20 @@ impl<'a> Instance<'a> {
     }
 
     /// fmi2DoStep from `t` over `h`; a discard with fmi2Terminated becomes [`Step::Ended`].
+    /// Inlined into the run loop, with the discard handling out of line.
+    #[inline]
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         let status = unsafe { (self.fmu.api.do_step)(self.component, t, h, 1) };
-        if status != DISCARD {
-            self.check("fmi2DoStep", status)?;
-            return Ok(Step::Done);
+        if status == DISCARD {
+            return self.discarded(t);
         }
+        self.check("fmi2DoStep", status)?;
+        Ok(Step::Done)
+    }
+
+    /// After fmi2Discard from the step at `t`: [`Step::Ended`] if the model terminated.
+    #[cold]
+    fn discarded(&mut self, t: f64) -> Result<Step, String> {
         let mut terminated: c_int = 0;
         let s = unsafe { (self.fmu.api.get_boolean_status)(self.component, TERMINATED, &mut terminated) };
         self.check("fmi2GetBooleanStatus(fmi2Terminated)", s)?;

@@ -578,12 +578,12 @@ impl<M: Model> Instance<M> {
         self.x_before[..n].copy_from_slice(&self.core.x[..n]);
         let Core { model, x, t, integrator, .. } = &mut self.core;
         let outcome = model.communication_point(*t, x);
-        // Bitwise: any change at all counts (and integer compares of a constant count vectorize).
-        let mut projected = false;
+        // Bitwise: any change at all counts (and xor/or over a constant count vectorizes).
+        let mut changed_bits = 0u64;
         for i in 0..n {
-            projected |= x[i].to_bits() != self.x_before[i].to_bits();
+            changed_bits |= x[i].to_bits() ^ self.x_before[i].to_bits();
         }
-        if projected {
+        if changed_bits != 0 {
             if let Some(integrator) = integrator.as_mut() {
                 integrator.invalidate();
             }

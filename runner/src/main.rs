@@ -110,7 +110,8 @@ enum Cmd {
         /// Write the CSV here (default: experiment.toml's, else stdout).
         #[arg(long, value_name = "FILE.csv")]
         out: Option<PathBuf>,
-        /// Plot each metric against the first parameter into this SVG file, peaks marked.
+        /// Plot each metric against the first parameter into this SVG file, peaks marked
+        /// (default: experiment.toml's, unless --out names the CSV).
         #[arg(long, value_name = "FILE.svg")]
         plot: Option<PathBuf>,
     },

@@ -20,6 +20,7 @@ use crate::sim::{self, Grid};
 use crate::variables;
 
 /// Options of `runner sweep`; empty lists and `None`s fall back to the model's experiment.toml.
+#[derive(Default)]
 pub struct Options {
     /// Model name or `.fmu` path.
     pub fmu: String,
@@ -139,6 +140,15 @@ pub struct Summary {
     pub failed: usize,
 }
 
+/// Where the CSV and the plot go. The experiment's CSV and plot are one default: naming the CSV
+/// on the command line drops the default plot too, rather than writing it beside the CSV's
+/// default place.
+fn output_paths(options: &Options, defaults: &experiment::SweepDefaults) -> (Option<PathBuf>, Option<PathBuf>) {
+    let out = options.out.clone().or_else(|| defaults.out.clone());
+    let plot = options.plot.clone().or_else(|| if options.out.is_none() { defaults.plot.clone() } else { None });
+    (out, plot)
+}
+
 /// Runs `runner sweep`. The CSV is streamed in point order as points finish; it is renamed into
 /// place only when complete, and an interrupted sweep (Ctrl-C) commits nothing.
 pub fn run(options: &Options) -> Result<Summary, String> {
@@ -191,7 +201,7 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         return Err("--threads must be at least 1".to_owned());
     }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("cannot start {threads} threads: {e}"))?;
-    let out_path = options.out.clone().or_else(|| defaults.out.clone());
+    let (out_path, plot_path) = output_paths(options, defaults);
     let mut writer = output::csv_writer(out_path.as_deref())?;
     let mut header: Vec<String> = space.ranges.iter().map(|(n, _)| n.clone()).collect();
     header.extend(metrics.metrics.iter().map(|(n, _)| n.clone()));
@@ -305,7 +315,6 @@ pub fn run(options: &Options) -> Result<Summary, String> {
             }
         }
     }
-    let plot_path = options.plot.clone().or_else(|| defaults.plot.clone());
     if let Some(path) = plot_path {
         let x_name = &space.ranges[0].0;
         let x_unit = d.unit_of(swept[0]).map_or(String::new(), |u| format!(" {u}"));
@@ -345,6 +354,21 @@ pub fn run(options: &Options) -> Result<Summary, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn naming_the_csv_drops_the_experiments_default_plot() {
+        let defaults = experiment::SweepDefaults { out: Some("e.csv".into()), plot: Some("e.svg".into()), ..Default::default() };
+        let paths = |out: Option<&str>, plot: Option<&str>| {
+            let options = Options { out: out.map(PathBuf::from), plot: plot.map(PathBuf::from), ..Default::default() };
+            let (o, p) = output_paths(&options, &defaults);
+            (o.map(|p| p.display().to_string()), p.map(|p| p.display().to_string()))
+        };
+        let s = |x: &str| Some(x.to_owned());
+        assert_eq!(paths(None, None), (s("e.csv"), s("e.svg")));
+        assert_eq!(paths(Some("x.csv"), None), (s("x.csv"), None));
+        assert_eq!(paths(None, Some("x.svg")), (s("e.csv"), s("x.svg")));
+        assert_eq!(paths(Some("x.csv"), Some("x.svg")), (s("x.csv"), s("x.svg")));
+    }
 
     #[test]
     fn ranges_include_stop_and_do_not_accumulate() {

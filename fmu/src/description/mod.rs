@@ -29,15 +29,38 @@ pub struct DescriptionError {
 }
 
 impl DescriptionError {
-    /// Creates an error carrying a human-readable message.
+    /// Creates an error carrying a human-readable message, made [`printable`] (messages quote
+    /// text from the file, which may be hostile).
     pub fn new(message: impl Into<String>) -> Self {
-        DescriptionError { message: message.into() }
+        DescriptionError { message: printable(message.into()) }
     }
 
     /// The human-readable message (what is wrong and where).
     pub fn message(&self) -> &str {
         &self.message
     }
+}
+
+/// `message` fit for a terminal and a log: control characters (an escape sequence, a newline
+/// in an attribute) are written as escapes, and a message is cut at `MAX_MESSAGE_CHARS`
+/// characters, because it may quote a megabyte-long attribute value.
+pub fn printable(message: String) -> String {
+    const MAX_MESSAGE_CHARS: usize = 1000;
+    if message.len() <= MAX_MESSAGE_CHARS && !message.chars().any(char::is_control) {
+        return message;
+    }
+    let mut out = String::with_capacity(MAX_MESSAGE_CHARS + 16);
+    for c in message.chars().take(MAX_MESSAGE_CHARS) {
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    if message.chars().nth(MAX_MESSAGE_CHARS).is_some() {
+        out.push_str("... (cut)");
+    }
+    out
 }
 
 impl fmt::Display for DescriptionError {
@@ -850,7 +873,7 @@ impl ModelDescription {
 
     /// Checks the rules of the standard that fmpy's validation applies; empty means clean.
     pub fn check(&self) -> Vec<String> {
-        check::check(self)
+        check::check(self).into_iter().map(printable).collect()
     }
 
     /// The variable called `name`.

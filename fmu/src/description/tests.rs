@@ -913,6 +913,21 @@ fn malformed_xml_is_reported_with_a_position() {
 }
 
 #[test]
+fn hostile_text_in_messages_is_escaped_and_cut() {
+    // An escape sequence and a newline (character references are legal in attributes) would
+    // reach the terminal as they are; a megabyte-long value would fill it.
+    let text = BOUNCING_BALL.replace(r#"name="g" valueReference="5""#, r#"name="g" valueReference="&#27;[2J&#10;5""#);
+    assert_eq!(read_error(&text), "attribute valueReference=\"\\u{1b}[2J\\n5\" on ScalarVariable 'g' is not an unsigned integer");
+    let long = "9".repeat(1 << 20);
+    let text = BOUNCING_BALL.replace(r#"name="g" valueReference="5""#, &format!(r#"name="g" valueReference="x{long}""#));
+    let message = read_error(&text);
+    assert!(message.starts_with("attribute valueReference=\"x999") && message.ends_with("... (cut)"), "{}", &message[..80]);
+    assert_eq!(message.chars().count(), 1000 + "... (cut)".len());
+    // Clean messages pass unchanged.
+    assert_eq!(printable("plain".to_owned()), "plain");
+}
+
+#[test]
 fn bad_attribute_values_name_element_and_attribute() {
     let text = BOUNCING_BALL.replace(r#"start="-9.81""#, r#"start="-9.81 m/s2""#);
     assert_eq!(read_error(&text), "attribute start=\"-9.81 m/s2\" on ScalarVariable 'g' (Real) is not a number");

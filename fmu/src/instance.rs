@@ -30,6 +30,10 @@ pub type CallResult<T = ()> = Result<T, Failure>;
 /// More events than this in one communication step means the model is chattering.
 const MAX_EVENTS_PER_STEP: usize = 10_000;
 
+/// What to try when a solution diverges, for the messages that say so.
+const DIVERGED_ADVICE: &str =
+    "the model may be unstable, or the step too large: with euler or rk4 reduce fixed_step, with dopri5 reduce tolerance/abs_tol";
+
 /// Everything an FMU state captures: enough to continue bit for bit from where it was taken.
 #[derive(Clone, Serialize, Deserialize)]
 #[serde(bound = "M: Model")]
@@ -279,19 +283,16 @@ impl<M: Model> Instance<M> {
         if all_finite {
             return Ok(());
         }
-        if let Some((vr, value)) = vrs.iter().zip(values.iter()).find(|(_, v)| !v.is_finite()) {
-            let name = self.table.rows[*vr as usize].name;
-            let t = self.core.t;
-            // While initializing, the parameters can still be corrected: no Error state then.
-            if !matches!(self.state, FmiState::Instantiated | FmiState::InitializationMode) {
-                self.state = FmiState::Error;
-            }
-            return Err(Failure::error(format!(
-                "fmi2GetReal: {name} = {value} at t = {t} s is not finite: the solution diverged (the model may be unstable, or the step too \
-                 large: with euler or rk4 reduce fixed_step, with dopri5 reduce tolerance/abs_tol); the instance is now in the Error state"
-            )));
+        let (vr, value) = vrs.iter().zip(values.iter()).find(|(_, v)| !v.is_finite()).expect("a value is not finite");
+        let name = self.table.rows[*vr as usize].name;
+        let t = self.core.t;
+        // While initializing, the parameters can still be corrected: no Error state then.
+        if !matches!(self.state, FmiState::Instantiated | FmiState::InitializationMode) {
+            self.state = FmiState::Error;
         }
-        Ok(())
+        Err(Failure::error(format!(
+            "fmi2GetReal: {name} = {value} at t = {t} s is not finite: the solution diverged ({DIVERGED_ADVICE}); the instance is now in the Error state"
+        )))
     }
 
     /// `fmi2GetInteger`.
@@ -475,10 +476,10 @@ impl<M: Model> Instance<M> {
         model.outputs(*t, x);
         self.core.outputs_dirty = false;
         let (model, x) = (&self.core.model, &self.core.x);
-        self.table.rows.iter().find_map(|row| {
+        self.table.rows.iter().zip(&self.table.computed).find_map(|(row, &computed)| {
             let value = match &row.slot {
                 Slot::Model(Access::State(i)) => x[*i],
-                Slot::Model(Access::Real { get, .. }) if !matches!(row.causality, Causality::Parameter | Causality::Input) => get(model),
+                Slot::Model(Access::Real { get, .. }) if computed => get(model),
                 _ => return None,
             };
             (!value.is_finite()).then(|| format!("{} = {value}", row.name))
@@ -487,10 +488,7 @@ impl<M: Model> Instance<M> {
 
     /// The message for a step whose result is not finite.
     fn diverged(bad: &str, t0: f64, t_end: f64) -> String {
-        format!(
-            "the solution diverged between t = {t0} and t = {t_end}: {bad} is not finite \
-             (the model may be unstable, or the step too large: with euler or rk4 reduce fixed_step, with dopri5 reduce tolerance/abs_tol)"
-        )
+        format!("the solution diverged between t = {t0} and t = {t_end}: {bad} is not finite ({DIVERGED_ADVICE})")
     }
 
     /// Ends the experiment early at the current time: `fmi2Discard`, `fmi2Terminated` true;

@@ -94,12 +94,7 @@ pub fn extract_zip(archive: &Path, dest: &Path) -> Result<(), String> {
 /// An entry name as it may appear in a message: the archive chose it, so control characters
 /// (terminal escapes, NUL) are escaped and a very long name is cut short.
 fn shown(name: &str) -> String {
-    const MAX_CHARS: usize = 200;
-    let mut out: String = name.chars().take(MAX_CHARS).flat_map(|c| if c.is_control() { c.escape_default().collect() } else { vec![c] }).collect();
-    if name.chars().nth(MAX_CHARS).is_some() {
-        out.push_str("...");
-    }
-    out
+    fmu::description::escaped_and_cut(name, 200, "...")
 }
 
 /// Extracts the zip at `archive` into the existing directory `dest`, refusing (before writing

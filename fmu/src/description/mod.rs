@@ -42,23 +42,30 @@ impl DescriptionError {
 }
 
 /// `message` fit for a terminal and a log: control characters (an escape sequence, a newline
-/// in an attribute) are written as escapes, and a message is cut at `MAX_MESSAGE_CHARS`
-/// characters, because it may quote a megabyte-long attribute value.
+/// in an attribute) are written as escapes, and a message is cut at 1,000 characters, because
+/// it may quote a megabyte-long attribute value.
 pub fn printable(message: String) -> String {
     const MAX_MESSAGE_CHARS: usize = 1000;
     if message.len() <= MAX_MESSAGE_CHARS && !message.chars().any(char::is_control) {
         return message;
     }
-    let mut out = String::with_capacity(MAX_MESSAGE_CHARS + 16);
-    for c in message.chars().take(MAX_MESSAGE_CHARS) {
+    escaped_and_cut(&message, MAX_MESSAGE_CHARS, "... (cut)")
+}
+
+/// `text` from a file someone else wrote, as a message may quote it: control characters (terminal
+/// escapes, NUL, newlines) written as escapes, and cut after `max_chars` characters, `cut_mark`
+/// showing where.
+pub fn escaped_and_cut(text: &str, max_chars: usize, cut_mark: &str) -> String {
+    let mut out = String::with_capacity(text.len().min(max_chars) + cut_mark.len());
+    for c in text.chars().take(max_chars) {
         if c.is_control() {
             out.extend(c.escape_default());
         } else {
             out.push(c);
         }
     }
-    if message.chars().nth(MAX_MESSAGE_CHARS).is_some() {
-        out.push_str("... (cut)");
+    if text.chars().nth(max_chars).is_some() {
+        out.push_str(cut_mark);
     }
     out
 }

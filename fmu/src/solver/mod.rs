@@ -191,8 +191,7 @@ pub const EVENT_TOL: f64 = 1e-10;
 /// so they are skipped by serde and rebuilt on first use.
 #[derive(Debug, Clone, Default)]
 struct Work {
-    /// The settings were checked and the buffers sized by `advance` (false after construction
-    /// and deserialization).
+    /// The buffers are sized (false after deserialization, which skips them).
     ready: bool,
     /// State at the current time.
     cur: Vec<f64>,
@@ -257,6 +256,10 @@ pub struct Integrator {
     /// Indicator values at the current time; their signs are the reference
     /// signs (0 = wait until the indicator becomes nonzero).
     z_left: Vec<f64>,
+    /// The settings were checked, by the first `advance` (again after deserialization: a
+    /// serialized state may carry any settings), not on every call.
+    #[serde(skip)]
+    settings_checked: bool,
     #[serde(skip)]
     work: Work,
 }
@@ -279,8 +282,8 @@ impl Integrator {
             k1: vec![0.0; dim],
             signs_valid: false,
             z_left: vec![0.0; n_event_indicators],
-            // Not `ready`: the first `advance` checks the settings (and rebuilds the buffers).
-            work: Work { ready: false, ..Work::new(dim, n_event_indicators) },
+            settings_checked: false,
+            work: Work::new(dim, n_event_indicators),
         }
     }
 
@@ -341,10 +344,12 @@ impl Integrator {
         t_end: f64,
     ) -> Result<Advance, SolverError> {
         self.check_call(sys, *t, x, t_end)?;
-        if !self.work.ready {
-            // First use after construction or deserialization (a serialized state may carry
-            // any settings): checked here once rather than on every call.
+        if !self.settings_checked {
             self.settings.validate()?;
+            self.settings_checked = true;
+        }
+        if !self.work.ready {
+            // First use after deserialization.
             self.work = Work::new(self.dim, self.n_ind);
         }
         if t_end == *t {

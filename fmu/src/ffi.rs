@@ -107,28 +107,37 @@ unsafe fn with_instance<M: Model>(c: *mut c_void, call: Call, body: impl FnOnce(
         return Status::Error as c_int;
     }
     let result = catch_unwind(AssertUnwindSafe(|| body(&mut (*component).instance)));
-    let instance = &mut (*component).instance;
     match result {
         Ok(Ok(status)) => status as c_int,
-        Ok(Err(Failure { status, message })) => {
-            let message = if message.starts_with("fmi2") { message } else { format!("{}: {message}", call.name()) };
-            instance.logger.status(status, &message);
-            status as c_int
-        }
-        Err(payload) => {
-            instance.poison();
-            let msg = format!("{}: internal error in the model code ({}); the instance is now in the Error state", call.name(), panic_message(&*payload));
-            instance.logger.status(Status::Error, &msg);
-            Status::Error as c_int
-        }
+        Ok(Err(failure)) => report_failure(&mut (*component).instance, call, failure),
+        Err(payload) => report_panic(&mut (*component).instance, call, payload),
     }
+}
+
+// The failure paths are out of line: the success path of every call, fmi2DoStep and
+// fmi2GetReal above all, stays small.
+#[cold]
+#[inline(never)]
+fn report_failure<M: Model>(instance: &mut Instance<M>, call: Call, Failure { status, message }: Failure) -> c_int {
+    let message = if message.starts_with("fmi2") { message } else { format!("{}: {message}", call.name()) };
+    instance.logger.status(status, &message);
+    status as c_int
+}
+
+#[cold]
+#[inline(never)]
+fn report_panic<M: Model>(instance: &mut Instance<M>, call: Call, payload: Box<dyn std::any::Any + Send>) -> c_int {
+    instance.poison();
+    let msg = format!("{}: internal error in the model code ({}); the instance is now in the Error state", call.name(), panic_message(&*payload));
+    instance.logger.status(Status::Error, &msg);
+    Status::Error as c_int
 }
 
 unsafe fn slice<'a, T>(p: *const T, n: usize, call: Call, what: &str) -> CallResult<&'a [T]> {
     if n == 0 {
         Ok(&[])
     } else if p.is_null() {
-        Err(Failure::error(format!("{}: {what} is NULL but its length is {n}", call.name())))
+        Err(null_array(call, what, n))
     } else {
         Ok(std::slice::from_raw_parts(p, n))
     }
@@ -138,10 +147,17 @@ unsafe fn slice_mut<'a, T>(p: *mut T, n: usize, call: Call, what: &str) -> CallR
     if n == 0 {
         Ok(&mut [])
     } else if p.is_null() {
-        Err(Failure::error(format!("{}: {what} is NULL but its length is {n}", call.name())))
+        Err(null_array(call, what, n))
     } else {
         Ok(std::slice::from_raw_parts_mut(p, n))
     }
+}
+
+// Out of line, so the hot calls do not set up this message's arguments on every call.
+#[cold]
+#[inline(never)]
+fn null_array(call: Call, what: &str, n: usize) -> Failure {
+    Failure::error(format!("{}: {what} is NULL but its length is {n}", call.name()))
 }
 
 fn ok(r: CallResult) -> CallResult<Status> {

@@ -58,6 +58,15 @@ pub struct Core<M> {
 }
 
 impl<M: Model> Core<M> {
+    /// Brings the values `Model::outputs` computes up to date with (t, x).
+    #[inline]
+    fn refresh_outputs(&mut self) {
+        if self.outputs_dirty {
+            self.model.outputs(self.t, &self.x);
+            self.outputs_dirty = false;
+        }
+    }
+
     fn new() -> Core<M> {
         Core {
             model: M::default(),
@@ -135,12 +144,21 @@ impl<M: Model> Instance<M> {
     }
 
     /// Refuses `call` when the state machine does not allow it now.
+    #[inline]
     pub fn check(&self, call: Call) -> CallResult {
         if call.is_allowed_in(self.state) {
             Ok(())
         } else {
-            Err(Failure::error(format!("{} is not allowed in state {}: illegal call sequence", call.name(), self.state.name())))
+            Err(Self::illegal(call, self.state))
         }
+    }
+
+    // Out of line: every call passes `check`, and its message would otherwise be set up on
+    // the hot path of fmi2DoStep and fmi2GetReal.
+    #[cold]
+    #[inline(never)]
+    fn illegal(call: Call, state: FmiState) -> Failure {
+        Failure::error(format!("{} is not allowed in state {}: illegal call sequence", call.name(), state.name()))
     }
 
     /// Logs a call in the `logCalls` category (formatting only when someone listens).
@@ -236,9 +254,7 @@ impl<M: Model> Instance<M> {
         }
         let computed = |vr: &u32| self.table.computed.get(*vr as usize).copied().unwrap_or(false);
         if self.core.outputs_dirty && vrs.iter().any(computed) {
-            let Core { model, t, x, .. } = &mut self.core;
-            model.outputs(*t, x);
-            self.core.outputs_dirty = false;
+            self.core.refresh_outputs();
         }
         Ok(())
     }
@@ -263,15 +279,24 @@ impl<M: Model> Instance<M> {
         }
     }
 
-    /// `fmi2GetReal`.
+    /// `fmi2GetReal`. One pass: `Model::outputs` runs at the first computed variable read (at
+    /// most once per step), so reading states, parameters or inputs costs no model evaluation.
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> CallResult {
         self.check(Call::GetReal)?;
-        self.refresh(vrs)?;
+        if self.state == FmiState::InitializationMode {
+            self.ensure_initial_state()?;
+        }
         let mut all_finite = true;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
-            *value = match self.table.row(*vr).map(|r| &r.slot) {
-                Some(Slot::Model(Access::State(i))) => self.core.x[*i],
-                Some(Slot::Model(Access::Real { get, .. })) => get(&self.core.model),
+            let i = *vr as usize;
+            *value = match self.table.rows.get(i).map(|r| &r.slot) {
+                Some(Slot::Model(Access::State(k))) => self.core.x[*k],
+                Some(Slot::Model(Access::Real { get, .. })) => {
+                    if self.table.computed[i] {
+                        self.core.refresh_outputs();
+                    }
+                    get(&self.core.model)
+                }
                 Some(Slot::Control(c)) if !c.is_integer() => self.control_value(*c),
                 _ => return Err(self.unknown(*vr, "Real")),
             };
@@ -518,10 +543,11 @@ impl<M: Model> Instance<M> {
         Failure::error(message)
     }
 
-    /// `fmi2DoStep`: integrates from the current communication point over `h`, handling events.
-    /// Returns `Ok` or `Discard` (the model ended the experiment early).
-    pub fn do_step(&mut self, current: f64, h: f64) -> CallResult<Status> {
-        self.check(Call::DoStep)?;
+    /// fmi2DoStep's checks of its arguments: `current` must be the FMU's time (to rounding) and
+    /// `h` finite and not negative.
+    #[cold]
+    #[inline(never)]
+    fn check_step_arguments(&self, current: f64, h: f64) -> CallResult {
         let t0 = self.core.t;
         if !(current.is_finite() && (current - t0).abs() <= 1e-9 * t0.abs().max(1.0)) {
             return Err(Failure::error(format!("fmi2DoStep: currentCommunicationPoint = {current} does not match the FMU's time {t0}")));
@@ -529,14 +555,59 @@ impl<M: Model> Instance<M> {
         if !(h.is_finite() && h >= 0.0) {
             return Err(Failure::error(format!("fmi2DoStep: communicationStepSize = {h} must be finite and not negative")));
         }
+        Ok(())
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn past_stop(t_end: f64, stop: f64) -> Failure {
+        Failure::error(format!("fmi2DoStep: the step to t = {t_end} would pass the stop time {stop} set in fmi2SetupExperiment"))
+    }
+
+    /// The model's response to the `events`-th event of the step from `t0` to `t_end`, at the
+    /// current time: `Some(status)` when it ends the step (and the experiment) there. Out of
+    /// line: most steps have no event, and they need not pay for setting this up.
+    #[inline(never)]
+    fn handle_event(&mut self, t0: f64, t_end: f64, events: usize, fired: &[bool]) -> CallResult<Option<Status>> {
+        if events > MAX_EVENTS_PER_STEP {
+            let msg = format!("more than {MAX_EVENTS_PER_STEP} events between t = {t0} and t = {t_end}: the model is chattering");
+            return Err(self.fail_step(t0, msg));
+        }
+        let Core { model, x, t, integrator, .. } = &mut self.core;
+        let te = *t;
+        let outcome = model.on_event(te, x, fired);
+        if let Some(integrator) = integrator.as_mut() {
+            integrator.invalidate();
+        }
+        if self.logger.wants(LOG_EVENTS) {
+            let which: Vec<usize> = fired.iter().enumerate().filter(|(_, f)| **f).map(|(i, _)| i).collect();
+            self.logger.log(Status::Ok, LOG_EVENTS, &format!("event at t = {te} s (indicators {which:?})"));
+        }
+        match outcome {
+            Ok(EventOutcome::Continue) => Ok(None),
+            Ok(EventOutcome::Stop { reason }) => self.stop_early(t0, &reason).map(Some),
+            Err(e) => Err(self.fail_step(t0, format!("the model failed at the event at t = {te}: {e}"))),
+        }
+    }
+
+    /// `fmi2DoStep`: integrates from the current communication point over `h`, handling events.
+    /// Returns `Ok` or `Discard` (the model ended the experiment early).
+    pub fn do_step(&mut self, current: f64, h: f64) -> CallResult<Status> {
+        self.check(Call::DoStep)?;
+        // The usual call, at the FMU's own time with a positive finite step, passes one test;
+        // anything else gets the full checks (out of line, with their messages).
+        if !(current == self.core.t && h > 0.0 && h < f64::INFINITY) {
+            self.check_step_arguments(current, h)?;
+            if h == 0.0 {
+                return Ok(Status::Ok);
+            }
+        }
+        let t0 = self.core.t;
         let t_end = current + h;
         if let Some(stop) = self.core.stop_time {
             if t_end > stop + 1e-9 * stop.abs().max(1.0) {
-                return Err(Failure::error(format!("fmi2DoStep: the step to t = {t_end} would pass the stop time {stop} set in fmi2SetupExperiment")));
+                return Err(Self::past_stop(t_end, stop));
             }
-        }
-        if h == 0.0 {
-            return Ok(Status::Ok);
         }
         // The state has M::N_STATES values; copying that constant length compiles to a few
         // moves instead of a call to memmove (measurable at one call per communication step).
@@ -546,26 +617,12 @@ impl<M: Model> Instance<M> {
         while self.core.t < t_end {
             let Core { model, x, t, integrator, .. } = &mut self.core;
             let integrator = integrator.as_mut().expect("the integrator exists in StepComplete");
-            let advance = integrator.advance(&*model, t, x, t_end);
-            match advance {
+            match integrator.advance(&*model, t, x, t_end) {
                 Ok(Advance::Reached) => break,
                 Ok(Advance::Event { fired }) => {
                     events += 1;
-                    if events > MAX_EVENTS_PER_STEP {
-                        let msg = format!("more than {MAX_EVENTS_PER_STEP} events between t = {t0} and t = {t_end}: the model is chattering");
-                        return Err(self.fail_step(t0, msg));
-                    }
-                    let te = *t;
-                    let outcome = model.on_event(te, x, &fired);
-                    integrator.invalidate();
-                    if self.logger.wants(LOG_EVENTS) {
-                        let which: Vec<usize> = fired.iter().enumerate().filter(|(_, f)| **f).map(|(i, _)| i).collect();
-                        self.logger.log(Status::Ok, LOG_EVENTS, &format!("event at t = {te} s (indicators {which:?})"));
-                    }
-                    match outcome {
-                        Ok(EventOutcome::Continue) => {}
-                        Ok(EventOutcome::Stop { reason }) => return self.stop_early(t0, &reason),
-                        Err(e) => return Err(self.fail_step(t0, format!("the model failed at the event at t = {te}: {e}"))),
+                    if let Some(status) = self.handle_event(t0, t_end, events, &fired)? {
+                        return Ok(status);
                     }
                 }
                 Err(e) => return Err(self.fail_step(t0, format!("the solver failed between t = {t0} and t = {t_end}: {e}"))),
@@ -578,8 +635,8 @@ impl<M: Model> Instance<M> {
         let outcome = model.communication_point(*t, x);
         // Bitwise: any change at all counts (and xor/or over a constant count vectorizes).
         let mut changed_bits = 0u64;
-        for i in 0..n {
-            changed_bits |= x[i].to_bits() ^ self.x_before[i].to_bits();
+        for (a, b) in x[..n].iter().zip(&self.x_before[..n]) {
+            changed_bits |= a.to_bits() ^ b.to_bits();
         }
         if changed_bits != 0 {
             if let Some(integrator) = integrator.as_mut() {

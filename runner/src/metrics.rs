@@ -183,8 +183,14 @@ impl Accumulator {
             return;
         }
         self.count += 1;
-        self.min = self.min.min(x);
-        self.max = self.max.max(x);
+        // Plain comparisons, not f64::min/max: samples are finite (fmi2GetReal refuses others,
+        // and a NaN would be skipped here too), and this is one instruction each per sample.
+        if x < self.min {
+            self.min = x;
+        }
+        if x > self.max {
+            self.max = x;
+        }
         self.sum += x;
         self.sum_squares += x * x;
         self.last = x;

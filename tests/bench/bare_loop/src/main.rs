@@ -22,8 +22,11 @@ const ATOL: f64 = 1e-9;
 
 /// max(z_s)/max(z_r) over the communication points of one 10 s run.
 fn transmissibility(speed: f64, rtol: f64) -> f64 {
-    // A model is the integrator's ODE system itself (the same code path as in the FMU).
-    let system = QuarterCar { speed, ..QuarterCar::default() };
+    // A model is the integrator's ODE system itself (the same code path as in the FMU). Its
+    // parameters are data, as in an FMU run: without black_box the compiler would fold the
+    // default masses and stiffnesses into the stages as constants (68 fewer instructions per
+    // step), an advantage no run of real parameters has.
+    let system = std::hint::black_box(QuarterCar { speed, ..QuarterCar::default() });
     let settings = Settings { method: Method::Dopri5, fixed_step: INTERVAL, rtol, atol: ATOL };
     let mut integrator = Integrator::new(settings, QuarterCar::N_STATES, 0);
     let mut x = [0.0; QuarterCar::N_STATES];

@@ -86,7 +86,9 @@ impl Logger {
     }
 
     /// True when a message of `category` would be delivered (lets callers skip formatting).
-    #[inline]
+    /// Always inlined: fmi2DoStep asks it for every call, and with a constant category the
+    /// usual answer (debug logging off) is two tests.
+    #[inline(always)]
     pub fn wants(&self, category: Category) -> bool {
         // Asked before every call is traced: the cheap tests come first.
         if self.sink.is_none() || (category.debug && !self.debug_on) {

@@ -118,14 +118,12 @@ pub struct Instance<M: Model> {
     core: Core<M>,
     /// Scratch copy of the state at the start of a step, to restore after a solver failure.
     x_start: Vec<f64>,
-    /// Scratch copy of the state before the communication-point projection.
-    x_before: Vec<f64>,
 }
 
 impl<M: Model> Instance<M> {
     /// A new instance in state Instantiated with the table's start values.
     pub fn new(name: &str, logger: Logger) -> Instance<M> {
-        Instance { name: name.to_owned(), logger, table: Table::new(), state: FmiState::Instantiated, core: Core::new(), x_start: vec![0.0; M::N_STATES], x_before: vec![0.0; M::N_STATES] }
+        Instance { name: name.to_owned(), logger, table: Table::new(), state: FmiState::Instantiated, core: Core::new(), x_start: vec![0.0; M::N_STATES] }
     }
 
     /// The current state-machine state.
@@ -630,19 +628,10 @@ impl<M: Model> Instance<M> {
         }
         // Land exactly on the communication point whatever the solver's rounding.
         self.core.t = t_end;
-        self.x_before[..n].copy_from_slice(&self.core.x[..n]);
-        let Core { model, x, t, integrator, .. } = &mut self.core;
+        // A projection here that changes x is seen by the integrator at the next step, which
+        // compares x with the state it left and then drops its cached derivative.
+        let Core { model, x, t, .. } = &mut self.core;
         let outcome = model.communication_point(*t, x);
-        // Bitwise: any change at all counts (and xor/or over a constant count vectorizes).
-        let mut changed_bits = 0u64;
-        for (a, b) in x[..n].iter().zip(&self.x_before[..n]) {
-            changed_bits |= a.to_bits() ^ b.to_bits();
-        }
-        if changed_bits != 0 {
-            if let Some(integrator) = integrator.as_mut() {
-                integrator.invalidate();
-            }
-        }
         self.core.outputs_dirty = true;
         match outcome {
             Ok(EventOutcome::Continue) => {
@@ -684,6 +673,12 @@ impl<M: Model> Instance<M> {
         self.check(Call::GetFMUstate)?;
         let mut core = self.core.clone();
         core.phase = self.state;
+        // The copy may be serialized, which drops the buffers the integrator would compare a
+        // projected state with at its next step: have it compare now.
+        let Core { integrator, t, x, .. } = &mut core;
+        if let Some(integrator) = integrator.as_mut() {
+            integrator.settle(*t, x);
+        }
         Ok(core)
     }
 

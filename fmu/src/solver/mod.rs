@@ -4,7 +4,8 @@
 //! The integrator owns every buffer it needs, so `advance` never allocates
 //! (except the `fired` vector of an `Advance::Event`, and error messages).
 //! Its whole continuation-relevant state is `Clone` + serde, so an FMU can
-//! roll back with `fmi2GetFMUstate`/`fmi2SetFMUstate` and replay bit-identically.
+//! roll back with `fmi2GetFMUstate`/`fmi2SetFMUstate` and replay bit-identically
+//! (serde after `settle`, when the caller changed the state since the last advance).
 
 use serde::{Deserialize, Serialize};
 
@@ -245,8 +246,8 @@ pub struct Integrator {
     n_steps: u64,
     n_rhs: u64,
     n_rejected: u64,
-    /// Time at which the last `advance` left the state; a caller that moves time
-    /// without `invalidate()` must not get a stale derivative or stale signs.
+    /// Time at which the last `advance` left the state (`work.cur`): a caller that moves time
+    /// or changes the state without `invalidate()` must not get a stale derivative or stale signs.
     t_cur: f64,
     /// Whether `k1` holds f(t_cur, x) (first-same-as-last reuse for Dopri5).
     fsal_valid: bool,
@@ -326,10 +327,32 @@ impl Integrator {
         }
     }
 
-    /// The state or the inputs changed discontinuously (new inputs set, an event changed x, a projection): drop any cached derivative (FSAL) and re-read the event indicator signs on the next advance.
+    /// The right-hand side changed discontinuously (new inputs, a mode switch at an event): drop any cached derivative (FSAL) and re-read the event indicator signs on the next advance. A changed time or state needs no call: `advance` compares them with where it left off.
     pub fn invalidate(&mut self) {
         self.fsal_valid = false;
         self.signs_valid = false;
+    }
+
+    /// Makes the cached derivative and indicator signs agree with (t, x): they are dropped when
+    /// time moved or the caller changed the state (a projection onto constraints, an event's
+    /// jump) since the last advance left off, compared bit for bit. `advance` does this itself;
+    /// a copy about to be serialized must have it done first, because serialization keeps
+    /// neither the work buffers nor the state they would be compared with.
+    pub fn settle(&mut self, t: f64, x: &[f64]) {
+        if self.work.ready && x.len() == self.dim {
+            self.settle_at(t, x, self.dim);
+        } else if self.fsal_valid || self.signs_valid {
+            // Nothing to compare with: assume the worst.
+            self.invalidate();
+        }
+    }
+
+    /// [`Integrator::settle`] for a state of `n` = `dim` values (a constant in `advance`).
+    #[inline]
+    fn settle_at(&mut self, t: f64, x: &[f64], n: usize) {
+        if (self.fsal_valid || self.signs_valid) && (t != self.t_cur || !same_bits(&x[..n], &self.work.cur[..n])) {
+            self.invalidate();
+        }
     }
 
     /// Advance from *t towards t_end (> *t). Returns Reached with *t == t_end exactly and x the state there, or Event with *t the located event time and x the state there.
@@ -348,20 +371,19 @@ impl Integrator {
             self.settings.validate()?;
             self.settings_checked = true;
         }
+        // `check_call` made sure x has `sys.dim()` elements, a constant for a given model: the
+        // comparison and the copies become a few moves instead of loops and calls to memcpy.
+        let n = sys.dim();
         if !self.work.ready {
-            // First use after deserialization.
+            // First use after deserialization: the serialized flags describe (t, x) (see `settle`).
             self.work = Work::new(self.dim, self.n_ind);
+        } else {
+            self.settle_at(*t, &x[..n], n);
         }
+        self.work.cur[..n].copy_from_slice(&x[..n]);
         if t_end == *t {
             return Ok(Advance::Reached);
         }
-        if (self.fsal_valid || self.signs_valid) && *t != self.t_cur {
-            self.invalidate();
-        }
-        // `check_call` made sure x has `sys.dim()` elements, a constant for a given model: the
-        // copies become a few moves instead of calls to memcpy.
-        let n = sys.dim();
-        self.work.cur[..n].copy_from_slice(&x[..n]);
         if self.n_ind > 0 && !self.signs_valid {
             sys.event_indicators(*t, &self.work.cur, &mut self.z_left);
             self.signs_valid = true;
@@ -400,6 +422,13 @@ impl Integrator {
         }
         Ok(())
     }
+}
+
+/// True when `a` and `b` hold the same bits (so -0.0 differs from 0.0, and a NaN equals itself);
+/// xor/or over the elements, which vectorizes.
+#[inline]
+fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u64, |acc, (x, y)| acc | (x.to_bits() ^ y.to_bits())) == 0
 }
 
 /// True when every element is finite; written as a branch-free fold so it vectorizes.

@@ -557,32 +557,47 @@ fn tiny_communication_steps_do_not_shrink_the_carried_step() {
 
 #[test]
 fn the_clipped_step_shortcut_gives_the_controllers_own_proposal() {
-    // The proposal after a clipped step skips the powf when err^(1/4) already rules out growth.
+    // The proposal after a clipped step skips the powf when err^(3/16) already rules out growth.
     // Compared here with the controller computed in full, bit for bit, over errors from 1e-300
-    // to 1, every PI memory the controller can hold and clip ratios from 1e-4 to 1. A bound with
-    // the wrong direction (say err^0.1) fails this for errors near the boundary.
+    // to 1, every PI memory the controller can hold and clip ratios from 1e-4 to 1; and, for
+    // each of those, at the errors where growth starts (the boundary, its neighbouring floats,
+    // and 1e-6 to 1e-2 either side), where a bound with the wrong direction shows: err^0.16
+    // in place of err^(3/16) fails this.
     let beta = 0.04;
+    let expo1 = 0.2 - 0.75 * beta;
     let mut checked = 0;
-    for e in 0..=3000 {
-        let err = if e == 3000 { 1.0 } else { 10f64.powf(-300.0 + e as f64 * 0.1) };
-        for err_old in [1e-4, 1e-3, 0.01, 0.1, 0.5, 0.9, 1.0] {
-            let err_old_pow = f64::powf(err_old, beta);
-            for r in 0..=80 {
-                let (hs, h_prop) = (1e-3, 1e-3 / 10f64.powf(-4.0 + r as f64 * 0.05));
-                for last_rejected in [false, true] {
-                    let full = {
-                        let fac = (err.powf(0.2 - 0.75 * beta) / err_old_pow / 0.9).clamp(0.1, 5.0);
-                        let h_new = if last_rejected { (hs / fac).min(hs) } else { hs / fac };
-                        h_prop.max(h_new)
-                    };
-                    let fast = dopri5::proposal_after_clipped_step(err, err_old_pow, hs, h_prop, last_rejected);
-                    assert_eq!(fast.to_bits(), full.to_bits(), "err {err:e}, err_old {err_old}, hs/h_prop {}", hs / h_prop);
-                    checked += 1;
+    let mut check = |err: f64, err_old_pow: f64, hs: f64, h_prop: f64, last_rejected: bool| {
+        let full = {
+            let fac = (err.powf(expo1) / err_old_pow / 0.9).clamp(0.1, 5.0);
+            let h_new = if last_rejected { (hs / fac).min(hs) } else { hs / fac };
+            h_prop.max(h_new)
+        };
+        let fast = dopri5::proposal_after_clipped_step(err, err_old_pow, hs, h_prop, last_rejected);
+        assert_eq!(fast.to_bits(), full.to_bits(), "err {err:e}, err_old^beta {err_old_pow}, hs/h_prop {}", hs / h_prop);
+        checked += 1;
+    };
+    for err_old in [1e-4, 1e-3, 0.01, 0.1, 0.5, 0.9, 1.0] {
+        let err_old_pow = f64::powf(err_old, beta);
+        for r in 0..=80 {
+            let (hs, h_prop) = (1e-3, 1e-3 / 10f64.powf(-4.0 + r as f64 * 0.05));
+            for last_rejected in [false, true] {
+                for e in 0..=3000 {
+                    let err = if e == 3000 { 1.0 } else { 10f64.powf(-300.0 + e as f64 * 0.1) };
+                    check(err, err_old_pow, hs, h_prop, last_rejected);
+                }
+                // Growth iff err^expo1 < hs / h_prop * err_old_pow * SAFE.
+                let boundary = (hs / h_prop * err_old_pow * 0.9).powf(1.0 / expo1);
+                let mut near = vec![boundary, boundary.next_up(), boundary.next_down()];
+                for k in [1e-6, 1e-4, 1e-3, 1e-2] {
+                    near.extend([boundary * (1.0 + k), boundary * (1.0 - k)]);
+                }
+                for err in near.into_iter().filter(|e| *e > 0.0 && *e <= 1.0) {
+                    check(err, err_old_pow, hs, h_prop, last_rejected);
                 }
             }
         }
     }
-    assert_eq!(checked, 3001 * 7 * 81 * 2);
+    assert!(checked > 3001 * 7 * 81 * 2, "{checked}");
 }
 
 // ---------------------------------------------------------------- rollback

@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::controls::{Control, Controls};
 use crate::logging::{Logger, Status, LOG_CALLS, LOG_EVENTS};
 use crate::model::{Access, Causality, EventOutcome, Model, Variability};
-use crate::solver::{Advance, Integrator, OdeSystem};
+use crate::solver::{Advance, Integrator, OdeSystem, SolverError};
 use crate::state_machine::{Call, FmiState};
 use crate::table::{Slot, Table};
 
@@ -562,6 +562,33 @@ impl<M: Model> Instance<M> {
         Failure::error(format!("fmi2DoStep: the step to t = {t_end} would pass the stop time {stop} set in fmi2SetupExperiment"))
     }
 
+    /// The rest of the step from `t0` to `t_end` after the solver's first call stopped short of
+    /// `t_end` with `first` (an event, or a failure): events are handled and the solver called
+    /// again until `t_end`. `Some(status)` when the step ends early there.
+    #[inline(never)]
+    fn continue_after(&mut self, first: Result<Advance, SolverError>, t0: f64, t_end: f64) -> CallResult<Option<Status>> {
+        let mut outcome = first;
+        let mut events = 0usize;
+        loop {
+            match outcome {
+                Ok(Advance::Reached) => return Ok(None),
+                Ok(Advance::Event { fired }) => {
+                    events += 1;
+                    if let Some(status) = self.handle_event(t0, t_end, events, &fired)? {
+                        return Ok(Some(status));
+                    }
+                }
+                Err(e) => return Err(self.fail_step(t0, format!("the solver failed between t = {t0} and t = {t_end}: {e}"))),
+            }
+            if self.core.t >= t_end {
+                return Ok(None);
+            }
+            let Core { model, x, t, integrator, .. } = &mut self.core;
+            let integrator = integrator.as_mut().expect("the integrator exists in StepComplete");
+            outcome = integrator.advance(&*model, t, x, t_end);
+        }
+    }
+
     /// The model's response to the `events`-th event of the step from `t0` to `t_end`, at the
     /// current time: `Some(status)` when it ends the step (and the experiment) there. Out of
     /// line: most steps have no event, and they need not pay for setting this up.
@@ -611,19 +638,18 @@ impl<M: Model> Instance<M> {
         // moves instead of a call to memmove (measurable at one call per communication step).
         let n = M::N_STATES;
         self.x_start[..n].copy_from_slice(&self.core.x[..n]);
-        let mut events = 0usize;
-        while self.core.t < t_end {
+        if self.core.t < t_end {
+            // The usual step: one call of the solver that reaches t_end. Events and failures
+            // continue out of line.
             let Core { model, x, t, integrator, .. } = &mut self.core;
             let integrator = integrator.as_mut().expect("the integrator exists in StepComplete");
             match integrator.advance(&*model, t, x, t_end) {
-                Ok(Advance::Reached) => break,
-                Ok(Advance::Event { fired }) => {
-                    events += 1;
-                    if let Some(status) = self.handle_event(t0, t_end, events, &fired)? {
+                Ok(Advance::Reached) => {}
+                other => {
+                    if let Some(status) = self.continue_after(other, t0, t_end)? {
                         return Ok(status);
                     }
                 }
-                Err(e) => return Err(self.fail_step(t0, format!("the solver failed between t = {t0} and t = {t_end}: {e}"))),
             }
         }
         // Land exactly on the communication point whatever the solver's rounding.

@@ -5,36 +5,29 @@
 use std::io::{Read, Write};
 use std::path::{Component, Path, PathBuf};
 
+use crate::output::ResultFile;
+
 /// One file of an archive.
 pub struct Entry<'a> {
     pub path: &'a str,
     pub bytes: &'a [u8],
 }
 
-/// Writes `entries` as a zip at `dest`, via a temporary file renamed into place so a reader
-/// never sees half an archive.
+/// Writes `entries` as a zip at `dest`, as a [`ResultFile`]: written under a temporary name and
+/// renamed into place, so a reader never sees half an archive.
 pub fn write_zip(dest: &Path, entries: &[Entry]) -> Result<(), String> {
     let dir = dest.parent().ok_or_else(|| format!("{} has no parent directory", dest.display()))?;
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-    let tmp = dest.with_extension("fmu.partial");
-    let result = (|| -> Result<(), String> {
-        let file = std::fs::File::create(&tmp).map_err(|e| format!("cannot create {}: {e}", tmp.display()))?;
-        let mut zip = zip::ZipWriter::new(file);
-        let options = zip::write::SimpleFileOptions::default().unix_permissions(0o644);
-        for entry in entries {
-            // Shared libraries are stored as they are: every sweep unpacks the FMU, and inflating
-            // a 1.2 MB library took 8 ms of it; deflate would only halve the file.
-            let method = if entry.path.starts_with("binaries/") { zip::CompressionMethod::Stored } else { zip::CompressionMethod::Deflated };
-            zip.start_file(entry.path, options.compression_method(method)).map_err(|e| format!("zip {}: {e}", entry.path))?;
-            zip.write_all(entry.bytes).map_err(|e| format!("zip {}: {e}", entry.path))?;
-        }
-        zip.finish().map_err(|e| format!("cannot finish {}: {e}", tmp.display()))?;
-        std::fs::rename(&tmp, dest).map_err(|e| format!("cannot move {} into place: {e}", dest.display()))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    let mut zip = zip::ZipWriter::new(ResultFile::create(dest)?);
+    let options = zip::write::SimpleFileOptions::default().unix_permissions(0o644);
+    for entry in entries {
+        // Shared libraries are stored as they are: every sweep unpacks the FMU, and inflating
+        // a 1.2 MB library took 8 ms of it; deflate would only halve the file.
+        let method = if entry.path.starts_with("binaries/") { zip::CompressionMethod::Stored } else { zip::CompressionMethod::Deflated };
+        zip.start_file(entry.path, options.compression_method(method)).map_err(|e| format!("zip {}: {e}", entry.path))?;
+        zip.write_all(entry.bytes).map_err(|e| format!("zip {}: {e}", entry.path))?;
     }
-    result
+    zip.finish().map_err(|e| format!("cannot finish {}: {e}", dest.display()))?.commit()
 }
 
 /// Why an entry name is unsafe to extract, or `None` when it stays inside the target directory.

@@ -2,7 +2,7 @@
 //! destination and renamed into place only once complete, so an interrupted or failed command
 //! leaves the previous file (or none), never a truncated one that looks finished.
 
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use crate::interrupt;
@@ -25,9 +25,14 @@ impl ResultFile {
             _ => Path::new("."),
         };
         let name = dest.file_name().ok_or_else(|| format!("{} is not a file name", dest.display()))?.to_string_lossy();
-        let temp = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
-            .suffix(".partial")
+        let prefix = format!(".{name}.");
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).suffix(".partial");
+        // Like File::create, the user's umask decides (usually rw-r--r--), not tempfile's
+        // private default (rw-------): the file is a result to share, not a secret.
+        #[cfg(unix)]
+        builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+        let temp = builder
             .tempfile_in(dir)
             .map_err(|e| format!("cannot create a file in {} for {}: {e}", dir.display(), dest.display()))?;
         let partial = temp.path().to_path_buf();
@@ -67,6 +72,13 @@ impl Write for ResultFile {
     }
     fn flush(&mut self) -> std::io::Result<()> {
         self.file().flush()
+    }
+}
+
+// A zip writer seeks back to patch its local headers (the FMUs `runner build` packs).
+impl Seek for ResultFile {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.file().seek(pos)
     }
 }
 
@@ -159,6 +171,23 @@ mod tests {
         file.commit().unwrap();
         assert_eq!(std::fs::read_to_string(&dest).unwrap(), "new complete file\n");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    /// A result is a file to share: it gets the permissions File::create gives (the umask's
+    /// say), not the owner-only ones of a temporary file. Both are made under the same umask.
+    #[cfg(unix)]
+    #[test]
+    fn a_result_file_gets_the_permissions_of_a_plain_file() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let plain = dir.path().join("plain.csv");
+        std::fs::File::create(&plain).unwrap();
+        let dest = dir.path().join("table.csv");
+        let mut file = ResultFile::create(&dest).unwrap();
+        file.write_all(b"x\n").unwrap();
+        file.commit().unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&dest), mode(&plain), "result {:o}, plain file {:o}", mode(&dest), mode(&plain));
     }
 
     #[test]

@@ -253,7 +253,10 @@ pub struct Instance<'a> {
     // Both must stay at fixed addresses for the instance's lifetime: the FMU keeps pointers.
     _callbacks: Box<CallbackFunctions>,
     log: Box<LogContext>,
-    initialized: bool,
+    /// fmi2Terminate is allowed now: the instance left initialization (stepComplete or
+    /// stepFailed) and no call has since returned fmi2Error, after which only fmi2Reset and
+    /// fmi2FreeInstance are.
+    terminate_allowed: bool,
     fatal: bool,
 }
 
@@ -274,7 +277,7 @@ impl<'a> Instance<'a> {
         let component = unsafe {
             (fmu.api.instantiate)(c_name.as_ptr(), fmu::ffi::FMI2_COSIMULATION, fmu.guid.as_ptr(), fmu.resource_uri.as_ptr(), &*callbacks, 0, debug_logging as c_int)
         };
-        let instance = Instance { fmu, name: name.to_owned(), component, _callbacks: callbacks, log, initialized: false, fatal: false };
+        let instance = Instance { fmu, name: name.to_owned(), component, _callbacks: callbacks, log, terminate_allowed: false, fatal: false };
         if component.is_null() {
             return Err(instance.failure("fmi2Instantiate", "returned NULL"));
         }
@@ -305,6 +308,9 @@ impl<'a> Instance<'a> {
         if status == FATAL {
             self.fatal = true;
         }
+        if status == ERROR || status == FATAL {
+            self.terminate_allowed = false;
+        }
         self.failure(call, &format!("returned {}", status_name(status)))
     }
 
@@ -317,14 +323,15 @@ impl<'a> Instance<'a> {
     /// fmi2EnterInitializationMode.
     pub fn enter_initialization_mode(&mut self) -> Result<(), String> {
         let status = unsafe { (self.fmu.api.enter_initialization_mode)(self.component) };
-        self.initialized = true;
         self.check("fmi2EnterInitializationMode", status)
     }
 
     /// fmi2ExitInitializationMode.
     pub fn exit_initialization_mode(&mut self) -> Result<(), String> {
         let status = unsafe { (self.fmu.api.exit_initialization_mode)(self.component) };
-        self.check("fmi2ExitInitializationMode", status)
+        self.check("fmi2ExitInitializationMode", status)?;
+        self.terminate_allowed = true;
+        Ok(())
     }
 
     /// Sets one variable (fmi2Set<Type> with one value reference).
@@ -426,10 +433,11 @@ impl Drop for Instance<'_> {
         if self.fatal {
             return;
         }
-        // SAFETY: the component is live; fmi2Terminate is allowed after initialization (its
-        // failure changes nothing here) and fmi2FreeInstance is the last call.
+        // SAFETY: the component is live; fmi2Terminate only where the standard allows it (a
+        // call it refuses would log an "illegal call sequence" of ours), and fmi2FreeInstance
+        // is the last call.
         unsafe {
-            if self.initialized {
+            if self.terminate_allowed {
                 (self.fmu.api.terminate)(self.component);
             }
             (self.fmu.api.free_instance)(self.component);

@@ -173,3 +173,20 @@ fn compare_uses_the_closed_form_reference_of_the_experiment_file() {
     assert!(o.status.success() && String::from_utf8_lossy(&o.stdout).contains("y_ref from DOPRI5 at rtol 1e-12"), "{}", stderr(&o));
     assert!(stderr(&o).contains("holds for its own parameter values"), "{}", stderr(&o));
 }
+
+/// After a call returns fmi2Error (parameters refused at initialization, a diverged step) the
+/// standard allows only fmi2Reset and fmi2FreeInstance: the runner must not send fmi2Terminate,
+/// which the FMU would answer with an "illegal call sequence" line that reads like a bug.
+#[test]
+fn after_an_error_the_runner_makes_no_illegal_call() {
+    let (quarter_car, _) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let q = quarter_car.to_str().unwrap();
+    let refused = fails(runner(dir.path(), &["simulate", q, "--set", "speed=-3", "--out", "a.csv"]));
+    assert!(refused.contains("speed = -3"), "{refused}");
+    let diverged = fails(runner(dir.path(), &["simulate", q, "--set", "solver=0", "--set", "fixed_step=0.01", "--set", "k_t=1e9", "--out", "b.csv"]));
+    assert!(diverged.contains("diverged"), "{diverged}");
+    for err in [refused, diverged] {
+        assert!(!err.contains("not allowed") && !err.contains("illegal call sequence"), "{err}");
+    }
+}

@@ -20,14 +20,16 @@ struct Cli {
 /// DefaultExperiment.
 #[derive(Args)]
 struct RunArgs {
+    // Numbers may be negative on the command line, so that `--tolerance -1` is refused by the
+    // check that explains why, not taken for an unknown option.
     /// Stop time in seconds.
-    #[arg(long, value_name = "T")]
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
     stop_time: Option<f64>,
     /// Communication (output) interval in seconds: one CSV row per interval.
-    #[arg(long, value_name = "H")]
+    #[arg(long, value_name = "H", allow_negative_numbers = true)]
     output_interval: Option<f64>,
     /// Relative tolerance given to fmi2SetupExperiment.
-    #[arg(long, value_name = "R")]
+    #[arg(long, value_name = "R", allow_negative_numbers = true)]
     tolerance: Option<f64>,
     /// Set a parameter or input before initialization (SI units); repeatable.
     #[arg(long = "set", value_name = "NAME=VALUE")]
@@ -103,7 +105,7 @@ enum Cmd {
         #[arg(long = "metric", value_name = "NAME=EXPR")]
         metrics: Vec<String>,
         /// Worker threads (default: one per core); results do not depend on it.
-        #[arg(long, value_name = "N")]
+        #[arg(long, value_name = "N", allow_negative_numbers = true)]
         threads: Option<usize>,
         #[command(flatten)]
         run: RunArgs,
@@ -138,7 +140,7 @@ struct CompareArgs {
     #[arg(long, value_delimiter = ',', default_value = "euler,rk4,dopri5")]
     solvers: Vec<String>,
     /// Error to reach: max over outputs of |y - y_ref| / max|y_ref|.
-    #[arg(long, value_name = "E", default_value_t = 1e-6)]
+    #[arg(long, value_name = "E", default_value_t = 1e-6, allow_negative_numbers = true)]
     target_error: f64,
     #[command(flatten)]
     run: RunArgs,

@@ -190,3 +190,16 @@ fn after_an_error_the_runner_makes_no_illegal_call() {
         assert!(!err.contains("not allowed") && !err.contains("illegal call sequence"), "{err}");
     }
 }
+
+/// A negative number after an option is that option's value, refused with the reason, not an
+/// unknown option with a tip about `--`.
+#[test]
+fn negative_numbers_reach_the_checks_that_explain_them() {
+    let (quarter_car, _) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let q = quarter_car.to_str().unwrap();
+    let err = fails(runner(dir.path(), &["simulate", q, "--tolerance", "-1", "--out", "a.csv"]));
+    assert!(err.contains("tolerance -1 must be a positive number"), "{err}");
+    let err = fails(runner(dir.path(), &["simulate", q, "--stop-time", "-5", "--out", "a.csv"]));
+    assert!(err.contains("stop time -5 must be a number after the start time 0"), "{err}");
+}

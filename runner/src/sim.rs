@@ -5,6 +5,10 @@ use fmu::description::ScalarVariable;
 use crate::experiment::RunDefaults;
 use crate::fmi::{Fmu, Instance, Reader, Step, Value};
 
+/// Most communication steps a run may have: a billion is minutes per run and a CSV of a
+/// hundred gigabytes, so more is a typo in the stop time or the interval, not an experiment.
+pub const MAX_STEPS: usize = 1_000_000_000;
+
 /// The time grid and tolerance of a run.
 #[derive(Debug, Clone, Copy)]
 pub struct Grid {
@@ -27,11 +31,23 @@ impl Grid {
         let stop = cli.stop_time.or(file.stop_time).or(default.stop_time).unwrap_or(start + 1.0);
         let interval = cli.output_interval.or(file.output_interval).or(default.step_size).unwrap_or((stop - start) / 500.0);
         let tolerance = cli.tolerance.or(file.tolerance).or(default.tolerance);
+        Grid::checked(start, stop, interval, tolerance)
+    }
+
+    /// The grid, after checking that it makes sense and that its steps are not absurdly many.
+    pub fn checked(start: f64, stop: f64, interval: f64, tolerance: Option<f64>) -> Result<Grid, String> {
         if stop <= start || !stop.is_finite() {
             return Err(format!("stop time {stop} must be a number after the start time {start}"));
         }
         if interval <= 0.0 || !interval.is_finite() {
             return Err(format!("output interval {interval} must be a positive number"));
+        }
+        let steps = (stop - start) / interval;
+        if steps > MAX_STEPS as f64 {
+            return Err(format!(
+                "{:?} s of simulated time at an output interval of {interval:?} s is {steps:.3e} communication steps, more than the {MAX_STEPS:.0e} a run may have (raise the output interval)",
+                stop - start
+            ));
         }
         if let Some(t) = tolerance {
             if t <= 0.0 || !t.is_finite() {
@@ -116,4 +132,22 @@ pub fn run(
         t = t_next;
     }
     Ok(Outcome { ended_early: None })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A typo such as an output interval of 1e-300 must be refused at once, not start a run
+    /// of 1e301 steps; a billion steps is still allowed, and so is any sane grid.
+    #[test]
+    fn grids_of_more_than_a_billion_steps_are_refused() {
+        let err = Grid::checked(0.0, 10.0, 1e-300, None).unwrap_err();
+        assert!(err.contains("1.000e301 communication steps, more than the 1e9"), "{err}");
+        assert!(Grid::checked(0.0, 1e308, 1e-300, None).unwrap_err().contains("inf communication steps"));
+        assert!(Grid::checked(0.0, 10.0, 1e-8, None).is_ok(), "exactly a billion steps");
+        assert!(Grid::checked(0.0, 10.0, 0.99e-8, None).is_err());
+        assert_eq!(Grid::checked(0.0, 10.0, 1e-3, Some(1e-9)).unwrap().steps(), 10_000);
+        assert!(Grid::checked(0.0, 10.0, 1e-3, Some(-1.0)).unwrap_err().contains("tolerance -1 must be a positive number"));
+    }
 }

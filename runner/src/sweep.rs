@@ -176,6 +176,9 @@ pub fn run(options: &Options) -> Result<Summary, String> {
     let mut swept = Vec::new();
     for (name, values) in &ranges {
         let v = variables::find(d, name)?;
+        if swept.iter().any(|w: &&ScalarVariable| std::ptr::eq(*w, v)) {
+            return Err(format!("--param {name} is given twice; give all its values in one --param (V1,V2,... or START:STOP:STEP)"));
+        }
         variables::check_settable(v)?;
         for &x in values {
             variables::number_value(v, x)?;

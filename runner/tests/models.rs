@@ -203,3 +203,15 @@ fn negative_numbers_reach_the_checks_that_explain_them() {
     let err = fails(runner(dir.path(), &["simulate", q, "--stop-time", "-5", "--out", "a.csv"]));
     assert!(err.contains("stop time -5 must be a number after the start time 0"), "{err}");
 }
+
+/// The same parameter in two --param options is refused before the first run (it would be
+/// swept as two parameters, the later value silently winning).
+#[test]
+fn a_parameter_swept_twice_is_refused_before_running() {
+    let (quarter_car, _) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let q = quarter_car.to_str().unwrap();
+    let err = fails(runner(dir.path(), &["sweep", q, "--param", "speed=1,2", "--param", "speed=3", "--metric", "m=max(z_s)", "--out", "b.csv"]));
+    assert!(err.contains("--param speed is given twice"), "{err}");
+    assert!(!dir.path().join("b.csv").exists());
+}

@@ -162,6 +162,9 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
     if !(options.target_error.is_finite() && options.target_error > 0.0) {
         return Err(format!("--target-error {} must be a positive number", options.target_error));
     }
+    // Both files are written after the runs.
+    output::check_destination(&options.out)?;
+    output::check_destination(&options.plot)?;
     let target = experiment::resolve(&options.fmu)?;
     let fmu = Fmu::load(&target.path)?;
     let md = &fmu.description;

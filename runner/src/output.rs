@@ -7,6 +7,25 @@ use std::path::{Path, PathBuf};
 
 use crate::interrupt;
 
+/// The directory a result file goes into (`.` for a bare file name).
+fn directory_of(dest: &Path) -> &Path {
+    match dest.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
+
+/// Refuses a destination whose directory does not exist, so that a file written only after the
+/// runs (a plot, a comparison's table) is refused before them, not after minutes of work.
+pub fn check_destination(dest: &Path) -> Result<(), String> {
+    let dir = directory_of(dest);
+    if dir.is_dir() {
+        Ok(())
+    } else {
+        Err(format!("cannot write {}: the directory {} does not exist", dest.display(), dir.display()))
+    }
+}
+
 /// A result file being written: a temporary file in the destination's directory (deleted if
 /// dropped before [`ResultFile::commit`]).
 pub struct ResultFile {
@@ -20,10 +39,7 @@ pub struct ResultFile {
 impl ResultFile {
     /// Starts writing `dest`; its directory must exist.
     pub fn create(dest: &Path) -> Result<ResultFile, String> {
-        let dir = match dest.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
+        let dir = directory_of(dest);
         let name = dest.file_name().ok_or_else(|| format!("{} is not a file name", dest.display()))?.to_string_lossy();
         let prefix = format!(".{name}.");
         let mut builder = tempfile::Builder::new();

@@ -27,6 +27,9 @@ pub struct Options {
 
 /// Runs `runner simulate`.
 pub fn run(options: &Options) -> Result<(), String> {
+    if let Some(plot) = &options.plot {
+        output::check_destination(plot)?;
+    }
     let target = experiment::resolve(&options.fmu)?;
     let fmu = Fmu::load(&target.path)?;
     let grid = Grid::choose(&fmu, &options.run, &target.experiment.simulate)?;

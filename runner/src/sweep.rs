@@ -205,6 +205,9 @@ pub fn run(options: &Options) -> Result<Summary, String> {
     }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("cannot start {threads} threads: {e}"))?;
     let (out_path, plot_path) = output_paths(options, defaults);
+    if let Some(plot) = &plot_path {
+        output::check_destination(plot)?;
+    }
     let mut writer = output::csv_writer(out_path.as_deref())?;
     let mut header: Vec<String> = space.ranges.iter().map(|(n, _)| n.clone()).collect();
     header.extend(metrics.metrics.iter().map(|(n, _)| n.clone()));

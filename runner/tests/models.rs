@@ -215,3 +215,22 @@ fn a_parameter_swept_twice_is_refused_before_running() {
     assert!(err.contains("--param speed is given twice"), "{err}");
     assert!(!dir.path().join("b.csv").exists());
 }
+
+/// A plot (or a comparison's table) is written after the runs: a destination directory that
+/// does not exist is refused before them, not after the work, and no other file is written.
+#[test]
+fn a_destination_in_a_missing_directory_is_refused_before_running() {
+    let (quarter_car, second_order) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let (q, s) = (quarter_car.to_str().unwrap(), second_order.to_str().unwrap());
+    let cases: [&[&str]; 3] = [
+        &["simulate", q, "--plot", "nodir/p.svg", "--out", "a.csv"],
+        &["sweep", q, "--param", "speed=1,2", "--metric", "m=max(z_s)", "--plot", "nodir/p.svg", "--out", "a.csv"],
+        &["compare", s, "--plot", "nodir/p.svg", "--out", "a.csv"],
+    ];
+    for args in cases {
+        let err = fails(runner(dir.path(), args));
+        assert!(err.contains("cannot write nodir/p.svg: the directory nodir does not exist"), "{args:?}: {err}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "{args:?}: nothing written");
+    }
+}

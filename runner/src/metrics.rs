@@ -364,7 +364,7 @@ impl Parser<'_, '_> {
             }
         }
         let text = &self.rest()[..end];
-        let value = text.parse::<f64>().map_err(|_| self.error(&format!("'{text}' is not a number")))?;
+        let value = text.parse::<f64>().map_err(|_| if text.is_empty() { self.error("expected a number") } else { self.error(&format!("'{text}' is not a number")) })?;
         self.pos += end;
         Ok(value)
     }
@@ -489,5 +489,8 @@ mod tests {
         assert!(e.contains("expected an operator"), "{e}");
         assert!(Metrics::parse(&["no_equals".into()]).unwrap_err().contains("NAME=EXPR"));
         assert!(Metrics::parse(&["t=1..2".into()]).unwrap_err().contains("not a number"));
+        // A start time that is not a number is named as missing, not as the empty text ''.
+        let e = Metrics::parse(&["t=max(z_s,abc)".into()]).unwrap_err();
+        assert!(e.contains("expected a number at column 9 of 'max(z_s,abc)', found 'a'"), "{e}");
     }
 }

@@ -245,7 +245,9 @@ pub fn run(options: &Options) -> Result<Summary, String> {
                         // Checked above, before any run.
                         let value = variables::number_value(v, x).expect("value checked before the sweep");
                         assignments.push((*v, value));
-                        label.push(format!("{}={x}", v.name));
+                        // The shortest form that reads back as x, as in the CSV: Display would
+                        // spell 1e308 with 309 digits.
+                        label.push(format!("{}={x:?}", v.name));
                     }
                     let name = format!("{}[{}]", fmu.identifier, label.join(","));
                     let result = run_point(&fmu, &name, &grid, &assignments, &metrics, &sources);

@@ -243,16 +243,13 @@ impl<M: Model> Instance<M> {
         Ok(())
     }
 
-    /// Makes the values of `vrs` current before they are read. `Model::outputs` runs only when
-    /// one of them is computed by it: reading states, parameters or inputs (what a sweep's
-    /// metrics mostly read) costs no model evaluation.
-    fn refresh(&mut self, vrs: &[u32]) -> CallResult {
+    /// Before a read: in initialization mode the state is first computed from the parameters.
+    /// The reads then run `Model::outputs` at the first variable it computes, at most once per
+    /// step, so reading states, parameters or inputs (what a sweep's metrics mostly read)
+    /// costs no model evaluation.
+    fn prepare_read(&mut self) -> CallResult {
         if self.state == FmiState::InitializationMode {
             self.ensure_initial_state()?;
-        }
-        let computed = |vr: &u32| self.table.computed.get(*vr as usize).copied().unwrap_or(false);
-        if self.core.outputs_dirty && vrs.iter().any(computed) {
-            self.core.refresh_outputs();
         }
         Ok(())
     }
@@ -277,13 +274,10 @@ impl<M: Model> Instance<M> {
         }
     }
 
-    /// `fmi2GetReal`. One pass: `Model::outputs` runs at the first computed variable read (at
-    /// most once per step), so reading states, parameters or inputs costs no model evaluation.
+    /// `fmi2GetReal`, in one pass (see [`Instance::prepare_read`]).
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> CallResult {
         self.check(Call::GetReal)?;
-        if self.state == FmiState::InitializationMode {
-            self.ensure_initial_state()?;
-        }
+        self.prepare_read()?;
         let mut all_finite = true;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
             let i = *vr as usize;
@@ -321,10 +315,16 @@ impl<M: Model> Instance<M> {
     /// `fmi2GetInteger`.
     pub fn get_integer(&mut self, vrs: &[u32], values: &mut [i32]) -> CallResult {
         self.check(Call::GetInteger)?;
-        self.refresh(vrs)?;
+        self.prepare_read()?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
-            *value = match self.table.row(*vr).map(|r| &r.slot) {
-                Some(Slot::Model(Access::Integer { get, .. })) => get(&self.core.model),
+            let i = *vr as usize;
+            *value = match self.table.rows.get(i).map(|r| &r.slot) {
+                Some(Slot::Model(Access::Integer { get, .. })) => {
+                    if self.table.computed[i] {
+                        self.core.refresh_outputs();
+                    }
+                    get(&self.core.model)
+                }
                 // Counters saturate rather than wrap: FMI integers are 32-bit.
                 Some(Slot::Control(c)) if c.is_integer() => self.control_value(*c).min(i32::MAX as f64) as i32,
                 _ => return Err(self.unknown(*vr, "Integer")),
@@ -336,10 +336,16 @@ impl<M: Model> Instance<M> {
     /// `fmi2GetBoolean`.
     pub fn get_boolean(&mut self, vrs: &[u32], values: &mut [bool]) -> CallResult {
         self.check(Call::GetBoolean)?;
-        self.refresh(vrs)?;
+        self.prepare_read()?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
-            *value = match self.table.row(*vr).map(|r| &r.slot) {
-                Some(Slot::Model(Access::Boolean { get, .. })) => get(&self.core.model),
+            let i = *vr as usize;
+            *value = match self.table.rows.get(i).map(|r| &r.slot) {
+                Some(Slot::Model(Access::Boolean { get, .. })) => {
+                    if self.table.computed[i] {
+                        self.core.refresh_outputs();
+                    }
+                    get(&self.core.model)
+                }
                 _ => return Err(self.unknown(*vr, "Boolean")),
             };
         }

@@ -44,7 +44,8 @@ EX4 = ["--tolerance", "1e-9", "--stop-time", "10", "--output-interval", "1e-3",
 
 
 def timed(cmd, cwd=None):
-    """Runs `cmd`; returns (wall seconds, stdout, CPU seconds of the child). Fails loudly."""
+    """Runs `cmd`; returns (wall seconds, stdout, the kernel's resource usage of that child:
+    CPU time, peak RSS). Fails loudly."""
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         start = time.perf_counter()
         proc = subprocess.Popen(cmd, cwd=cwd, stdout=out, stderr=err)
@@ -54,25 +55,21 @@ def timed(cmd, cwd=None):
         err.seek(0)
         if os.waitstatus_to_exitcode(status) != 0:
             sys.exit(f"{' '.join(map(str, cmd))} failed ({os.waitstatus_to_exitcode(status)}):\n{err.read().decode()}")
-        return wall, out.read().decode(), usage.ru_utime + usage.ru_stime
+        return wall, out.read().decode(), usage
 
 
 def peak_rss_kib(cmd, cwd=None):
-    """Peak resident set size of `cmd` (KiB), read from the kernel's accounting of that child."""
-    proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    if os.waitstatus_to_exitcode(status) != 0:
-        sys.exit(f"{' '.join(map(str, cmd))} failed: {proc.stderr.read().decode()}")
-    return usage.ru_maxrss
+    """Peak resident set size of `cmd` (KiB)."""
+    return timed(cmd, cwd)[2].ru_maxrss
 
 
 def runner_sweep(speeds_arg, threads, workdir, cpu=None):
     """One `runner sweep`: (seconds, {speed: transmissibility}); appends its CPU seconds to `cpu`."""
     out_csv = Path(workdir) / f"sweep_{threads}.csv"
     cmd = [RUNNER, "sweep", FMU, "--param", f"speed={speeds_arg}", *EX4, "--threads", str(threads), "--out", out_csv]
-    wall, _, cpu_seconds = timed(cmd)
+    wall, _, usage = timed(cmd)
     if cpu is not None:
-        cpu.append((wall, cpu_seconds))
+        cpu.append((wall, usage.ru_utime + usage.ru_stime))
     with open(out_csv) as f:
         rows = list(csv.DictReader(f))
     bad = [r for r in rows if r["status"] != "ok"]

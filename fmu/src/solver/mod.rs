@@ -339,11 +339,11 @@ impl Integrator {
     /// a copy about to be serialized must have it done first, because serialization keeps
     /// neither the work buffers nor the state they would be compared with.
     pub fn settle(&mut self, t: f64, x: &[f64]) {
+        // The rule `advance` applies: buffers not built yet (deserialized and not advanced
+        // since) mean the serialized flags still describe (t, x). A state of the wrong length
+        // is left to `advance` to refuse.
         if self.work.ready && x.len() == self.dim {
             self.settle_at(t, x, self.dim);
-        } else if self.fsal_valid || self.signs_valid {
-            // Nothing to compare with: assume the worst.
-            self.invalidate();
         }
     }
 

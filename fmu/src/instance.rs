@@ -89,8 +89,7 @@ impl<M: Model> Core<M> {
 
 /// Every model is an ODE system for the solver. The solver then holds `&M` itself rather than
 /// a wrapper around it, so the compiler knows the stage buffers it writes cannot alias the
-/// model's parameters, and can share work between stages (quarter_car's forcing at t + h,
-/// evaluated by two stages, is computed once).
+/// model's parameters, and can share work between stages.
 impl<M: Model> OdeSystem for M {
     #[inline]
     fn dim(&self) -> usize {

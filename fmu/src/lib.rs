@@ -16,6 +16,7 @@ pub mod harness;
 pub mod instance;
 pub mod logging;
 pub mod model;
+pub mod phase_cosine;
 pub mod solver;
 pub mod state_machine;
 pub mod table;
@@ -25,3 +26,4 @@ pub use model::{
     require_finite, require_non_negative, require_positive, Causality, EventOutcome, Initial, Model, ModelError, ModelInfo, Variability,
     Variable,
 };
+pub use phase_cosine::PhaseCosine;

@@ -3,7 +3,7 @@
 
 use std::f64::consts::PI;
 
-use fmu::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable};
+use fmu::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, PhaseCosine, Variable};
 use serde::{Deserialize, Serialize};
 
 /// Rows of this model's variable table.
@@ -27,6 +27,9 @@ pub struct QuarterCar {
     pub z_s_ddot: f64,
     pub z_u_ddot: f64,
     pub z_r_dot: f64,
+    /// The road's cos(omega t), memoized (see `fmu::PhaseCosine`); not part of the saved state.
+    #[serde(skip)]
+    road_cos: PhaseCosine,
 }
 
 impl Default for QuarterCar {
@@ -45,6 +48,7 @@ impl Default for QuarterCar {
             z_s_ddot: 0.0,
             z_u_ddot: 0.0,
             z_r_dot: 0.0,
+            road_cos: PhaseCosine::default(),
         }
     }
 }
@@ -59,7 +63,7 @@ impl QuarterCar {
     #[inline]
     fn road_rate(&self, t: f64) -> f64 {
         let omega = self.road_frequency();
-        self.road_amplitude * omega * (omega * t).cos() + self.z_r_dot_ext
+        self.road_amplitude * omega * self.road_cos.cos(omega * t) + self.z_r_dot_ext
     }
 
     /// Accelerations [z_s'', z_u''] from the two free-body diagrams, for road rate `u`.
@@ -67,7 +71,9 @@ impl QuarterCar {
     fn accelerations(&self, x: &[f64], u: f64) -> (f64, f64) {
         let suspension = self.k_s * (x[0] - x[1]) + self.b_s * (x[3] - x[4]);
         let tire = self.k_t * (x[1] - x[2]) + self.b_t * (x[4] - u);
-        (-suspension / self.m_s, (suspension - tire) / self.m_u)
+        // Times the reciprocals, which depend on the parameters alone: a division here would sit
+        // on the chain from one solver stage to the next.
+        (-suspension * (1.0 / self.m_s), (suspension - tire) * (1.0 / self.m_u))
     }
 }
 
@@ -127,7 +133,9 @@ impl Model for QuarterCar {
         Ok(())
     }
 
-    #[inline]
+    // Always inlined into the solver's stages: with the road's memoized cosine it is past the
+    // size LLVM inlines by itself, and a call per stage costs 16 % more instructions per run.
+    #[inline(always)]
     fn derivatives(&self, t: f64, x: &[f64], dx: &mut [f64]) {
         let u = self.road_rate(t);
         let (a_s, a_u) = self.accelerations(x, u);

@@ -190,18 +190,23 @@ fn step_factor(err_pow: f64, err_old_pow: f64) -> f64 {
 /// The proposal after an accepted step of size `hs` clipped below the proposal `h_prop`: the
 /// larger of h_prop and the controller's next step, which after a rejection is at most hs.
 ///
-/// That next step only exceeds h_prop if err^EXPO1 / err_old_pow / SAFE < hs / h_prop. For
-/// err <= 1, err^EXPO1 >= err^(3/16) (EXPO1 = 0.17 < 3/16), so when err^(3/16), four square
-/// roots and two products, already rules that out, the powf (a tenth of a step's time) is
-/// skipped; so it is when h_prop is beyond the largest growth, FAC_MAX hs. On the Ex. 4 sweep
-/// this leaves a powf in 1 of 9 clipped steps (err^(1/4), used before, left 1 in 2), and the
-/// proposal grows in 1 of 26. The test is written without divisions: it sits between one step
-/// and the next.
+/// That next step only exceeds h_prop if err^EXPO1 < r = hs / h_prop * err_old_pow * SAFE. For
+/// err <= 1, err^EXPO1 >= err^(3/16) (EXPO1 = 0.17 < 3/16), so when err^(3/16) >= r already
+/// rules growth out, the powf (a tenth of a step's time) is skipped; so it is when h_prop is
+/// beyond the largest growth, FAC_MAX hs. On the Ex. 4 sweep this leaves a powf in 1 of 9
+/// clipped steps, and the proposal grows in 1 of 26.
+///
+/// The test compares err^3 with r^16: two products on err, whose latency counts, against four
+/// square roots before (80 cycles, a tenth of a step: perf found the step waiting on them); r^16
+/// is ready before err is. It cannot rule out a growth: where the proposal grows, err < 0.54 (r
+/// < SAFE), so err^(3/16) < 0.99 r and err^3 < 0.85 r^16, far beyond the rounding of either side.
+/// r >= 0.062 (hs > h_prop / FAC_MAX, err_old >= ERR_OLD_INIT), so r^16 does not underflow.
 #[inline]
 pub(super) fn proposal_after_clipped_step(err: f64, err_old_pow: f64, hs: f64, h_prop: f64, last_rejected: bool) -> f64 {
     let may_grow = !last_rejected && FAC_MAX * hs > h_prop && {
-        let root16 = err.sqrt().sqrt().sqrt().sqrt();
-        root16 * root16 * root16 * h_prop < hs * err_old_pow * SAFE
+        let r2 = (hs / h_prop * err_old_pow * SAFE).powi(2);
+        let r8 = (r2 * r2) * (r2 * r2);
+        err * err * err < r8 * r8
     };
     if may_grow {
         h_prop.max(hs / step_factor(err.powf(EXPO1), err_old_pow))

@@ -557,12 +557,12 @@ fn tiny_communication_steps_do_not_shrink_the_carried_step() {
 
 #[test]
 fn the_clipped_step_shortcut_gives_the_controllers_own_proposal() {
-    // The proposal after a clipped step skips the powf when err^(3/16) already rules out growth.
-    // Compared here with the controller computed in full, bit for bit, over errors from 1e-300
-    // to 1, every PI memory the controller can hold and clip ratios from 1e-4 to 1; and, for
-    // each of those, at the errors where growth starts (the boundary, its neighbouring floats,
-    // and 1e-6 to 1e-2 either side), where a bound with the wrong direction shows: err^0.16
-    // in place of err^(3/16) fails this.
+    // The proposal after a clipped step skips the powf when err^3 >= r^16 (err^(3/16) >= r)
+    // already rules out growth. Compared here with the controller computed in full, bit for bit,
+    // over errors from 1e-300 to 1, every PI memory the controller can hold and clip ratios from
+    // 1e-4 to 1; and, for each of those, at the errors where growth starts (the boundary, its
+    // neighbouring floats, and 1e-6 to 1e-2 either side), where a bound with the wrong direction
+    // shows: err^5 < r^32 (err^0.156) in place of err^3 < r^16 fails this.
     let beta = 0.04;
     let expo1 = 0.2 - 0.75 * beta;
     let mut checked = 0;

@@ -108,7 +108,7 @@ unsafe fn with_instance<M: Model>(c: *mut c_void, call: Call, body: impl FnOnce(
     }
     // The status code is formed inside the unwinding guard: catch_unwind then hands back a
     // plain c_int. Handing back the call's Result made the compiler store its 4-byte status and
-    // reload it as 8 bytes, a store-forwarding stall that cost fmi2DoStep 5 % of a sweep.
+    // reload it as 8 bytes, a store-forwarding stall that cost fmi2DoStep 4 % of a sweep.
     let result = catch_unwind(AssertUnwindSafe(|| match body(&mut (*component).instance) {
         Ok(status) => status as c_int,
         Err(failure) => report_failure(&mut (*component).instance, call, failure),

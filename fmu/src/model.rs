@@ -272,7 +272,9 @@ pub trait Model: Default + Clone + Send + Serialize + DeserializeOwned + 'static
     fn variables() -> Vec<Variable<Self>>;
 
     /// Checks the parameters and fills the initial state `x` (called when initialization
-    /// ends, and for initial unknowns read during initialization).
+    /// ends, and for initial unknowns read during initialization). The toolkit calls it again
+    /// after any parameter change and before the solver starts, so it is also the place to
+    /// derive constants the right-hand side needs from the parameters (see quarter_car).
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError>;
 
     /// The right-hand side: `dx = f(t, x, inputs)`.

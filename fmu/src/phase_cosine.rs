@@ -51,21 +51,20 @@ impl PhaseCosine {
         if a == anchor {
             near_anchor(cos_a, sin_a, phase - anchor)
         } else {
-            move_anchor(&self.memo, phase)
+            move_anchor(&self.memo, phase, anchor)
         }
     }
 }
 
-/// A phase off the memo's anchor: one libm sine-cosine pair for its own anchor, which the memo
-/// keeps. Out of line and cold, so the inlined path stays short. Phases of 2^49 rad and beyond,
-/// and NaN, get libm's cosine.
+/// A phase off the memo's anchor: one libm sine-cosine pair for the phase's own `anchor`, which
+/// the memo keeps. Out of line and cold, so the inlined path stays short. Phases of 2^49 rad and
+/// beyond, and NaN, get libm's cosine (their `anchor` means nothing).
 #[cold]
 #[inline(never)]
-fn move_anchor(memo: &Cell<(f64, f64, f64)>, phase: f64) -> f64 {
+fn move_anchor(memo: &Cell<(f64, f64, f64)>, phase: f64, anchor: f64) -> f64 {
     if phase.is_nan() || phase.abs() >= LARGEST_ANCHORED {
         return phase.cos();
     }
-    let anchor = (phase + ROUND_TO_QUARTER) - ROUND_TO_QUARTER;
     let (sin_a, cos_a) = anchor.sin_cos();
     memo.set((anchor, cos_a, sin_a));
     near_anchor(cos_a, sin_a, phase - anchor)

@@ -319,6 +319,15 @@ mod tests {
         }
     }
 
+    /// Parameters each valid alone whose road frequency overflows (with amplitude 0 the road
+    /// rate is 0 times infinity, NaN) are refused when initialization ends, naming what is not
+    /// finite, rather than reaching the solver (or the debug check of the derived constants).
+    #[test]
+    fn an_overflowing_road_frequency_is_refused_at_initialization() {
+        let err = Harness::<QuarterCar>::started(&[("speed", 1e308), ("road_wavelength", 1e-300), ("road_amplitude", 0.0)], None).err().expect("refused");
+        assert!(err.contains("is not finite: check the parameters"), "{err}");
+    }
+
     /// Changing a parameter field directly and calling `derivatives` without `initial_state`
     /// would use the old constants silently; debug builds (the test suite's) stop it.
     #[test]

@@ -9,8 +9,16 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 TARGET = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
 FMU_DIR = TARGET / "fmu"
 
-# Every crate under models/ must have produced an FMU.
-MODELS = sorted(p.name for p in (ROOT / "models").iterdir() if (p / "Cargo.toml").is_file())
+
+
+def _builds_an_fmu(crate: pathlib.Path) -> bool:
+    """A model crate builds a cdylib; models/linkages is a library the models share."""
+    manifest = crate / "Cargo.toml"
+    return manifest.is_file() and '"cdylib"' in manifest.read_text()
+
+
+# Every model crate under models/ must have produced an FMU.
+MODELS = sorted(p.name for p in (ROOT / "models").iterdir() if _builds_an_fmu(p))
 
 
 def fmu_path(model: str) -> pathlib.Path:

@@ -1,7 +1,7 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu::{require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
 use serde::{Deserialize, Serialize};
 
 /// Rows of this model's variable table.
@@ -69,7 +69,12 @@ impl Model for Bumper {
             V::parameter("K", "Bumper spring stiffness", |s| s.k, |s, v| s.k = v).unit("N/m"),
             V::parameter("B", "Bumper damping coefficient", |s| s.b, |s, v| s.b = v).unit("N.s/m"),
             V::parameter("V0", "Speed of the mass at the collision (toward the bumper)", |s| s.v0, |s, v| s.v0 = v).unit("m/s"),
-            V::boolean_parameter("attached", "True: the mass stays fastened to the plate (no release)", |s| s.attached, |s, v| s.attached = v),
+            V::boolean_parameter(
+                "attached",
+                "True: the mass stays fastened to the plate (no release)",
+                |s| s.attached,
+                |s, v| s.attached = v,
+            ),
             V::state("x", "Plate displacement (compression of the bumper)", 0).unit("m"),
             V::output("v", "Plate velocity", |s| s.v).unit("m/s"),
             V::output("a", "Plate acceleration", |s| s.a).unit("m/s2"),
@@ -125,12 +130,12 @@ impl Model for Bumper {
     }
 }
 
-fmu::export_fmu!(Bumper);
+fmu_export::export_fmu!(Bumper);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fmu::harness::Harness;
+    use fmu_export::harness::Harness;
 
     /// Regime 1 in closed form (derivation.md), any damping: plate (x, x').
     fn contact(p: &Bumper, t: f64) -> (f64, f64) {
@@ -300,7 +305,7 @@ mod tests {
     /// Names, state indices, units and display units of the table are all known to the toolkit.
     #[test]
     fn variable_table_is_well_formed() {
-        let problems = fmu::table::Table::<Bumper>::new().problems();
+        let problems = fmu_export::table::Table::<Bumper>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
     }
 

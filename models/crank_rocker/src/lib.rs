@@ -1,8 +1,8 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu::units::RPM;
-use fmu::ModelInfo;
+use fmu_export::units::RPM;
+use fmu_export::ModelInfo;
 use linkages::{FourBarParameters, FourBarPreset};
 
 /// Ex. 5A #3: the crank-rocker's dimensions and identity on the shared four-bar.
@@ -39,14 +39,14 @@ impl FourBarPreset for CrankRocker {
     }
 }
 
-fmu::export_fmu!(FourBar);
+fmu_export::export_fmu!(FourBar);
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use fmu_export::harness::Harness;
     #[allow(unused_imports)]
-    use fmu::Model;
-    use fmu::harness::Harness;
+    use fmu_export::Model;
     use std::f64::consts::PI;
 
     /// Closed form by the law of cosines, independent of the vector loop: with d = |AC| and
@@ -164,7 +164,10 @@ mod tests {
         let mut h = Harness::<FourBar>::new();
         h.set("l_CO", 1.0).unwrap();
         let err = h.initialize(None).unwrap_err();
-        assert!(err.contains("theta0 = 135.0000 deg") && err.contains("l_CO = 1 m") && err.contains("l_BC") && err.contains("theta_CO"), "{err}");
+        assert!(
+            err.contains("theta0 = 135.0000 deg") && err.contains("l_CO = 1 m") && err.contains("l_BC") && err.contains("theta_CO"),
+            "{err}"
+        );
         let mut h = Harness::<FourBar>::new();
         h.set("branch", 2.0).unwrap();
         assert!(h.initialize(None).unwrap_err().contains("parameter branch"));
@@ -172,7 +175,7 @@ mod tests {
 
     #[test]
     fn variable_table_is_well_formed() {
-        let problems = fmu::table::Table::<FourBar>::new().problems();
+        let problems = fmu_export::table::Table::<FourBar>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
     }
 }

@@ -1,8 +1,8 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu::units::RPM;
-use fmu::ModelInfo;
+use fmu_export::units::RPM;
+use fmu_export::ModelInfo;
 use linkages::{SliderCrankParameters, SliderCrankPreset};
 
 /// Ex. 5A #1: the centred crank-slider (slider on the x-axis) on the shared slider-crank.
@@ -16,14 +16,7 @@ impl SliderCrankPreset for Centred {
     const HAS_OFFSET: bool = false;
 
     fn parameters() -> SliderCrankParameters {
-        SliderCrankParameters {
-            l_oa: 0.080,
-            l_ab: 0.120,
-            y_oc: 0.0,
-            theta0: 60f64.to_radians(),
-            omega: 10.0 * RPM,
-            branch: 1,
-        }
+        SliderCrankParameters { l_oa: 0.080, l_ab: 0.120, y_oc: 0.0, theta0: 60f64.to_radians(), omega: 10.0 * RPM, branch: 1 }
     }
 
     fn info() -> ModelInfo {
@@ -39,15 +32,15 @@ impl SliderCrankPreset for Centred {
     }
 }
 
-fmu::export_fmu!(CrankSlider);
+fmu_export::export_fmu!(CrankSlider);
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use fmu_export::harness::Harness;
+    use fmu_export::logging::Status;
     #[allow(unused_imports)]
-    use fmu::Model;
-    use fmu::harness::Harness;
-    use fmu::logging::Status;
+    use fmu_export::Model;
     use std::f64::consts::PI;
 
     /// Closed form, independent of the vector loop: B is where the circle of radius l_AB about
@@ -217,7 +210,7 @@ mod tests {
 
     #[test]
     fn variable_table_is_well_formed() {
-        let problems = fmu::table::Table::<CrankSlider>::new().problems();
+        let problems = fmu_export::table::Table::<CrankSlider>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
     }
 }

@@ -1,8 +1,8 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu::units::RPM;
-use fmu::ModelInfo;
+use fmu_export::units::RPM;
+use fmu_export::ModelInfo;
 use linkages::{FourBarParameters, FourBarPreset};
 
 /// Ex. 5A #4: the double rocker's dimensions and identity on the shared four-bar.
@@ -42,15 +42,15 @@ impl FourBarPreset for DoubleRocker {
     }
 }
 
-fmu::export_fmu!(FourBar);
+fmu_export::export_fmu!(FourBar);
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use fmu_export::harness::Harness;
+    use fmu_export::logging::Status;
     #[allow(unused_imports)]
-    use fmu::Model;
-    use fmu::harness::Harness;
-    use fmu::logging::Status;
+    use fmu_export::Model;
     use std::f64::consts::PI;
 
     /// Closed form by the law of cosines, independent of the vector loop: with d = |AC| and
@@ -191,13 +191,16 @@ mod tests {
             let mut h = Harness::<FourBar>::new();
             h.set("theta_CO", tco).unwrap();
             let err = h.initialize(None).unwrap_err();
-            assert!(err.contains("cannot be assembled at theta0 = 150.0000 deg") && err.contains("l_AB") && err.contains("theta_CO"), "{err}");
+            assert!(
+                err.contains("cannot be assembled at theta0 = 150.0000 deg") && err.contains("l_AB") && err.contains("theta_CO"),
+                "{err}"
+            );
         }
     }
 
     #[test]
     fn variable_table_is_well_formed() {
-        let problems = fmu::table::Table::<FourBar>::new().problems();
+        let problems = fmu_export::table::Table::<FourBar>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
     }
 }

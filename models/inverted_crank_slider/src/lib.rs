@@ -1,7 +1,7 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu::{require_finite, require_non_negative, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_finite, require_non_negative, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
 use nalgebra::{Matrix2, Matrix6, Matrix6x2, Vector2, Vector6};
 use serde::{Deserialize, Serialize};
 
@@ -83,7 +83,10 @@ impl InvertedCrankSlider {
         let (s2, c2) = x[0].sin_cos();
         let (s3, c3) = x[2].sin_cos();
         let (r3, r3d, w3, w2) = (x[1], x[3], x[4], self.omega);
-        Vector2::new(-self.r2 * c2 * w2 * w2 + 2.0 * s3 * r3d * w3 + r3 * c3 * w3 * w3, -self.r2 * s2 * w2 * w2 - 2.0 * c3 * r3d * w3 + r3 * s3 * w3 * w3)
+        Vector2::new(
+            -self.r2 * c2 * w2 * w2 + 2.0 * s3 * r3d * w3 + r3 * c3 * w3 * w3,
+            -self.r2 * s2 * w2 * w2 - 2.0 * c3 * r3d * w3 + r3 * s3 * w3 * w3,
+        )
     }
 
     /// x'' = A^-1 b (A is regular: det A = r3 >= r1 - r2 > 0).
@@ -138,7 +141,10 @@ impl InvertedCrankSlider {
         let (s2, c2) = self.theta2_0.sin_cos();
         let (bx, by) = (self.r1 + self.r2 * c2, self.r2 * s2);
         let (r3, th3) = (bx.hypot(by), by.atan2(bx));
-        let v = Self::a_matrix(r3, th3).lu().solve(&self.b_velocity(self.theta2_0)).ok_or_else(|| ModelError("A is singular at theta2_0".into()))?;
+        let v = Self::a_matrix(r3, th3)
+            .lu()
+            .solve(&self.b_velocity(self.theta2_0))
+            .ok_or_else(|| ModelError("A is singular at theta2_0".into()))?;
         x.copy_from_slice(&[self.theta2_0, r3, th3, v[0], v[1]]);
         Ok(())
     }
@@ -150,7 +156,8 @@ impl Model for InvertedCrankSlider {
     fn info() -> ModelInfo {
         ModelInfo {
             identifier: "inverted_crank_slider",
-            description: "ME326 App. E: crank AB drives link BD through a pivoted collar at C; vector-loop kinematics and the E.17-E.24 kinetics",
+            description:
+                "ME326 App. E: crank AB drives link BD through a pivoted collar at C; vector-loop kinematics and the E.17-E.24 kinetics",
             // Two crank revolutions at 60 rpm.
             stop_time: 2.0,
             tolerance: 1e-6,
@@ -161,7 +168,9 @@ impl Model for InvertedCrankSlider {
 
     fn variables() -> Vec<Variable<Self>> {
         vec![
-            V::parameter("r1", "Ground distance from the collar pivot C to the crank pivot A", |s| s.r1, |s, v| s.r1 = v).unit("m").display("mm"),
+            V::parameter("r1", "Ground distance from the collar pivot C to the crank pivot A", |s| s.r1, |s, v| s.r1 = v)
+                .unit("m")
+                .display("mm"),
             V::parameter("r2", "Crank length AB", |s| s.r2, |s, v| s.r2 = v).unit("m").display("mm"),
             V::parameter("L3", "Length of link BD (slides through the collar at C)", |s| s.l3, |s, v| s.l3 = v).unit("m").display("mm"),
             V::parameter(
@@ -267,15 +276,19 @@ impl Model for InvertedCrankSlider {
             }
         }
         let closed = q[0] > 0.0 && self.gap(x[0], q[0], q[1]).norm() <= 1e-12 * (self.r1 + self.r2);
-        let v = Self::a_matrix(q[0], q[1]).lu().solve(&self.b_velocity(x[0])).filter(|v| closed && v.iter().all(|c| c.is_finite())).ok_or_else(|| {
-            ModelError(format!(
-                "the vector loop could not be closed at theta2 = {:.4} deg (Newton's method from r3 = {} m, theta3 = {} rad): \
+        let v = Self::a_matrix(q[0], q[1])
+            .lu()
+            .solve(&self.b_velocity(x[0]))
+            .filter(|v| closed && v.iter().all(|c| c.is_finite()))
+            .ok_or_else(|| {
+                ModelError(format!(
+                    "the vector loop could not be closed at theta2 = {:.4} deg (Newton's method from r3 = {} m, theta3 = {} rad): \
                  the state drifted too far in one step; reduce fixed_step or the tolerance",
-                x[0].to_degrees(),
-                x[1],
-                x[2]
-            ))
-        })?;
+                    x[0].to_degrees(),
+                    x[1],
+                    x[2]
+                ))
+            })?;
         x[1] = q[0];
         x[2] = q[1];
         x[3] = v[0];
@@ -284,12 +297,12 @@ impl Model for InvertedCrankSlider {
     }
 }
 
-fmu::export_fmu!(InvertedCrankSlider);
+fmu_export::export_fmu!(InvertedCrankSlider);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fmu::harness::{Harness, Trajectory};
+    use fmu_export::harness::{Harness, Trajectory};
     use std::f64::consts::PI;
 
     fn wrap(a: f64) -> f64 {
@@ -314,7 +327,10 @@ mod tests {
         let w = p.omega;
         let der = |f: fn((f64, f64)) -> f64| {
             let r = |v: (f64, f64)| wrap(f(v) - f(c));
-            ((-r(p2) + 8.0 * r(p1) - 8.0 * r(m1) + r(m2)) / (12.0 * h) * w, (-r(p2) + 16.0 * r(p1) + 16.0 * r(m1) - r(m2)) / (12.0 * h * h) * w * w)
+            (
+                (-r(p2) + 8.0 * r(p1) - 8.0 * r(m1) + r(m2)) / (12.0 * h) * w,
+                (-r(p2) + 16.0 * r(p1) + 16.0 * r(m1) - r(m2)) / (12.0 * h * h) * w * w,
+            )
         };
         let (a1, a2) = der(|v| v.0);
         let (b1, b2) = der(|v| v.1);
@@ -474,7 +490,9 @@ mod tests {
 
     #[test]
     fn impossible_geometry_is_refused_naming_the_parameters() {
-        for (name, v, expect) in [("r2", 0.3, "parameters r2"), ("L3", 0.3, "L3 = 0.3"), ("m3", -1.0, "parameter m3"), ("r1", 0.0, "parameter r1")] {
+        for (name, v, expect) in
+            [("r2", 0.3, "parameters r2"), ("L3", 0.3, "L3 = 0.3"), ("m3", -1.0, "parameter m3"), ("r1", 0.0, "parameter r1")]
+        {
             let mut h = Harness::<InvertedCrankSlider>::new();
             h.set(name, v).unwrap();
             let err = h.initialize(None).unwrap_err();
@@ -512,7 +530,7 @@ mod tests {
 
     #[test]
     fn variable_table_is_well_formed() {
-        let problems = fmu::table::Table::<InvertedCrankSlider>::new().problems();
+        let problems = fmu_export::table::Table::<InvertedCrankSlider>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
     }
 }

@@ -1,8 +1,8 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu::units::{INCH, LBF};
-use fmu::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable};
+use fmu_export::units::{INCH, LBF};
+use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable};
 
 /// Rows of this model's variable table.
 type V = Variable<MassSpringDamper>;
@@ -88,12 +88,12 @@ impl Model for MassSpringDamper {
     }
 }
 
-fmu::export_fmu!(MassSpringDamper);
+fmu_export::export_fmu!(MassSpringDamper);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fmu::harness::Harness;
+    use fmu_export::harness::Harness;
 
     /// The underdamped closed form of derivation.md for a constant force `f0`.
     fn exact(p: &MassSpringDamper, f0: f64, t: f64) -> (f64, f64) {
@@ -112,7 +112,7 @@ mod tests {
     #[test]
     fn handbook_values_in_si() {
         let p = MassSpringDamper::default();
-        assert!((p.k - 1751.268_352_464_76).abs() < 1e-8);
+        assert!((p.k - 1_751.268_352_464_76).abs() < 1e-8);
         assert!((p.k / p.m - 5.0).abs() < 1e-14 && (p.b / p.m - 0.5).abs() < 1e-14);
     }
 

@@ -1,8 +1,8 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu::units::RPM;
-use fmu::ModelInfo;
+use fmu_export::units::RPM;
+use fmu_export::ModelInfo;
 use linkages::{SliderCrankParameters, SliderCrankPreset};
 
 /// Ex. 5A #2: the offset crank-slider's dimensions and identity on the shared slider-crank.
@@ -16,14 +16,7 @@ impl SliderCrankPreset for Offset {
     const HAS_OFFSET: bool = true;
 
     fn parameters() -> SliderCrankParameters {
-        SliderCrankParameters {
-            l_oa: 0.080,
-            l_ab: 0.100,
-            y_oc: 0.080,
-            theta0: 60f64.to_radians(),
-            omega: 15.0 * RPM,
-            branch: 1,
-        }
+        SliderCrankParameters { l_oa: 0.080, l_ab: 0.100, y_oc: 0.080, theta0: 60f64.to_radians(), omega: 15.0 * RPM, branch: 1 }
     }
 
     fn info() -> ModelInfo {
@@ -41,15 +34,15 @@ impl SliderCrankPreset for Offset {
     }
 }
 
-fmu::export_fmu!(OffsetCrankSlider);
+fmu_export::export_fmu!(OffsetCrankSlider);
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use fmu_export::harness::Harness;
+    use fmu_export::logging::Status;
     #[allow(unused_imports)]
-    use fmu::Model;
-    use fmu::harness::Harness;
-    use fmu::logging::Status;
+    use fmu_export::Model;
     use std::f64::consts::PI;
 
     /// Closed form, independent of the vector loop: B is where the circle of radius l_AB about
@@ -96,7 +89,7 @@ mod tests {
     /// (projected) with the analytic closed form and its derivatives; rates and accelerations
     /// relative to max(1, |value|). Returns the trajectory and the largest errors (bounds in
     /// the callers: rounding times the conditioning 1/cos(theta3) of A).
-    fn compare(params: &[(&str, f64)], p: &OffsetCrankSlider, stop: f64, dt: f64) -> (fmu::harness::Trajectory, [f64; 3]) {
+    fn compare(params: &[(&str, f64)], p: &OffsetCrankSlider, stop: f64, dt: f64) -> (fmu_export::harness::Trajectory, [f64; 3]) {
         let mut h = harness(params);
         let tr = h.run(stop, dt, &NAMES).unwrap();
         let br = p.branch as f64;
@@ -125,7 +118,13 @@ mod tests {
         for br in [1.0, -1.0] {
             let p = OffsetCrankSlider { branch: br as i32, ..Default::default() };
             let (tr, err) = compare(&[("branch", br)], &p, 2.0, 1e-3);
-            eprintln!("branch {br}: {} points, max errors pos {:.2e}, rel vel {:.2e}, rel acc {:.2e}", tr.time.len(), err[0], err[1], err[2]);
+            eprintln!(
+                "branch {br}: {} points, max errors pos {:.2e}, rel vel {:.2e}, rel acc {:.2e}",
+                tr.time.len(),
+                err[0],
+                err[1],
+                err[2]
+            );
             // Near the limit A (and the closed form's sqrt) is ill-conditioned: on this 1 ms
             // grid the last projected point has cos(theta3) ~ 0.05, which amplifies rounding by
             // ~1/cos for positions and ~1/cos^2, 1/cos^3 for rates and accelerations; measured
@@ -221,7 +220,7 @@ mod tests {
 
     #[test]
     fn variable_table_is_well_formed() {
-        let problems = fmu::table::Table::<OffsetCrankSlider>::new().problems();
+        let problems = fmu_export::table::Table::<OffsetCrankSlider>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
     }
 }

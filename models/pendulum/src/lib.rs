@@ -1,8 +1,8 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu::units::DEGREE;
-use fmu::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable};
+use fmu_export::units::DEGREE;
+use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable};
 use serde::{Deserialize, Serialize};
 
 /// Rows of this model's variable table.
@@ -92,12 +92,12 @@ impl Model for Pendulum {
     }
 }
 
-fmu::export_fmu!(Pendulum);
+fmu_export::export_fmu!(Pendulum);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fmu::harness::Harness;
+    use fmu_export::harness::Harness;
     use std::f64::consts::PI;
 
     /// K(k) = pi / (2 AGM(1, sqrt(1 - k²))): the AGM converges quadratically, to rounding.
@@ -114,7 +114,7 @@ mod tests {
         4.0 * (p.l / p.g).sqrt() * elliptic_k((theta0 / 2.0).sin())
     }
 
-    fn run(params: &[(&str, f64)], tolerance: Option<f64>, dt: f64) -> fmu::harness::Trajectory {
+    fn run(params: &[(&str, f64)], tolerance: Option<f64>, dt: f64) -> fmu_export::harness::Trajectory {
         let mut h = Harness::<Pendulum>::new();
         for (name, value) in params {
             h.set(name, *value).unwrap();
@@ -125,7 +125,7 @@ mod tests {
 
     /// Zero crossings of theta, each located inside its sample interval by the cubic Hermite
     /// interpolant of (theta, omega = theta') and Newton on it: error O(dt^4), ~1e-12 s at 1 ms.
-    fn zero_crossings(traj: &fmu::harness::Trajectory) -> Vec<f64> {
+    fn zero_crossings(traj: &fmu_export::harness::Trajectory) -> Vec<f64> {
         let (t, th, om) = (&traj.time, traj.get("theta"), traj.get("omega"));
         let mut out = Vec::new();
         for k in 0..t.len() - 1 {
@@ -135,8 +135,14 @@ mod tests {
             let hk = t[k + 1] - t[k];
             let hermite = |s: f64| {
                 let (s2, s3) = (s * s, s * s * s);
-                let value = (2.0 * s3 - 3.0 * s2 + 1.0) * th[k] + (s3 - 2.0 * s2 + s) * hk * om[k] + (-2.0 * s3 + 3.0 * s2) * th[k + 1] + (s3 - s2) * hk * om[k + 1];
-                let slope = (6.0 * s2 - 6.0 * s) * th[k] + (3.0 * s2 - 4.0 * s + 1.0) * hk * om[k] + (-6.0 * s2 + 6.0 * s) * th[k + 1] + (3.0 * s2 - 2.0 * s) * hk * om[k + 1];
+                let value = (2.0 * s3 - 3.0 * s2 + 1.0) * th[k]
+                    + (s3 - 2.0 * s2 + s) * hk * om[k]
+                    + (-2.0 * s3 + 3.0 * s2) * th[k + 1]
+                    + (s3 - s2) * hk * om[k + 1];
+                let slope = (6.0 * s2 - 6.0 * s) * th[k]
+                    + (3.0 * s2 - 4.0 * s + 1.0) * hk * om[k]
+                    + (-6.0 * s2 + 6.0 * s) * th[k + 1]
+                    + (3.0 * s2 - 2.0 * s) * hk * om[k + 1];
                 (value, slope)
             };
             let mut s = th[k] / (th[k] - th[k + 1]);
@@ -241,7 +247,7 @@ mod tests {
     /// Names, state indices, units and display units of the table are all known to the toolkit.
     #[test]
     fn variable_table_is_well_formed() {
-        let problems = fmu::table::Table::<Pendulum>::new().problems();
+        let problems = fmu_export::table::Table::<Pendulum>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
     }
 

@@ -3,7 +3,7 @@
 
 use std::f64::consts::PI;
 
-use fmu::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, PhaseCosine, Variable};
+use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, PhaseCosine, Variable};
 use serde::{Deserialize, Serialize};
 
 /// Rows of this model's variable table.
@@ -29,7 +29,7 @@ pub struct QuarterCar {
     pub z_r_dot: f64,
     /// What the right-hand side needs of the parameters, set by `initial_state`.
     derived: Derived,
-    /// The road's cos(omega t), memoized (see `fmu::PhaseCosine`); not part of the saved state.
+    /// The road's cos(omega t), memoized (see `fmu_export::PhaseCosine`); not part of the saved state.
     #[serde(skip)]
     road_cos: PhaseCosine,
 }
@@ -133,9 +133,15 @@ impl Model for QuarterCar {
             V::parameter("k_t", "Tire stiffness", |s| s.k_t, |s, v| s.k_t = v).unit("N/m"),
             V::parameter("b_t", "Tire damping coefficient", |s| s.b_t, |s, v| s.b_t = v).unit("N.s/m"),
             V::parameter("speed", "Horizontal speed of the car x_c'", |s| s.speed, |s, v| s.speed = v).unit("m/s"),
-            V::parameter("road_amplitude", "Amplitude a of the road z_r = a sin(2 pi x_c / wavelength)", |s| s.road_amplitude, |s, v| s.road_amplitude = v)
+            V::parameter(
+                "road_amplitude",
+                "Amplitude a of the road z_r = a sin(2 pi x_c / wavelength)",
+                |s| s.road_amplitude,
+                |s, v| s.road_amplitude = v,
+            )
+            .unit("m"),
+            V::parameter("road_wavelength", "Wavelength of the sinusoidal road", |s| s.road_wavelength, |s, v| s.road_wavelength = v)
                 .unit("m"),
-            V::parameter("road_wavelength", "Wavelength of the sinusoidal road", |s| s.road_wavelength, |s, v| s.road_wavelength = v).unit("m"),
             V::input("z_r_dot_ext", "External road rate, added to the sinusoidal road's rate", |s| s.z_r_dot_ext, |s, v| s.z_r_dot_ext = v)
                 .unit("m/s"),
             V::state("z_s", "Sprung mass displacement from static equilibrium", 0).unit("m"),
@@ -187,12 +193,12 @@ impl Model for QuarterCar {
     }
 }
 
-fmu::export_fmu!(QuarterCar);
+fmu_export::export_fmu!(QuarterCar);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fmu::harness::Harness;
+    use fmu_export::harness::Harness;
     use nalgebra::{Complex, SMatrix, SVector};
 
     type M8 = SMatrix<f64, 8, 8>;
@@ -324,7 +330,9 @@ mod tests {
     /// finite, rather than reaching the solver (or the debug check of the derived constants).
     #[test]
     fn an_overflowing_road_frequency_is_refused_at_initialization() {
-        let err = Harness::<QuarterCar>::started(&[("speed", 1e308), ("road_wavelength", 1e-300), ("road_amplitude", 0.0)], None).err().expect("refused");
+        let err = Harness::<QuarterCar>::started(&[("speed", 1e308), ("road_wavelength", 1e-300), ("road_amplitude", 0.0)], None)
+            .err()
+            .expect("refused");
         assert!(err.contains("is not finite: check the parameters"), "{err}");
     }
 
@@ -334,8 +342,8 @@ mod tests {
     #[cfg(debug_assertions)]
     #[should_panic(expected = "a parameter changed after initial_state")]
     fn derivatives_after_an_underived_parameter_change_are_caught() {
-        let mut car = QuarterCar::default();
-        car.speed = 12.0;
+        // The default's constants are derived for 30 m/s; the struct update keeps them.
+        let car = QuarterCar { speed: 12.0, ..Default::default() };
         car.derivatives(0.0, &[0.0; 5], &mut [0.0; 5]);
     }
 
@@ -359,9 +367,8 @@ mod tests {
             h.set("abs_tol", 1e-12).unwrap();
             h.initialize(Some(1e-10)).unwrap();
             let traj = h.run(10.0, 1e-4, &["z_s", "z_r"]).unwrap();
-            let window = |name: &str| {
-                traj.time.iter().zip(traj.get(name)).filter(|(t, _)| **t >= 7.0).map(|(_, v)| *v).fold(f64::MIN, f64::max)
-            };
+            let window =
+                |name: &str| traj.time.iter().zip(traj.get(name)).filter(|(t, _)| **t >= 7.0).map(|(_, v)| *v).fold(f64::MIN, f64::max);
             let measured = window("z_s") / window("z_r");
             let expected = transmissibility(&QuarterCar { speed, ..Default::default() });
             assert!((measured / expected - 1.0).abs() < 2e-5, "speed {speed}: measured {measured}, |H| = {expected}");
@@ -399,13 +406,22 @@ mod tests {
 
     #[test]
     fn variable_table_is_well_formed() {
-        let problems = fmu::table::Table::<QuarterCar>::new().problems();
+        let problems = fmu_export::table::Table::<QuarterCar>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
     }
 
     #[test]
     fn non_physical_parameters_are_refused_by_name() {
-        for (name, value) in [("m_s", 0.0), ("m_u", -30.0), ("k_s", 0.0), ("k_t", -1.0), ("b_s", -1.0), ("b_t", -10.0), ("speed", -5.0), ("road_wavelength", 0.0)] {
+        for (name, value) in [
+            ("m_s", 0.0),
+            ("m_u", -30.0),
+            ("k_s", 0.0),
+            ("k_t", -1.0),
+            ("b_s", -1.0),
+            ("b_t", -10.0),
+            ("speed", -5.0),
+            ("road_wavelength", 0.0),
+        ] {
             let mut h = Harness::<QuarterCar>::new();
             h.set(name, value).unwrap();
             let err = h.initialize(None).unwrap_err();

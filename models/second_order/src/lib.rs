@@ -1,7 +1,7 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu::{require_finite, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_finite, Model, ModelError, ModelInfo, Variable};
 
 /// Rows of this model's variable table.
 type V = Variable<SecondOrder>;
@@ -80,12 +80,12 @@ impl Model for SecondOrder {
     }
 }
 
-fmu::export_fmu!(SecondOrder);
+fmu_export::export_fmu!(SecondOrder);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fmu::harness::Harness;
+    use fmu_export::harness::Harness;
 
     /// The closed form derived in derivation.md (default parameters only).
     fn exact(t: f64) -> (f64, f64) {
@@ -95,10 +95,14 @@ mod tests {
 
     fn max_error(h: &mut Harness<SecondOrder>, dt: f64) -> f64 {
         let traj = h.run(10.0, dt, &["q", "q_dot"]).unwrap();
-        traj.time.iter().enumerate().map(|(k, t)| {
-            let (q, qd) = exact(*t);
-            (traj.get("q")[k] - q).abs().max((traj.get("q_dot")[k] - qd).abs())
-        }).fold(0.0, f64::max)
+        traj.time
+            .iter()
+            .enumerate()
+            .map(|(k, t)| {
+                let (q, qd) = exact(*t);
+                (traj.get("q")[k] - q).abs().max((traj.get("q_dot")[k] - qd).abs())
+            })
+            .fold(0.0, f64::max)
     }
 
     /// DOPRI5 against the analytical solution: at rtol 1e-10 the global error over 10 s stays
@@ -124,13 +128,16 @@ mod tests {
     /// Forward Euler is first order: halving the step halves the error (ratio near 2).
     #[test]
     fn euler_converges_at_first_order() {
-        let errs: Vec<f64> = [1e-3, 5e-4].iter().map(|step| {
-            let mut h = Harness::<SecondOrder>::new();
-            h.set("solver", 0.0).unwrap();
-            h.set("fixed_step", *step).unwrap();
-            h.initialize(None).unwrap();
-            max_error(&mut h, 0.01)
-        }).collect();
+        let errs: Vec<f64> = [1e-3, 5e-4]
+            .iter()
+            .map(|step| {
+                let mut h = Harness::<SecondOrder>::new();
+                h.set("solver", 0.0).unwrap();
+                h.set("fixed_step", *step).unwrap();
+                h.initialize(None).unwrap();
+                max_error(&mut h, 0.01)
+            })
+            .collect();
         let ratio = errs[0] / errs[1];
         assert!((ratio - 2.0).abs() < 0.1, "errors {errs:?}, ratio {ratio}");
     }

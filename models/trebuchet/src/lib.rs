@@ -1,14 +1,14 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// Rows of this model's variable table.
 type V = Variable<Trebuchet>;
 
-use fmu::units::{DEGREE as DEG, FOOT, INCH, LBF, OZF};
+use fmu_export::units::{DEGREE as DEG, FOOT, INCH, LBF, OZF};
 
 /// Regimes (the `regime` output). Regime 2 (impact) is instantaneous: it happens inside the
 /// event handler at `t_impact`, so sampled outputs show 1, then 3 and 4.
@@ -162,14 +162,7 @@ impl Trebuchet {
         let l2 = self.r_bc + self.r_cd;
         // About G: rod about its own centre, shifted to G; counterweight at B.
         let i2 = m_rod * (l2 * l2 / 12.0 + (s_rod - s_g).powi(2)) + m_b * (self.r_bc + s_g).powi(2);
-        Inertia {
-            m1,
-            m2,
-            m3: self.w_3 / g,
-            s_g,
-            i1: m1 * self.r_ac * self.r_ac / 12.0,
-            i2,
-        }
+        Inertia { m1, m2, m3: self.w_3 / g, s_g, i1: m1 * self.r_ac * self.r_ac / 12.0, i2 }
     }
 
     /// Points and velocities of the mechanism for `regime` (1: pivot D at the origin, rigid
@@ -237,18 +230,9 @@ impl Trebuchet {
 
     /// The three impact momenta [H_A (whole system about A), H_C (links 2 and 3 about C),
     /// H_D (projectile about D)] of a configuration `fr` with body velocities given.
-    pub fn impact_momenta(
-        &self,
-        fr: &Frame,
-        v_f: P2,
-        w1: f64,
-        v_g: P2,
-        w2: f64,
-        v_e: P2,
-    ) -> [f64; 3] {
+    pub fn impact_momenta(&self, fr: &Frame, v_f: P2, w1: f64, v_g: P2, w2: f64, v_e: P2) -> [f64; 3] {
         let m = self.inertia();
-        let h_c =
-            m.i2 * w2 + m.m2 * cross(sub(fr.g, fr.c), v_g) + m.m3 * cross(sub(fr.e, fr.c), v_e);
+        let h_c = m.i2 * w2 + m.m2 * cross(sub(fr.g, fr.c), v_g) + m.m3 * cross(sub(fr.e, fr.c), v_e);
         let h_a = m.i1 * w1
             + m.m1 * cross(sub(fr.f, fr.a), v_f)
             + m.i2 * w2
@@ -277,10 +261,7 @@ impl Trebuchet {
                 k[(i, j)] = col[i];
             }
         }
-        let sol = k
-            .lu()
-            .solve(&Vector3::new(rhs[0], rhs[1], rhs[2]))
-            .unwrap_or_else(|| Vector3::repeat(f64::NAN));
+        let sol = k.lu().solve(&Vector3::new(rhs[0], rhs[1], rhs[2])).unwrap_or_else(|| Vector3::repeat(f64::NAN));
         [sol[0], sol[1], sol[2]]
     }
 
@@ -299,11 +280,7 @@ impl Trebuchet {
             m.m3 * c * e,
             m.m3 * e * e,
         );
-        let gv = [
-            self.g * (0.5 * m.m1 + m.m2 + m.m3) * a,
-            self.g * (m.m2 * m.s_g + m.m3 * c),
-            self.g * m.m3 * e,
-        ];
+        let gv = [self.g * (0.5 * m.m1 + m.m2 + m.m3) * a, self.g * (m.m2 * m.s_g + m.m3 * c), self.g * m.m3 * e];
         let mut mass = Matrix3::zeros();
         let mut rhs = Vector3::zeros();
         for i in 0..3 {
@@ -315,10 +292,7 @@ impl Trebuchet {
             }
             rhs[i] = -h - gv[i] * x[i].cos();
         }
-        let acc = mass
-            .cholesky()
-            .map(|ch| ch.solve(&rhs))
-            .unwrap_or_else(|| Vector3::repeat(f64::NAN));
+        let acc = mass.cholesky().map(|ch| ch.solve(&rhs)).unwrap_or_else(|| Vector3::repeat(f64::NAN));
         [acc[0], acc[1], acc[2]]
     }
 
@@ -326,8 +300,7 @@ impl Trebuchet {
     pub fn fall_acceleration(&self, x: &[f64]) -> f64 {
         let m = self.inertia();
         let fr = self.frame(FALLING, x);
-        let i_d =
-            m.i1 + m.m1 * dot(fr.f, fr.f) + m.i2 + m.m2 * dot(fr.g, fr.g) + m.m3 * dot(fr.e, fr.e);
+        let i_d = m.i1 + m.m1 * dot(fr.f, fr.f) + m.i2 + m.m2 * dot(fr.g, fr.g) + m.m3 * dot(fr.e, fr.e);
         -self.g * (m.m1 * fr.f[0] + m.m2 * fr.g[0] + m.m3 * fr.e[0]) / i_d
     }
 }
@@ -360,7 +333,9 @@ impl Model for Trebuchet {
             V::parameter("theta1_0", "Initial angle of A->C from +x", |s| s.theta1_0, |s, v| s.theta1_0 = v).unit("rad").display("deg"),
             V::parameter("theta2_0", "Initial angle of B->D from +x", |s| s.theta2_0, |s, v| s.theta2_0 = v).unit("rad").display("deg"),
             V::parameter("theta3_0", "Initial angle of D->E from +x", |s| s.theta3_0, |s, v| s.theta3_0 = v).unit("rad").display("deg"),
-            V::parameter("release_angle", "Release when theta3 - theta2 exceeds this", |s| s.release_angle, |s, v| s.release_angle = v).unit("rad").display("deg"),
+            V::parameter("release_angle", "Release when theta3 - theta2 exceeds this", |s| s.release_angle, |s, v| s.release_angle = v)
+                .unit("rad")
+                .display("deg"),
             V::state("theta1", "Angle of A->C from +x (frozen after release)", 0).unit("rad").display("deg"),
             V::state("theta2", "Angle of B->D from +x (frozen after release)", 1).unit("rad").display("deg"),
             V::state("theta3", "Angle of D->E from +x (frozen after release)", 2).unit("rad").display("deg"),
@@ -383,12 +358,25 @@ impl Model for Trebuchet {
             V::output("E_x", "x of E (projectile)", |s| s.pos[8]).unit("m"),
             V::output("E_y", "y of E (projectile)", |s| s.pos[9]).unit("m"),
             V::output("projectile_speed", "Speed of the projectile", |s| s.projectile_speed).unit("m/s"),
-            V::output("energy", "Total mechanical energy, datum y = 0 (after release: links frozen at their release energy + projectile)", |s| s.energy).unit("J"),
+            V::output(
+                "energy",
+                "Total mechanical energy, datum y = 0 (after release: links frozen at their release energy + projectile)",
+                |s| s.energy,
+            )
+            .unit("J"),
             V::discrete_output("t_impact", "Time A hit the ground (regime 2), -1 until then", |s| s.t_impact).unit("s"),
             V::discrete_output("t_release", "Time of release, -1 until then", |s| s.t_release).unit("s"),
             V::discrete_output("range", "Landing x of the projectile, 0 until it has landed", |s| s.range).unit("m"),
-            V::discrete_output("range_ideal", "All initial potential energy (datum y = 0) given to the projectile at 45 deg: v^2/g", |s| s.range_ideal).unit("m"),
-            V::discrete_output("efficiency", "Projectile kinetic energy at release / initial potential energy (datum y = 0); 0 before release", |s| s.efficiency).unit("1"),
+            V::discrete_output("range_ideal", "All initial potential energy (datum y = 0) given to the projectile at 45 deg: v^2/g", |s| {
+                s.range_ideal
+            })
+            .unit("m"),
+            V::discrete_output(
+                "efficiency",
+                "Projectile kinetic energy at release / initial potential energy (datum y = 0); 0 before release",
+                |s| s.efficiency,
+            )
+            .unit("1"),
             V::boolean_output("misfire", "True: B reached the ground before release", |s| s.misfire),
         ]
     }
@@ -406,12 +394,9 @@ impl Model for Trebuchet {
         ] {
             require_positive(name, v)?;
         }
-        for (name, v) in [
-            ("theta1_0", self.theta1_0),
-            ("theta2_0", self.theta2_0),
-            ("theta3_0", self.theta3_0),
-            ("release_angle", self.release_angle),
-        ] {
+        for (name, v) in
+            [("theta1_0", self.theta1_0), ("theta2_0", self.theta2_0), ("theta3_0", self.theta3_0), ("release_angle", self.release_angle)]
+        {
             require_finite(name, v)?;
         }
         if self.release_angle <= self.theta3_0 - self.theta2_0 {
@@ -428,10 +413,16 @@ impl Model for Trebuchet {
         self.regime = FALLING;
         let fr = self.frame(FALLING, x);
         if fr.a[1] <= 0.0 {
-            return Err(ModelError(format!("the starting configuration puts A at y = {} m: it must be above the ground (theta1_0, theta2_0)", fr.a[1])));
+            return Err(ModelError(format!(
+                "the starting configuration puts A at y = {} m: it must be above the ground (theta1_0, theta2_0)",
+                fr.a[1]
+            )));
         }
         if fr.b[1] <= 0.0 {
-            return Err(ModelError(format!("the starting configuration puts B at y = {} m: it must be above the ground (theta2_0)", fr.b[1])));
+            return Err(ModelError(format!(
+                "the starting configuration puts B at y = {} m: it must be above the ground (theta2_0)",
+                fr.b[1]
+            )));
         }
         self.pivot_x = 0.0;
         self.misfire = false;
@@ -470,27 +461,16 @@ impl Model for Trebuchet {
 
     fn outputs(&mut self, _t: f64, x: &[f64]) {
         let fr = self.frame(self.regime, x);
-        self.pos = [
-            fr.a[0], fr.a[1], fr.b[0], fr.b[1], fr.c[0], fr.c[1], fr.d[0], fr.d[1], fr.e[0],
-            fr.e[1],
-        ];
+        self.pos = [fr.a[0], fr.a[1], fr.b[0], fr.b[1], fr.c[0], fr.c[1], fr.d[0], fr.d[1], fr.e[0], fr.e[1]];
         self.projectile_speed = dot(fr.v_e, fr.v_e).sqrt();
-        let links = if self.regime == FLYING {
-            self.e_links_release
-        } else {
-            self.links_energy(&fr)
-        };
+        let links = if self.regime == FLYING { self.e_links_release } else { self.links_energy(&fr) };
         self.energy = links + self.projectile_energy(&fr);
     }
 
     fn event_indicators(&self, _t: f64, x: &[f64], z: &mut [f64]) {
         let fr = self.frame(self.regime, x);
         z[0] = if self.regime == FALLING { fr.a[1] } else { 1.0 };
-        z[1] = if self.regime == FALLING || self.regime == SWINGING {
-            fr.b[1]
-        } else {
-            1.0
-        };
+        z[1] = if self.regime == FALLING || self.regime == SWINGING { fr.b[1] } else { 1.0 };
         z[2] = match self.regime {
             SWINGING => self.release_angle - (x[2] - x[1]),
             FLYING => x[7],
@@ -498,16 +478,14 @@ impl Model for Trebuchet {
         };
     }
 
-    fn on_event(
-        &mut self,
-        t: f64,
-        x: &mut [f64],
-        fired: &[bool],
-    ) -> Result<EventOutcome, ModelError> {
+    fn on_event(&mut self, t: f64, x: &mut [f64], fired: &[bool]) -> Result<EventOutcome, ModelError> {
         if fired[1] && (self.regime == FALLING || self.regime == SWINGING) {
             self.misfire = true;
             return Ok(EventOutcome::Stop {
-                reason: format!("misfire: the counterweight B reached the ground at t = {t:.6} s, before the release (regime {})", self.regime),
+                reason: format!(
+                    "misfire: the counterweight B reached the ground at t = {t:.6} s, before the release (regime {})",
+                    self.regime
+                ),
             });
         }
         match self.regime {
@@ -516,9 +494,7 @@ impl Model for Trebuchet {
                 self.regime = IMPACT;
                 let w = self.impact(x);
                 if w.iter().any(|v| !v.is_finite()) {
-                    return Err(ModelError(format!(
-                        "the impact equations are singular at t = {t}"
-                    )));
+                    return Err(ModelError(format!("the impact equations are singular at t = {t}")));
                 }
                 self.pivot_x = self.frame(FALLING, x).a[0];
                 x[3..6].copy_from_slice(&w);
@@ -541,9 +517,7 @@ impl Model for Trebuchet {
                 // Located to 1e-10 s, y_p is ~0: the last bit to y = 0 along the velocity.
                 let tau = if x[9] != 0.0 { -x[7] / x[9] } else { 0.0 };
                 self.range = x[6] + x[8] * tau;
-                return Ok(EventOutcome::Stop {
-                    reason: format!("the projectile landed at x = {:.6} m", self.range),
-                });
+                return Ok(EventOutcome::Stop { reason: format!("the projectile landed at x = {:.6} m", self.range) });
             }
             _ => {}
         }
@@ -551,12 +525,12 @@ impl Model for Trebuchet {
     }
 }
 
-fmu::export_fmu!(Trebuchet);
+fmu_export::export_fmu!(Trebuchet);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fmu::harness::Harness;
+    use fmu_export::harness::Harness;
 
     const G: f64 = 9.81;
 
@@ -567,10 +541,7 @@ mod tests {
     }
 
     fn pt(h: &mut Harness<Trebuchet>, p: &str) -> [f64; 2] {
-        [
-            h.get(&format!("{p}_x")).unwrap(),
-            h.get(&format!("{p}_y")).unwrap(),
-        ]
+        [h.get(&format!("{p}_x")).unwrap(), h.get(&format!("{p}_y")).unwrap()]
     }
 
     /// The test's own mechanics, from the FMU's point outputs A..E and its rate states only:
@@ -596,21 +567,14 @@ mod tests {
         let p = Trebuchet::default();
         let regime = h.get("regime").unwrap() as i32;
         let (a, b, c, d, e) = (pt(h, "A"), pt(h, "B"), pt(h, "C"), pt(h, "D"), pt(h, "E"));
-        let w = [
-            h.get("omega1").unwrap(),
-            h.get("omega2").unwrap(),
-            h.get("omega3").unwrap(),
-        ];
+        let w = [h.get("omega1").unwrap(), h.get("omega2").unwrap(), h.get("omega3").unwrap()];
         let m1 = p.rho * p.r_ac / G;
         let m_rod = p.rho * (p.r_bc + p.r_cd) / G;
         let m_b = p.w_b / G;
         let m2 = m_rod + m_b;
         // Rod centre is the midpoint of BD; G weights it with the point mass at B.
         let rod = [(b[0] + d[0]) / 2.0, (b[1] + d[1]) / 2.0];
-        let g = [
-            (m_rod * rod[0] + m_b * b[0]) / m2,
-            (m_rod * rod[1] + m_b * b[1]) / m2,
-        ];
+        let g = [(m_rod * rod[0] + m_b * b[0]) / m2, (m_rod * rod[1] + m_b * b[1]) / m2];
         let f = [(a[0] + c[0]) / 2.0, (a[1] + c[1]) / 2.0];
         let l = p.r_bc + p.r_cd;
         let dist2 = |p: [f64; 2], q: [f64; 2]| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
@@ -634,20 +598,7 @@ mod tests {
             };
             (rot(w[0], f, a), v_g, v_e)
         };
-        Snapshot {
-            m: [m1, m2, p.w_3 / G],
-            i: [m1 * p.r_ac * p.r_ac / 12.0, i2],
-            a,
-            c,
-            d,
-            e,
-            f,
-            g,
-            v_f,
-            v_g,
-            v_e,
-            w,
-        }
+        Snapshot { m: [m1, m2, p.w_3 / G], i: [m1 * p.r_ac * p.r_ac / 12.0, i2], a, c, d, e, f, g, v_f, v_g, v_e, w }
     }
 
     impl Snapshot {
@@ -663,13 +614,9 @@ mod tests {
 
         /// [whole system about A, links 2 + 3 about C, projectile about D].
         fn momenta(&self) -> [f64; 3] {
-            let h = |m: f64, p: [f64; 2], q: [f64; 2], v: [f64; 2]| {
-                m * ((p[0] - q[0]) * v[1] - (p[1] - q[1]) * v[0])
-            };
+            let h = |m: f64, p: [f64; 2], q: [f64; 2], v: [f64; 2]| m * ((p[0] - q[0]) * v[1] - (p[1] - q[1]) * v[0]);
             let (m1, m2, m3) = (self.m[0], self.m[1], self.m[2]);
-            let h_c = self.i[1] * self.w[1]
-                + h(m2, self.g, self.c, self.v_g)
-                + h(m3, self.e, self.c, self.v_e);
+            let h_c = self.i[1] * self.w[1] + h(m2, self.g, self.c, self.v_g) + h(m3, self.e, self.c, self.v_e);
             let h_a = self.i[0] * self.w[0]
                 + h(m1, self.f, self.a, self.v_f)
                 + self.i[1] * self.w[1]
@@ -713,10 +660,7 @@ mod tests {
                 seen.push(r);
             }
             if r < 4 {
-                assert!(
-                    traj.get("E_y")[k] >= 0.0,
-                    "projectile below the ground on its cord at t = {t}"
-                );
+                assert!(traj.get("E_y")[k] >= 0.0, "projectile below the ground on its cord at t = {t}");
             }
         }
         assert_eq!(seen, vec![1, 2, 3, 4]);
@@ -725,13 +669,7 @@ mod tests {
         assert_eq!(h.get("misfire").unwrap(), 0.0);
         let range = h.get("range").unwrap();
         assert!(range > 0.0);
-        assert!(
-            h.messages()
-                .iter()
-                .any(|m| m.contains(&format!("the projectile landed at x = {range:.6} m"))),
-            "{:?}",
-            h.messages()
-        );
+        assert!(h.messages().iter().any(|m| m.contains(&format!("the projectile landed at x = {range:.6} m"))), "{:?}", h.messages());
         eprintln!(
             "t_impact {t_i} t_release {t_r} landing {t_end} range {range} ideal {} efficiency {}",
             h.get("range_ideal").unwrap(),
@@ -757,10 +695,7 @@ mod tests {
             t = h.instance.time();
             let s = snapshot(&mut h);
             let e = s.energy();
-            assert!(
-                (e - h.get("energy").unwrap()).abs() < 1e-9 * e0,
-                "energy output at t = {t}"
-            );
+            assert!((e - h.get("energy").unwrap()).abs() < 1e-9 * e0, "energy output at t = {t}");
             if t < t_i {
                 drift1 = drift1.max((e - e0).abs() / e0);
                 e1_last = e;
@@ -770,15 +705,12 @@ mod tests {
             }
         }
         let e3 = e3.expect("samples in regime 3");
-        eprintln!("E0 {e0} J, regime 1 drift {drift1:e}, E after impact {e3} J, regime 3 drift {drift3:e}, impact loss {:e} J", e1_last - e3);
-        assert!(
-            drift1 < 1e-7 && drift3 < 1e-7,
-            "drift {drift1:e} {drift3:e}"
+        eprintln!(
+            "E0 {e0} J, regime 1 drift {drift1:e}, E after impact {e3} J, regime 3 drift {drift3:e}, impact loss {:e} J",
+            e1_last - e3
         );
-        assert!(
-            e3 <= e1_last * (1.0 + 1e-7),
-            "the impact added energy: {e1_last} -> {e3}"
-        );
+        assert!(drift1 < 1e-7 && drift3 < 1e-7, "drift {drift1:e} {drift3:e}");
+        assert!(e3 <= e1_last * (1.0 + 1e-7), "the impact added energy: {e1_last} -> {e3}");
     }
 
     /// The three angular momenta (computed here from the point outputs and the rates) just
@@ -805,14 +737,8 @@ mod tests {
         for k in 0..3 {
             let before = 2.0 * b1[k] - b2[k];
             let after = 2.0 * a1[k] - a2[k];
-            eprintln!(
-                "H[{k}] before {before} after {after} diff {:e}",
-                after - before
-            );
-            assert!(
-                (after - before).abs() < 1e-7 * scale,
-                "H[{k}]: {before} -> {after}"
-            );
+            eprintln!("H[{k}] before {before} after {after} diff {:e}", after - before);
+            assert!((after - before).abs() < 1e-7 * scale, "H[{k}]: {before} -> {after}");
         }
         // D leaves the ground after the impact.
         let s = snapshot(&mut h);
@@ -830,17 +756,9 @@ mod tests {
         h.step(t_r + 0.01).unwrap();
         assert_eq!(h.get("regime").unwrap(), 4.0);
         let rel = h.get("theta3").unwrap() - h.get("theta2").unwrap();
-        assert!(
-            (rel - Trebuchet::default().release_angle).abs() < 1e-8,
-            "{rel}"
-        );
+        assert!((rel - Trebuchet::default().release_angle).abs() < 1e-8, "{rel}");
         let tau = h.instance.time() - t_r;
-        let (x, y, vx, vy) = (
-            h.get("x_p").unwrap(),
-            h.get("y_p").unwrap(),
-            h.get("vx_p").unwrap(),
-            h.get("vy_p").unwrap(),
-        );
+        let (x, y, vx, vy) = (h.get("x_p").unwrap(), h.get("y_p").unwrap(), h.get("vx_p").unwrap(), h.get("vy_p").unwrap());
         let vy0 = vy + G * tau;
         let y0 = y - vy0 * tau + 0.5 * G * tau * tau;
         let x0 = x - vx * tau;
@@ -865,18 +783,8 @@ mod tests {
         assert_eq!(h.get("misfire").unwrap(), 1.0);
         assert_eq!(h.get("t_release").unwrap(), -1.0);
         assert_eq!(h.get("regime").unwrap(), 3.0);
-        assert!(
-            h.get("B_y").unwrap().abs() < 1e-9,
-            "{}",
-            h.get("B_y").unwrap()
-        );
-        assert!(
-            h.messages()
-                .iter()
-                .any(|m| m.contains("misfire: the counterweight B reached the ground")),
-            "{:?}",
-            h.messages()
-        );
+        assert!(h.get("B_y").unwrap().abs() < 1e-9, "{}", h.get("B_y").unwrap());
+        assert!(h.messages().iter().any(|m| m.contains("misfire: the counterweight B reached the ground")), "{:?}", h.messages());
     }
 
     /// The regime 3 mass-matrix EOM against Lagrange's equations applied numerically: L = T - V
@@ -886,11 +794,7 @@ mod tests {
     /// third derivatives of L (~1e2 J) ~ 4e-6, round-off ~ 1e-16 |L| / eps^2 ~ 1e-7.
     #[test]
     fn swinging_equations_satisfy_lagrange_by_finite_differences() {
-        let p = Trebuchet {
-            regime: SWINGING,
-            pivot_x: -0.5,
-            ..Default::default()
-        };
+        let p = Trebuchet { regime: SWINGING, pivot_x: -0.5, ..Default::default() };
         let x = [0.9, -0.4, 1.7, 1.3, -2.1, 4.0, 0.0, 0.0, 0.0, 0.0];
         let acc = p.swing_accelerations(&x);
         let lag = |q: &[f64]| {
@@ -925,19 +829,13 @@ mod tests {
 
     #[test]
     fn variable_table_is_well_formed() {
-        let problems = fmu::table::Table::<Trebuchet>::new().problems();
+        let problems = fmu_export::table::Table::<Trebuchet>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
     }
 
     #[test]
     fn non_physical_parameters_are_refused_by_name() {
-        for (name, value) in [
-            ("r_AC", 0.0),
-            ("rho", -1.0),
-            ("w_B", 0.0),
-            ("g", 0.0),
-            ("release_angle", 0.5),
-        ] {
+        for (name, value) in [("r_AC", 0.0), ("rho", -1.0), ("w_B", 0.0), ("g", 0.0), ("release_angle", 0.5)] {
             let mut h = Harness::<Trebuchet>::new();
             h.set(name, value).unwrap();
             let err = h.initialize(None).unwrap_err();

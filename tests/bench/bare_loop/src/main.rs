@@ -11,8 +11,9 @@
 
 use std::time::Instant;
 
-use fmu::solver::{Integrator, Method, Settings};
-use fmu::Model;
+use fmu_export::core::Equations;
+use fmu_export::solvers::{Integrator, Method, Settings};
+use fmu_export::Model;
 use quarter_car::QuarterCar;
 
 const STOP: f64 = 10.0;
@@ -22,7 +23,7 @@ const ATOL: f64 = 1e-9;
 
 /// max(z_s)/max(z_r) over the communication points of one 10 s run.
 fn transmissibility(speed: f64, rtol: f64) -> f64 {
-    // A model is the integrator's ODE system itself (the same code path as in the FMU). Its
+    // The model is the integrator's ODE system (the same code path as in the FMU). Its
     // parameters are data, as in an FMU run: without black_box the compiler would fold the
     // default masses and stiffnesses into the stages as constants (68 fewer instructions per
     // step), an advantage no run of real parameters has.
@@ -42,7 +43,7 @@ fn transmissibility(speed: f64, rtol: f64) -> f64 {
         // The runner's grid: t_i = i h, and the FMU ends its step at t_i + (t_{i+1} - t_i).
         let (t_i, t_next) = (i as f64 * INTERVAL, if i + 1 == steps { STOP } else { (i + 1) as f64 * INTERVAL });
         let t_end = t_i + (t_next - t_i);
-        integrator.advance(&system, &mut t, &mut x, t_end).expect("quarter_car integrates at these settings");
+        integrator.advance(Equations::of(&system), &mut t, &mut x, t_end).expect("quarter_car integrates at these settings");
         t = t_end;
         max_zs = max_zs.max(x[0]);
         max_zr = max_zr.max(x[2]);

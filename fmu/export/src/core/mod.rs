@@ -1,0 +1,676 @@
+//! The model core: one instance of a model in safe Rust, independent of the FMI version and
+//! interface. It owns time, the state vector, the solver, events, the variable-access rules
+//! (fixed, tunable, input) and FMU-state capture. Each front end (`fmi2`, later `fmi3`) keeps
+//! its own state machine, decides which call is legal when, and translates its C calls into
+//! the operations below; a [`Failure`] says whether the instance is still usable.
+
+pub mod snapshot;
+
+use ref_cast::RefCast;
+use serde::{Deserialize, Serialize};
+
+use crate::logging::{Logger, Status, LOG_EVENTS};
+use crate::model::{Access, Causality, EventOutcome, Model, Variability};
+use crate::table::{Slot, Table};
+use solvers::controls::{Control, Controls};
+use solvers::{Advance, Integrator, OdeSystem, SolverError};
+
+/// Why an operation failed: the status to return, the message to log, and whether the
+/// instance is now broken (the front end then enters its Error state).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Failure {
+    pub status: Status,
+    pub message: String,
+    /// The instance can no longer continue (a diverged step, a failed event): only reset or
+    /// free are meaningful now. False for refused calls, which change nothing.
+    pub broken: bool,
+}
+
+impl Failure {
+    /// A refused call (`Error`, instance unchanged) with `message`.
+    pub fn error(message: impl Into<String>) -> Failure {
+        Failure { status: Status::Error, message: message.into(), broken: false }
+    }
+
+    /// A failure after which the instance cannot go on.
+    pub fn broken(message: impl Into<String>) -> Failure {
+        Failure { status: Status::Error, message: message.into(), broken: true }
+    }
+}
+
+/// Result of a core operation.
+pub type CallResult<T = ()> = Result<T, Failure>;
+
+/// The names of the front end's calls that core messages refer to.
+#[derive(Debug, Clone, Copy)]
+pub struct Names {
+    /// The call that sets tolerance, start and stop time (`fmi2SetupExperiment`).
+    pub setup: &'static str,
+    /// The call that ends initialization (`fmi2ExitInitializationMode`).
+    pub exit_initialization: &'static str,
+}
+
+/// More events than this in one communication step means the model is chattering.
+const MAX_EVENTS_PER_STEP: usize = 10_000;
+
+/// What to try when a solution diverges, for the messages that say so.
+const DIVERGED_ADVICE: &str =
+    "the model may be unstable, or the step too large: with euler or rk4 reduce fixed_step, with dopri5 reduce tolerance/abs_tol";
+
+/// Everything an FMU state captures: enough to continue bit for bit from where it was taken.
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(bound = "M: Model")]
+pub struct State<M> {
+    pub(crate) model: M,
+    pub(crate) x: Vec<f64>,
+    pub(crate) t: f64,
+    pub(crate) start_time: f64,
+    pub(crate) stop_time: Option<f64>,
+    pub(crate) tolerance: Option<f64>,
+    pub(crate) controls: Controls,
+    pub(crate) integrator: Option<Integrator>,
+    /// `x` holds the initial state computed from the current parameters.
+    pub(crate) initial_state_ready: bool,
+    pub(crate) outputs_dirty: bool,
+    /// The model ended the experiment.
+    pub(crate) terminated: bool,
+    pub(crate) last_successful_time: f64,
+    /// The status of the last step (`Ok`, `Discard` or `Error`).
+    pub(crate) last_step_status: Status,
+}
+
+impl<M: Model> State<M> {
+    /// Brings the values `Model::outputs` computes up to date with (t, x).
+    #[inline]
+    fn refresh_outputs(&mut self) {
+        if self.outputs_dirty {
+            self.model.outputs(self.t, &self.x);
+            self.outputs_dirty = false;
+        }
+    }
+
+    fn new() -> State<M> {
+        State {
+            model: M::default(),
+            x: vec![0.0; M::N_STATES],
+            t: 0.0,
+            start_time: 0.0,
+            stop_time: None,
+            tolerance: None,
+            controls: Controls::default(),
+            integrator: None,
+            initial_state_ready: false,
+            outputs_dirty: true,
+            terminated: false,
+            last_successful_time: 0.0,
+            last_step_status: Status::Ok,
+        }
+    }
+}
+
+/// A model seen as the solver's ODE system. A transparent wrapper: the solver holds what is
+/// in memory a `&M` (made from one by [`Equations::of`]), so the compiler still knows the stage
+/// buffers it writes cannot alias the model's parameters, and can share work between stages.
+#[derive(RefCast)]
+#[repr(transparent)]
+pub struct Equations<M>(pub M);
+
+impl<M> Equations<M> {
+    /// The model `m` as an ODE system, without a copy.
+    #[inline(always)]
+    pub fn of(m: &M) -> &Equations<M> {
+        Equations::ref_cast(m)
+    }
+}
+
+impl<M: Model> OdeSystem for Equations<M> {
+    #[inline]
+    fn dim(&self) -> usize {
+        M::N_STATES
+    }
+    // Always inlined into the solver's stages, to keep values in registers across them.
+    #[inline(always)]
+    fn rhs(&self, t: f64, x: &[f64], dx: &mut [f64]) {
+        self.0.derivatives(t, x, dx)
+    }
+    fn n_event_indicators(&self) -> usize {
+        M::N_EVENT_INDICATORS
+    }
+    fn event_indicators(&self, t: f64, x: &[f64], z: &mut [f64]) {
+        Model::event_indicators(&self.0, t, x, z)
+    }
+}
+
+/// How a communication step ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepEnd {
+    /// The step reached its end.
+    Completed,
+    /// The model ended the experiment inside the step (a landing, a limit position): time is
+    /// where it ended, and the reason was logged with `Discard`.
+    EndedEarly,
+}
+
+/// Where the importer is in the lifecycle, as far as the variable rules care.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Before initialization ends: every parameter may be set.
+    Initializing,
+    /// After initialization: only inputs and tunable parameters.
+    Running,
+}
+
+/// A live instance of model `M`.
+pub struct Core<M: Model> {
+    pub name: String,
+    pub logger: Logger,
+    names: Names,
+    table: Table<M>,
+    state: State<M>,
+    /// Scratch copy of the state at the start of a step, to restore after a solver failure.
+    x_start: Vec<f64>,
+}
+
+impl<M: Model> Core<M> {
+    /// A new instance with the table's start values.
+    pub fn new(name: &str, logger: Logger, names: Names) -> Core<M> {
+        Core { name: name.to_owned(), logger, names, table: Table::new(), state: State::new(), x_start: vec![0.0; M::N_STATES] }
+    }
+
+    /// The instance's variable table.
+    pub fn table(&self) -> &Table<M> {
+        &self.table
+    }
+
+    /// The model's current time.
+    pub fn time(&self) -> f64 {
+        self.state.t
+    }
+
+    /// Back to the start values (logging settings are kept).
+    pub fn reset(&mut self) {
+        self.state = State::new();
+    }
+
+    /// Tolerance, start and stop time of the experiment.
+    pub fn setup(&mut self, tolerance: Option<f64>, start_time: f64, stop_time: Option<f64>) -> CallResult {
+        if !start_time.is_finite() {
+            return Err(Failure::error(format!("startTime = {start_time} must be finite")));
+        }
+        if let Some(tol) = tolerance {
+            if !(tol.is_finite() && tol > 0.0) {
+                return Err(Failure::error(format!("tolerance = {tol} must be a finite number greater than zero")));
+            }
+        }
+        if let Some(stop) = stop_time {
+            if !(stop.is_finite() && stop >= start_time) {
+                return Err(Failure::error(format!("stopTime = {stop} must be finite and not before startTime = {start_time}")));
+            }
+        }
+        let s = &mut self.state;
+        s.start_time = start_time;
+        s.t = start_time;
+        s.stop_time = stop_time;
+        s.tolerance = tolerance;
+        Ok(())
+    }
+
+    /// Computes the initial state from the current parameters (once per parameter change).
+    fn ensure_initial_state(&mut self) -> CallResult {
+        if !self.state.initial_state_ready {
+            let mut x = vec![0.0; M::N_STATES];
+            self.state.model.initial_state(&mut x).map_err(|e| Failure::error(format!("the parameters were refused: {e}")))?;
+            if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+                return Err(Failure::error(format!("the initial state {i} is {}: check the parameters", x[i])));
+            }
+            self.state.x = x;
+            self.state.initial_state_ready = true;
+            self.state.outputs_dirty = true;
+        }
+        Ok(())
+    }
+
+    /// Ends initialization: checks parameters and solver controls, starts the solver.
+    pub fn start(&mut self) -> CallResult {
+        self.ensure_initial_state()?;
+        let rtol = self.state.tolerance.unwrap_or(M::info().tolerance);
+        let settings = self.state.controls.settings(rtol).map_err(Failure::error)?;
+        self.state.t = self.state.start_time;
+        if let Some(bad) = self.first_non_finite() {
+            return Err(Failure::error(format!("the parameters give {bad} at the start, which is not finite: check the parameters")));
+        }
+        self.state.integrator = Some(Integrator::new(settings, M::N_STATES, M::N_EVENT_INDICATORS));
+        self.state.last_successful_time = self.state.t;
+        Ok(())
+    }
+
+    /// Before a read during initialization the state is first computed from the parameters.
+    /// The reads then run `Model::outputs` at the first variable it computes, at most once per
+    /// step, so reading states, parameters or inputs (what a sweep's metrics mostly read)
+    /// costs no model evaluation.
+    fn prepare_read(&mut self, phase: Phase) -> CallResult {
+        if phase == Phase::Initializing {
+            self.ensure_initial_state()?;
+        }
+        Ok(())
+    }
+
+    /// Refuses `vr` for a call on `kind` variables, naming the variable when `vr` is one of
+    /// another type (the usual mistake: a value reference from the wrong list).
+    fn unknown(&self, vr: u32, kind: &str) -> Failure {
+        match self.table.row(vr) {
+            Some(row) => {
+                Failure::error(format!("value reference {vr} is '{}' of type {:?}, not a {kind} variable", row.name, row.base_type))
+            }
+            None => Failure::error(format!("value reference {vr} is not a {kind} variable of this FMU")),
+        }
+    }
+
+    fn control_value(&self, c: Control) -> f64 {
+        let counters = self.state.integrator.as_ref().map(|i| (i.n_steps(), i.n_rhs())).unwrap_or((0, 0));
+        match c {
+            Control::NSteps => counters.0 as f64,
+            Control::NRhs => counters.1 as f64,
+            settable => self.state.controls.get(settable).expect("a settable control has a value"),
+        }
+    }
+
+    /// Reads Real variables in one pass (see [`Core::prepare_read`]). A value that is not
+    /// finite is refused, naming it; after initialization that breaks the instance.
+    pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64], phase: Phase) -> CallResult {
+        self.prepare_read(phase)?;
+        let mut all_finite = true;
+        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
+            let i = *vr as usize;
+            *value = match self.table.rows.get(i).map(|r| &r.slot) {
+                Some(Slot::Model(Access::State(k))) => self.state.x[*k],
+                Some(Slot::Model(Access::Real { get, .. })) => {
+                    if self.table.computed[i] {
+                        self.state.refresh_outputs();
+                    }
+                    get(&self.state.model)
+                }
+                Some(Slot::Control(c)) if !c.is_integer() => self.control_value(*c),
+                _ => return Err(self.unknown(*vr, "Real")),
+            };
+            all_finite &= value.is_finite();
+        }
+        // Never a silent NaN or inf. The solver refuses non-finite states during a step, but
+        // outputs are computed lazily, here: one that overflowed means the solution diverged,
+        // and the instance is broken as after a failed step.
+        if all_finite {
+            return Ok(());
+        }
+        let (vr, value) = vrs.iter().zip(values.iter()).find(|(_, v)| !v.is_finite()).expect("a value is not finite");
+        let name = self.table.rows[*vr as usize].name;
+        let t = self.state.t;
+        let message = format!("{name} = {value} at t = {t} s is not finite: the solution diverged ({DIVERGED_ADVICE})");
+        // While initializing, the parameters can still be corrected: the instance is not broken.
+        Err(match phase {
+            Phase::Initializing => Failure::error(message),
+            Phase::Running => Failure::broken(format!("{message}; the instance is now in the Error state")),
+        })
+    }
+
+    /// Reads Integer variables.
+    pub fn get_integer(&mut self, vrs: &[u32], values: &mut [i32], phase: Phase) -> CallResult {
+        self.prepare_read(phase)?;
+        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
+            let i = *vr as usize;
+            *value = match self.table.rows.get(i).map(|r| &r.slot) {
+                Some(Slot::Model(Access::Integer { get, .. })) => {
+                    if self.table.computed[i] {
+                        self.state.refresh_outputs();
+                    }
+                    get(&self.state.model)
+                }
+                // Counters saturate rather than wrap: FMI integers are 32-bit.
+                Some(Slot::Control(c)) if c.is_integer() => self.control_value(*c).min(i32::MAX as f64) as i32,
+                _ => return Err(self.unknown(*vr, "Integer")),
+            };
+        }
+        Ok(())
+    }
+
+    /// Reads Boolean variables.
+    pub fn get_boolean(&mut self, vrs: &[u32], values: &mut [bool], phase: Phase) -> CallResult {
+        self.prepare_read(phase)?;
+        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
+            let i = *vr as usize;
+            *value = match self.table.rows.get(i).map(|r| &r.slot) {
+                Some(Slot::Model(Access::Boolean { get, .. })) => {
+                    if self.table.computed[i] {
+                        self.state.refresh_outputs();
+                    }
+                    get(&self.state.model)
+                }
+                _ => return Err(self.unknown(*vr, "Boolean")),
+            };
+        }
+        Ok(())
+    }
+
+    /// String reads and writes: these models have no String variables.
+    pub fn no_strings(&self, vrs: &[u32]) -> CallResult {
+        match vrs.first() {
+            Some(vr) => Err(self.unknown(*vr, "String")),
+            None => Ok(()),
+        }
+    }
+
+    /// Checks that the row of `vr` may be set now (the fixed/tunable/input rules); returns its
+    /// index. `state` names the front end's state for the message.
+    fn settable(&self, vr: u32, phase: Phase, state: &str) -> CallResult<usize> {
+        let row = self.table.row(vr).ok_or_else(|| Failure::error(format!("value reference {vr} is not a variable of this FMU")))?;
+        if row.variability == Variability::Constant {
+            return Err(Failure::error(format!("'{}' is a constant and can never be set", row.name)));
+        }
+        if !row.is_settable() {
+            let what = match row.causality {
+                Causality::Output => "an output",
+                Causality::CalculatedParameter => "a calculated parameter",
+                Causality::Local => "a local variable",
+                _ => "not settable",
+            };
+            return Err(Failure::error(format!("'{}' is {what} and cannot be set", row.name)));
+        }
+        let allowed = match (row.causality, row.variability) {
+            (Causality::Input, _) => true,
+            (_, Variability::Tunable) => true,
+            _ => phase == Phase::Initializing,
+        };
+        if !allowed {
+            return Err(Failure::error(format!(
+                "parameter '{}' is fixed and can be set only before {} (now in state {state})",
+                row.name, self.names.exit_initialization
+            )));
+        }
+        Ok(vr as usize)
+    }
+
+    /// Records that a settable value changed.
+    fn after_set(&mut self, phase: Phase) {
+        if phase == Phase::Initializing {
+            self.state.initial_state_ready = false;
+        }
+        self.state.outputs_dirty = true;
+        // New inputs make any cached derivative stale.
+        if let Some(integrator) = self.state.integrator.as_mut() {
+            integrator.invalidate();
+        }
+    }
+
+    /// Sets Real variables. Non-finite values are refused at once, naming the variable. All or
+    /// nothing: every value is checked before any is stored, so a refused call changes nothing.
+    pub fn set_real(&mut self, vrs: &[u32], values: &[f64], phase: Phase, state: &str) -> CallResult {
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            let i = self.settable(*vr, phase, state)?;
+            let name = self.table.rows[i].name;
+            if !value.is_finite() {
+                return Err(Failure::error(format!("{name} = {value} refused: the value must be finite")));
+            }
+            match &self.table.rows[i].slot {
+                Slot::Model(Access::Real { set: Some(_), .. }) => {}
+                Slot::Control(c) if !c.is_integer() => c.check(*value).map_err(Failure::error)?,
+                _ => return Err(self.unknown(*vr, "settable Real")),
+            }
+        }
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            match &self.table.rows[*vr as usize].slot {
+                Slot::Model(Access::Real { set: Some(set), .. }) => set(&mut self.state.model, *value),
+                Slot::Control(c) => c.store(&mut self.state.controls, *value),
+                _ => unreachable!("checked above"),
+            }
+        }
+        self.after_set(phase);
+        Ok(())
+    }
+
+    /// Sets Integer variables (all or nothing, like [`Core::set_real`]).
+    pub fn set_integer(&mut self, vrs: &[u32], values: &[i32], phase: Phase, state: &str) -> CallResult {
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            let i = self.settable(*vr, phase, state)?;
+            match &self.table.rows[i].slot {
+                Slot::Model(Access::Integer { set: Some(_), .. }) => {}
+                Slot::Control(c) if c.is_integer() => c.check(f64::from(*value)).map_err(Failure::error)?,
+                _ => return Err(self.unknown(*vr, "settable Integer")),
+            }
+        }
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            match &self.table.rows[*vr as usize].slot {
+                Slot::Model(Access::Integer { set: Some(set), .. }) => set(&mut self.state.model, *value),
+                Slot::Control(c) => c.store(&mut self.state.controls, f64::from(*value)),
+                _ => unreachable!("checked above"),
+            }
+        }
+        self.after_set(phase);
+        Ok(())
+    }
+
+    /// Sets Boolean variables (all or nothing, like [`Core::set_real`]).
+    pub fn set_boolean(&mut self, vrs: &[u32], values: &[bool], phase: Phase, state: &str) -> CallResult {
+        for vr in vrs {
+            let i = self.settable(*vr, phase, state)?;
+            if !matches!(self.table.rows[i].slot, Slot::Model(Access::Boolean { set: Some(_), .. })) {
+                return Err(self.unknown(*vr, "settable Boolean"));
+            }
+        }
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            if let Slot::Model(Access::Boolean { set: Some(set), .. }) = &self.table.rows[*vr as usize].slot {
+                set(&mut self.state.model, *value);
+            }
+        }
+        self.after_set(phase);
+        Ok(())
+    }
+
+    /// Computes the outputs at the current time and state (so a read right after costs
+    /// nothing more) and names the first state or computed Real that is not finite:
+    /// `Some("name = value")`. Parameters and inputs are finite by construction.
+    fn first_non_finite(&mut self) -> Option<String> {
+        let State { model, t, x, .. } = &mut self.state;
+        model.outputs(*t, x);
+        self.state.outputs_dirty = false;
+        let (model, x) = (&self.state.model, &self.state.x);
+        self.table.rows.iter().zip(&self.table.computed).find_map(|(row, &computed)| {
+            let value = match &row.slot {
+                Slot::Model(Access::State(i)) => x[*i],
+                Slot::Model(Access::Real { get, .. }) if computed => get(model),
+                _ => return None,
+            };
+            (!value.is_finite()).then(|| format!("{} = {value}", row.name))
+        })
+    }
+
+    /// The message for a step whose result is not finite.
+    fn diverged(bad: &str, t0: f64, t_end: f64) -> String {
+        format!("the solution diverged between t = {t0} and t = {t_end}: {bad} is not finite ({DIVERGED_ADVICE})")
+    }
+
+    /// Ends the experiment early at the current time (`Discard`, terminated); a broken
+    /// instance instead if the state or the outputs there are not finite.
+    fn stop_early(&mut self, t_start: f64, reason: &str) -> CallResult<StepEnd> {
+        if let Some(bad) = self.first_non_finite() {
+            let message = Self::diverged(&bad, t_start, self.state.t);
+            return Err(self.fail_step(t_start, message));
+        }
+        self.state.terminated = true;
+        self.state.last_successful_time = self.state.t;
+        self.state.last_step_status = Status::Discard;
+        let msg = format!("the simulation ended at t = {} s: {reason}", self.state.t);
+        self.logger.status(Status::Discard, &msg);
+        Ok(StepEnd::EndedEarly)
+    }
+
+    /// A computation failed inside a step: restore the state at the step's start (so outputs
+    /// stay finite); the instance is broken.
+    fn fail_step(&mut self, t_start: f64, message: String) -> Failure {
+        self.state.x.copy_from_slice(&self.x_start);
+        self.state.t = t_start;
+        self.state.outputs_dirty = true;
+        self.state.last_step_status = Status::Error;
+        Failure::broken(message)
+    }
+
+    /// The step's checks of its arguments: `current` must be the FMU's time (to rounding) and
+    /// `h` finite and not negative.
+    #[cold]
+    #[inline(never)]
+    fn check_step_arguments(&self, current: f64, h: f64) -> CallResult {
+        let t0 = self.state.t;
+        if !(current.is_finite() && (current - t0).abs() <= 1e-9 * t0.abs().max(1.0)) {
+            return Err(Failure::error(format!("currentCommunicationPoint = {current} does not match the FMU's time {t0}")));
+        }
+        if !(h.is_finite() && h >= 0.0) {
+            return Err(Failure::error(format!("communicationStepSize = {h} must be finite and not negative")));
+        }
+        Ok(())
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn past_stop(&self, t_end: f64, stop: f64) -> Failure {
+        Failure::error(format!("the step to t = {t_end} would pass the stop time {stop} set in {}", self.names.setup))
+    }
+
+    /// The rest of the step from `t0` to `t_end` after the solver's first call stopped short of
+    /// `t_end` with `first` (an event, or a failure): events are handled and the solver called
+    /// again until `t_end`. `Some(end)` when the step ends early there.
+    #[inline(never)]
+    fn continue_after(&mut self, first: Result<Advance, SolverError>, t0: f64, t_end: f64) -> CallResult<Option<StepEnd>> {
+        let mut outcome = first;
+        let mut events = 0usize;
+        loop {
+            match outcome {
+                Ok(Advance::Reached) => return Ok(None),
+                Ok(Advance::Event { fired }) => {
+                    events += 1;
+                    if let Some(end) = self.handle_event(t0, t_end, events, &fired)? {
+                        return Ok(Some(end));
+                    }
+                }
+                Err(e) => return Err(self.fail_step(t0, format!("the solver failed between t = {t0} and t = {t_end}: {e}"))),
+            }
+            if self.state.t >= t_end {
+                return Ok(None);
+            }
+            let State { model, x, t, integrator, .. } = &mut self.state;
+            let integrator = integrator.as_mut().expect("the integrator exists once started");
+            outcome = integrator.advance(Equations::of(&*model), t, x, t_end);
+        }
+    }
+
+    /// The model's response to the `events`-th event of the step from `t0` to `t_end`, at the
+    /// current time: `Some(end)` when it ends the step (and the experiment) there. Out of
+    /// line: most steps have no event, and they need not pay for setting this up.
+    #[inline(never)]
+    fn handle_event(&mut self, t0: f64, t_end: f64, events: usize, fired: &[bool]) -> CallResult<Option<StepEnd>> {
+        if events > MAX_EVENTS_PER_STEP {
+            let msg = format!("more than {MAX_EVENTS_PER_STEP} events between t = {t0} and t = {t_end}: the model is chattering");
+            return Err(self.fail_step(t0, msg));
+        }
+        let State { model, x, t, integrator, .. } = &mut self.state;
+        let te = *t;
+        let outcome = model.on_event(te, x, fired);
+        if let Some(integrator) = integrator.as_mut() {
+            integrator.invalidate();
+        }
+        if self.logger.wants(LOG_EVENTS) {
+            let which: Vec<usize> = fired.iter().enumerate().filter(|(_, f)| **f).map(|(i, _)| i).collect();
+            self.logger.log(Status::Ok, LOG_EVENTS, &format!("event at t = {te} s (indicators {which:?})"));
+        }
+        match outcome {
+            Ok(EventOutcome::Continue) => Ok(None),
+            Ok(EventOutcome::Stop { reason }) => self.stop_early(t0, &reason).map(Some),
+            Err(e) => Err(self.fail_step(t0, format!("the model failed at the event at t = {te}: {e}"))),
+        }
+    }
+
+    /// One communication step from `current` over `h`, handling events: `Completed`, or
+    /// `EndedEarly` when the model ended the experiment inside it.
+    pub fn do_step(&mut self, current: f64, h: f64) -> CallResult<StepEnd> {
+        // The usual call, at the FMU's own time with a positive finite step, passes one test;
+        // anything else gets the full checks (out of line, with their messages).
+        if !(current == self.state.t && h > 0.0 && h <= f64::MAX) {
+            self.check_step_arguments(current, h)?;
+            if h == 0.0 {
+                return Ok(StepEnd::Completed);
+            }
+        }
+        let t0 = self.state.t;
+        let t_end = current + h;
+        if let Some(stop) = self.state.stop_time {
+            if t_end > stop + 1e-9 * stop.abs().max(1.0) {
+                return Err(self.past_stop(t_end, stop));
+            }
+        }
+        // The state has M::N_STATES values; copying that constant length compiles to a few
+        // moves instead of a call to memmove (measurable at one call per communication step).
+        let n = M::N_STATES;
+        self.x_start[..n].copy_from_slice(&self.state.x[..n]);
+        if self.state.t < t_end {
+            // The usual step: one call of the solver that reaches t_end. Events and failures
+            // continue out of line.
+            let State { model, x, t, integrator, .. } = &mut self.state;
+            let integrator = integrator.as_mut().expect("the integrator exists once started");
+            match integrator.advance(Equations::of(&*model), t, x, t_end) {
+                Ok(Advance::Reached) => {}
+                other => {
+                    if let Some(end) = self.continue_after(other, t0, t_end)? {
+                        return Ok(end);
+                    }
+                }
+            }
+        }
+        // Land exactly on the communication point whatever the solver's rounding.
+        self.state.t = t_end;
+        // A projection here that changes x is seen by the integrator at the next step, which
+        // compares x with the state it left and then drops its cached derivative.
+        let State { model, x, t, .. } = &mut self.state;
+        let outcome = model.communication_point(*t, x);
+        self.state.outputs_dirty = true;
+        match outcome {
+            Ok(EventOutcome::Continue) => {
+                // The solver checks the states; outputs (which can overflow first, an energy
+                // ~ omega^2) are computed only when read, and get_real refuses a non-finite one.
+                self.state.last_successful_time = self.state.t;
+                self.state.last_step_status = Status::Ok;
+                Ok(StepEnd::Completed)
+            }
+            Ok(EventOutcome::Stop { reason }) => self.stop_early(t0, &reason),
+            Err(e) => Err(self.fail_step(t0, format!("the model failed at t = {t_end}: {e}"))),
+        }
+    }
+
+    /// The status of the last step.
+    pub fn last_step_status(&self) -> Status {
+        self.state.last_step_status
+    }
+
+    /// The time the last successful step reached.
+    pub fn last_successful_time(&self) -> f64 {
+        self.state.last_successful_time
+    }
+
+    /// True once the model ended the experiment.
+    pub fn terminated(&self) -> bool {
+        self.state.terminated
+    }
+
+    /// A copy of everything needed to continue from here.
+    pub fn capture(&self) -> State<M> {
+        let mut state = self.state.clone();
+        // The copy may be serialized, which drops the buffers the integrator would compare a
+        // projected state with at its next step: have it compare now.
+        let State { integrator, t, x, .. } = &mut state;
+        if let Some(integrator) = integrator.as_mut() {
+            integrator.settle(*t, x);
+        }
+        state
+    }
+
+    /// Continues from a captured state.
+    pub fn restore(&mut self, state: &State<M>) {
+        self.state = state.clone();
+    }
+}

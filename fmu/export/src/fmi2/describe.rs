@@ -1,0 +1,133 @@
+//! Builds a model's `modelDescription.xml` from its variable table: the same table the C glue
+//! serves, so the description and the binary cannot disagree.
+
+use crate::logging::CATEGORIES;
+use crate::model::{BaseType, Causality, Initial, Model, Variability};
+use crate::table::{guid, Start, Table};
+use crate::units;
+use fmi_schema::fmi2 as d;
+
+fn causality(c: Causality) -> d::Causality {
+    match c {
+        Causality::Parameter => d::Causality::Parameter,
+        Causality::CalculatedParameter => d::Causality::CalculatedParameter,
+        Causality::Input => d::Causality::Input,
+        Causality::Output => d::Causality::Output,
+        Causality::Local => d::Causality::Local,
+        Causality::Independent => d::Causality::Independent,
+    }
+}
+
+fn variability(v: Variability) -> d::Variability {
+    match v {
+        Variability::Constant => d::Variability::Constant,
+        Variability::Fixed => d::Variability::Fixed,
+        Variability::Tunable => d::Variability::Tunable,
+        Variability::Discrete => d::Variability::Discrete,
+        Variability::Continuous => d::Variability::Continuous,
+    }
+}
+
+fn initial(i: Initial) -> d::Initial {
+    match i {
+        Initial::Exact => d::Initial::Exact,
+        Initial::Approx => d::Initial::Approx,
+        Initial::Calculated => d::Initial::Calculated,
+    }
+}
+
+/// The description of model `M` as data.
+pub fn model_description<M: Model>() -> d::ModelDescription {
+    let info = M::info();
+    let table = Table::<M>::new();
+    let defaults = M::default();
+    let mut md = d::ModelDescription::new(info.identifier, guid::<M>());
+    md.description = Some(info.description.to_owned());
+    md.generation_tool = Some(format!("fmu toolkit {}", env!("CARGO_PKG_VERSION")));
+    md.variable_naming_convention = Some(d::VariableNamingConvention::Flat);
+    md.co_simulation = Some(d::CoSimulation {
+        model_identifier: info.identifier.to_owned(),
+        can_handle_variable_communication_step_size: true,
+        can_get_and_set_fmu_state: true,
+        can_serialize_fmu_state: true,
+        can_not_use_memory_management_functions: true,
+        can_be_instantiated_only_once_per_process: false,
+        ..Default::default()
+    });
+    md.log_categories = CATEGORIES.iter().map(|c| d::Category::new(c.name, Some(c.description))).collect();
+    md.default_experiment = Some(d::DefaultExperiment {
+        start_time: Some(0.0),
+        stop_time: Some(info.stop_time),
+        tolerance: Some(info.tolerance),
+        step_size: Some(info.output_interval),
+    });
+
+    // Units actually used, in the toolkit's order, with their display units.
+    for u in units::UNITS {
+        if table.rows.iter().any(|r| r.unit == Some(u.name)) {
+            md.unit_definitions.push(d::Unit {
+                name: u.name.to_owned(),
+                base_unit: Some(d::BaseUnit { kg: u.base.kg, m: u.base.m, s: u.base.s, rad: u.base.rad, ..Default::default() }),
+                display_units: u.display_units.iter().map(|du| d::DisplayUnit::new(du.name, du.factor, du.offset)).collect(),
+            });
+        }
+    }
+
+    for (vr, row) in table.rows.iter().enumerate() {
+        let start = row.start(&defaults);
+        let var_type = match row.base_type {
+            BaseType::Real => d::VariableType::Real(d::RealVariable {
+                unit: row.unit.map(str::to_owned),
+                display_unit: row.display_unit.map(str::to_owned),
+                start: match start {
+                    Some(Start::Real(v)) => Some(v),
+                    _ => None,
+                },
+                ..Default::default()
+            }),
+            BaseType::Integer => d::VariableType::Integer(d::IntegerVariable {
+                start: match start {
+                    Some(Start::Integer(v)) => Some(v),
+                    _ => None,
+                },
+                ..Default::default()
+            }),
+            BaseType::Boolean => d::VariableType::Boolean(d::BooleanVariable {
+                start: match start {
+                    Some(Start::Boolean(v)) => Some(v),
+                    _ => None,
+                },
+                ..Default::default()
+            }),
+        };
+        let mut sv = d::ScalarVariable::new(row.name, vr as u32, var_type);
+        sv.description = Some(row.description.to_owned());
+        sv.causality = Some(causality(row.causality));
+        sv.variability = Some(variability(row.variability));
+        sv.initial = row.initial.map(initial);
+        md.model_variables.push(sv);
+    }
+
+    // ModelStructure (FMI 2.0 section 2.2.8): every output; as initial unknowns, the outputs
+    // whose initial is approx or calculated and every calculated parameter. Dependencies are
+    // omitted, which declares a dependence on all knowns: true for our models.
+    for (i, row) in table.rows.iter().enumerate() {
+        let index = i as u32 + 1;
+        if row.causality == Causality::Output {
+            md.model_structure.outputs.push(d::Unknown::new(index));
+        }
+        // An absent initial takes the standard's default for the causality/variability pair.
+        let initial = row.initial.map(initial).or_else(|| d::Initial::default_for(causality(row.causality), variability(row.variability)));
+        let is_initial_unknown =
+            (row.causality == Causality::Output && initial != Some(d::Initial::Exact)) || row.causality == Causality::CalculatedParameter;
+        if is_initial_unknown {
+            md.model_structure.initial_unknowns.push(d::Unknown::new(index));
+        }
+    }
+    md
+}
+
+/// The `modelDescription.xml` text of model `M`.
+pub fn model_description_xml<M: Model>() -> Result<String, String> {
+    model_description::<M>().to_xml().map_err(|e| e.to_string())
+}

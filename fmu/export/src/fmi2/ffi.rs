@@ -1,0 +1,796 @@
+//! The C boundary of FMI 2.0: the generic bodies of the `fmi2*` functions, and
+//! [`export_fmu!`](crate::export_fmu) which instantiates them for one model. Every body checks
+//! its pointers, catches panics, and reports failures through the logger and the status.
+
+#![allow(clippy::missing_safety_doc)]
+
+use std::ffi::{c_char, c_int, c_uint, c_void, CStr, CString};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+
+pub use fmi_c::fmi2::{CallbackFunctions, CallbackLogger as LoggerFn, CO_SIMULATION as FMI2_COSIMULATION};
+use fmi_c::fmi2::{DO_STEP_STATUS, LAST_SUCCESSFUL_TIME, TERMINATED};
+
+use super::state_machine::{Call, FmiState};
+use super::Instance;
+use crate::core::{snapshot, CallResult, Failure, State};
+use crate::logging::{Logger, Sink, Status};
+use crate::model::Model;
+
+const COMPONENT_MAGIC: u64 = 0x464d_4932_434f_4d50; // "FMI2COMP"
+
+/// What `fmi2Component` points at: a tag to recognise our own pointers, then the instance.
+pub struct Component<M: Model> {
+    magic: u64,
+    instance: Instance<M>,
+}
+
+/// What `fmi2FMUstate` points at: the core's state and the state-machine state.
+pub struct StateBox<M: Model> {
+    magic: u64,
+    saved: (State<M>, FmiState),
+}
+
+/// A tag unique to the model and its table, stored in FMU states and serialized buffers.
+pub fn model_tag<M: Model>() -> u64 {
+    crate::table::guid_hash::<M>()
+}
+
+/// Makes a C string for the logger, escaping `%` because the logger treats it as a format.
+fn c_message(s: &str) -> CString {
+    CString::new(s.replace('%', "%%").replace('\0', " ")).expect("NULs removed")
+}
+
+/// The raw pointers the logger needs, sendable because the importer owns their thread safety
+/// (FMI requires the logger to be callable from any thread that calls the instance).
+struct RawLogger {
+    logger: LoggerFn,
+    env: *mut c_void,
+    name: CString,
+}
+unsafe impl Send for RawLogger {}
+
+impl RawLogger {
+    fn send(&self, status: Status, category: &str, message: &str) {
+        let category = c_message(category);
+        let message = c_message(message);
+        // SAFETY: the importer gave this logger and environment for the instance's lifetime.
+        unsafe { (self.logger)(self.env, self.name.as_ptr(), status as c_int, category.as_ptr(), message.as_ptr()) }
+    }
+}
+
+fn sink_for(functions: &CallbackFunctions, name: &str) -> Option<Sink> {
+    let raw = RawLogger { logger: functions.logger?, env: functions.component_environment, name: c_message(name) };
+    Some(Box::new(move |status: Status, category: &'static str, message: &str| raw.send(status, category, message)))
+}
+
+unsafe fn opt_str<'a>(p: *const c_char) -> Option<&'a str> {
+    if p.is_null() {
+        None
+    } else {
+        CStr::from_ptr(p).to_str().ok()
+    }
+}
+
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    if let Some(s) = payload.downcast_ref::<&str>() {
+        (*s).to_owned()
+    } else if let Some(s) = payload.downcast_ref::<String>() {
+        s.clone()
+    } else {
+        "unknown panic".to_owned()
+    }
+}
+
+/// Runs `body` on the instance behind `c`: checks the pointer, catches panics, logs failures.
+unsafe fn with_instance<M: Model>(c: *mut c_void, call: Call, body: impl FnOnce(&mut Instance<M>) -> CallResult<Status>) -> c_int {
+    let component = c as *mut Component<M>;
+    if component.is_null() || (*component).magic != COMPONENT_MAGIC {
+        // Nothing to log through: the logger lives in the instance.
+        return Status::Error as c_int;
+    }
+    // The status code is formed inside the unwinding guard: catch_unwind then hands back a
+    // plain c_int. Handing back the call's Result made the compiler store its 4-byte status and
+    // reload it as 8 bytes, a store-forwarding stall that cost fmi2DoStep 4 % of a sweep.
+    let result = catch_unwind(AssertUnwindSafe(|| match body(&mut (*component).instance) {
+        Ok(status) => status as c_int,
+        Err(failure) => report_failure(&mut (*component).instance, call, failure),
+    }));
+    match result {
+        Ok(code) => code,
+        Err(payload) => report_panic(&mut (*component).instance, call, payload),
+    }
+}
+
+// The failure paths are out of line: the success path of every call, fmi2DoStep and
+// fmi2GetReal above all, stays small.
+#[cold]
+#[inline(never)]
+fn report_failure<M: Model>(instance: &mut Instance<M>, call: Call, Failure { status, message, .. }: Failure) -> c_int {
+    let message = if message.starts_with("fmi2") { message } else { format!("{}: {message}", call.name()) };
+    instance.logger().status(status, &message);
+    status as c_int
+}
+
+#[cold]
+#[inline(never)]
+fn report_panic<M: Model>(instance: &mut Instance<M>, call: Call, payload: Box<dyn std::any::Any + Send>) -> c_int {
+    instance.poison();
+    let msg =
+        format!("{}: internal error in the model code ({}); the instance is now in the Error state", call.name(), panic_message(&*payload));
+    instance.logger().status(Status::Error, &msg);
+    Status::Error as c_int
+}
+
+unsafe fn slice<'a, T>(p: *const T, n: usize, call: Call, what: &str) -> CallResult<&'a [T]> {
+    if n == 0 {
+        Ok(&[])
+    } else if p.is_null() {
+        Err(null_array(call, what, n))
+    } else {
+        Ok(std::slice::from_raw_parts(p, n))
+    }
+}
+
+unsafe fn slice_mut<'a, T>(p: *mut T, n: usize, call: Call, what: &str) -> CallResult<&'a mut [T]> {
+    if n == 0 {
+        Ok(&mut [])
+    } else if p.is_null() {
+        Err(null_array(call, what, n))
+    } else {
+        Ok(std::slice::from_raw_parts_mut(p, n))
+    }
+}
+
+// Out of line, so the hot calls do not set up this message's arguments on every call.
+#[cold]
+#[inline(never)]
+fn null_array(call: Call, what: &str, n: usize) -> Failure {
+    Failure::error(format!("{}: {what} is NULL but its length is {n}", call.name()))
+}
+
+fn ok(r: CallResult) -> CallResult<Status> {
+    r.map(|()| Status::Ok)
+}
+
+/// `fmi2GetTypesPlatform`.
+pub fn get_types_platform() -> *const c_char {
+    c"default".as_ptr()
+}
+
+/// `fmi2GetVersion`.
+pub fn get_version() -> *const c_char {
+    c"2.0".as_ptr()
+}
+
+/// `fmi2Instantiate`: checks the interface type and GUID; NULL with a logged reason on refusal.
+pub unsafe fn instantiate<M: Model>(
+    instance_name: *const c_char,
+    fmu_type: c_int,
+    guid: *const c_char,
+    _resource_location: *const c_char,
+    functions: *const CallbackFunctions,
+    _visible: c_int,
+    logging_on: c_int,
+) -> *mut c_void {
+    let result = catch_unwind(|| {
+        if functions.is_null() {
+            return std::ptr::null_mut();
+        }
+        let functions = &*functions;
+        let name = opt_str(instance_name).unwrap_or("");
+        let mut logger = Logger::new(sink_for(functions, if name.is_empty() { "?" } else { name }), logging_on != 0);
+        let refuse = |logger: &mut Logger, why: String| {
+            logger.status(Status::Error, &format!("fmi2Instantiate: {why}"));
+            std::ptr::null_mut()
+        };
+        if name.is_empty() {
+            return refuse(&mut logger, "instanceName must be a non-empty string".to_owned());
+        }
+        if fmu_type != FMI2_COSIMULATION {
+            return refuse(&mut logger, format!("fmuType = {fmu_type}: this FMU supports only Co-Simulation (fmi2CoSimulation = 1)"));
+        }
+        let expected = crate::table::guid::<M>();
+        match opt_str(guid) {
+            Some(g) if g == expected => {}
+            other => {
+                return refuse(
+                    &mut logger,
+                    format!(
+                        "GUID {:?} does not match this FMU's {expected}: the modelDescription.xml and the binary are from different builds",
+                        other.unwrap_or("(NULL)")
+                    ),
+                )
+            }
+        }
+        let component = Box::new(Component { magic: COMPONENT_MAGIC, instance: Instance::<M>::new(name, logger) });
+        Box::into_raw(component) as *mut c_void
+    });
+    result.unwrap_or(std::ptr::null_mut())
+}
+
+/// `fmi2FreeInstance`.
+pub unsafe fn free_instance<M: Model>(c: *mut c_void) {
+    let component = c as *mut Component<M>;
+    if component.is_null() || (*component).magic != COMPONENT_MAGIC {
+        return;
+    }
+    let _ = catch_unwind(AssertUnwindSafe(|| {
+        (*component).magic = 0;
+        drop(Box::from_raw(component));
+    }));
+}
+
+/// `fmi2SetDebugLogging`.
+pub unsafe fn set_debug_logging<M: Model>(c: *mut c_void, on: c_int, n: usize, categories: *const *const c_char) -> c_int {
+    with_instance::<M>(c, Call::SetDebugLogging, |inst| {
+        let ptrs = slice(categories, n, Call::SetDebugLogging, "categories[]")?;
+        let mut names = Vec::with_capacity(n);
+        for p in ptrs {
+            names.push(opt_str(*p).ok_or_else(|| Failure::error("fmi2SetDebugLogging: a category is NULL or not UTF-8"))?);
+        }
+        ok(inst.set_debug_logging(on != 0, &names))
+    })
+}
+
+/// `fmi2SetupExperiment`.
+pub unsafe fn setup_experiment<M: Model>(
+    c: *mut c_void,
+    tol_defined: c_int,
+    tol: f64,
+    start: f64,
+    stop_defined: c_int,
+    stop: f64,
+) -> c_int {
+    with_instance::<M>(c, Call::SetupExperiment, |inst| {
+        inst.trace(Call::SetupExperiment, || {
+            format!("toleranceDefined={tol_defined}, tolerance={tol}, startTime={start}, stopTimeDefined={stop_defined}, stopTime={stop}")
+        });
+        ok(inst.setup_experiment((tol_defined != 0).then_some(tol), start, (stop_defined != 0).then_some(stop)))
+    })
+}
+
+/// `fmi2EnterInitializationMode`.
+pub unsafe fn enter_initialization_mode<M: Model>(c: *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::EnterInitializationMode, |inst| ok(inst.enter_initialization_mode()))
+}
+
+/// `fmi2ExitInitializationMode`.
+pub unsafe fn exit_initialization_mode<M: Model>(c: *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::ExitInitializationMode, |inst| ok(inst.exit_initialization_mode()))
+}
+
+/// `fmi2Terminate`.
+pub unsafe fn terminate<M: Model>(c: *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::Terminate, |inst| ok(inst.terminate()))
+}
+
+/// `fmi2Reset`.
+pub unsafe fn reset<M: Model>(c: *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::Reset, |inst| ok(inst.reset()))
+}
+
+/// `fmi2GetReal`.
+pub unsafe fn get_real<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize, value: *mut f64) -> c_int {
+    with_instance::<M>(c, Call::GetReal, |inst| {
+        let vrs = slice(vr, n, Call::GetReal, "vr[]")?;
+        let values = slice_mut(value, n, Call::GetReal, "value[]")?;
+        ok(inst.get_real(vrs, values))
+    })
+}
+
+/// `fmi2GetInteger`.
+pub unsafe fn get_integer<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize, value: *mut c_int) -> c_int {
+    with_instance::<M>(c, Call::GetInteger, |inst| {
+        let vrs = slice(vr, n, Call::GetInteger, "vr[]")?;
+        let values = slice_mut(value, n, Call::GetInteger, "value[]")?;
+        ok(inst.get_integer(vrs, values))
+    })
+}
+
+/// `fmi2GetBoolean`.
+pub unsafe fn get_boolean<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize, value: *mut c_int) -> c_int {
+    with_instance::<M>(c, Call::GetBoolean, |inst| {
+        let vrs = slice(vr, n, Call::GetBoolean, "vr[]")?;
+        let values = slice_mut(value, n, Call::GetBoolean, "value[]")?;
+        let mut bools = vec![false; n];
+        inst.get_boolean(vrs, &mut bools)?;
+        for (v, b) in values.iter_mut().zip(bools) {
+            *v = b as c_int;
+        }
+        Ok(Status::Ok)
+    })
+}
+
+/// `fmi2GetString`.
+pub unsafe fn get_string<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize, value: *mut *const c_char) -> c_int {
+    with_instance::<M>(c, Call::GetString, |inst| {
+        let vrs = slice(vr, n, Call::GetString, "vr[]")?;
+        slice_mut(value, n, Call::GetString, "value[]")?;
+        ok(inst.get_string(vrs))
+    })
+}
+
+/// `fmi2SetReal`.
+pub unsafe fn set_real<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize, value: *const f64) -> c_int {
+    with_instance::<M>(c, Call::SetReal, |inst| {
+        let vrs = slice(vr, n, Call::SetReal, "vr[]")?;
+        let values = slice(value, n, Call::SetReal, "value[]")?;
+        inst.trace(Call::SetReal, || format!("vr={vrs:?}, value={values:?}"));
+        ok(inst.set_real(vrs, values))
+    })
+}
+
+/// `fmi2SetInteger`.
+pub unsafe fn set_integer<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize, value: *const c_int) -> c_int {
+    with_instance::<M>(c, Call::SetInteger, |inst| {
+        let vrs = slice(vr, n, Call::SetInteger, "vr[]")?;
+        let values = slice(value, n, Call::SetInteger, "value[]")?;
+        inst.trace(Call::SetInteger, || format!("vr={vrs:?}, value={values:?}"));
+        ok(inst.set_integer(vrs, values))
+    })
+}
+
+/// `fmi2SetBoolean`.
+pub unsafe fn set_boolean<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize, value: *const c_int) -> c_int {
+    with_instance::<M>(c, Call::SetBoolean, |inst| {
+        let vrs = slice(vr, n, Call::SetBoolean, "vr[]")?;
+        let values: Vec<bool> = slice(value, n, Call::SetBoolean, "value[]")?.iter().map(|v| *v != 0).collect();
+        inst.trace(Call::SetBoolean, || format!("vr={vrs:?}, value={values:?}"));
+        ok(inst.set_boolean(vrs, &values))
+    })
+}
+
+/// `fmi2SetString`.
+pub unsafe fn set_string<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize, value: *const *const c_char) -> c_int {
+    with_instance::<M>(c, Call::SetString, |inst| {
+        let vrs = slice(vr, n, Call::SetString, "vr[]")?;
+        slice(value, n, Call::SetString, "value[]")?;
+        ok(inst.set_string(vrs))
+    })
+}
+
+unsafe fn state_box<'a, M: Model>(state: *mut c_void, call: Call) -> CallResult<&'a mut StateBox<M>> {
+    let b = state as *mut StateBox<M>;
+    if b.is_null() {
+        return Err(Failure::error(format!("{}: the FMU state is NULL", call.name())));
+    }
+    if (*b).magic != model_tag::<M>() {
+        return Err(Failure::error(format!(
+            "{}: the FMU state was not made by this model's fmi2GetFMUstate, or was already freed",
+            call.name()
+        )));
+    }
+    Ok(&mut *b)
+}
+
+/// `fmi2GetFMUstate`: a new state, or the one `*state` points at overwritten.
+pub unsafe fn get_fmu_state<M: Model>(c: *mut c_void, state: *mut *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::GetFMUstate, |inst| {
+        if state.is_null() {
+            return Err(Failure::error("fmi2GetFMUstate: the FMUstate pointer is NULL"));
+        }
+        let saved = inst.get_fmu_state()?;
+        if (*state).is_null() {
+            *state = Box::into_raw(Box::new(StateBox { magic: model_tag::<M>(), saved })) as *mut c_void;
+        } else {
+            state_box::<M>(*state, Call::GetFMUstate)?.saved = saved;
+        }
+        Ok(Status::Ok)
+    })
+}
+
+/// `fmi2SetFMUstate`.
+pub unsafe fn set_fmu_state<M: Model>(c: *mut c_void, state: *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::SetFMUstate, |inst| {
+        let b = state_box::<M>(state, Call::SetFMUstate)?;
+        ok(inst.set_fmu_state(&b.saved))
+    })
+}
+
+/// `fmi2FreeFMUstate`: frees and sets `*state` to NULL (a NULL state is a no-op).
+pub unsafe fn free_fmu_state<M: Model>(c: *mut c_void, state: *mut *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::FreeFMUstate, |inst| {
+        inst.check(Call::FreeFMUstate)?;
+        if state.is_null() || (*state).is_null() {
+            return Ok(Status::Ok);
+        }
+        let b = state_box::<M>(*state, Call::FreeFMUstate)?;
+        b.magic = 0;
+        drop(Box::from_raw(b as *mut StateBox<M>));
+        *state = std::ptr::null_mut();
+        Ok(Status::Ok)
+    })
+}
+
+/// `fmi2SerializedFMUstateSize`.
+pub unsafe fn serialized_fmu_state_size<M: Model>(c: *mut c_void, state: *mut c_void, size: *mut usize) -> c_int {
+    with_instance::<M>(c, Call::SerializedFMUstateSize, |inst| {
+        inst.check(Call::SerializedFMUstateSize)?;
+        if size.is_null() {
+            return Err(Failure::error("fmi2SerializedFMUstateSize: size is NULL"));
+        }
+        let b = state_box::<M>(state, Call::SerializedFMUstateSize)?;
+        *size = snapshot::encode(&b.saved.0, &b.saved.1, model_tag::<M>()).map_err(Failure::error)?.len();
+        Ok(Status::Ok)
+    })
+}
+
+/// `fmi2SerializeFMUstate`: `size` must be what `fmi2SerializedFMUstateSize` returned.
+pub unsafe fn serialize_fmu_state<M: Model>(c: *mut c_void, state: *mut c_void, buffer: *mut c_char, size: usize) -> c_int {
+    with_instance::<M>(c, Call::SerializeFMUstate, |inst| {
+        inst.check(Call::SerializeFMUstate)?;
+        let b = state_box::<M>(state, Call::SerializeFMUstate)?;
+        let bytes = snapshot::encode(&b.saved.0, &b.saved.1, model_tag::<M>()).map_err(Failure::error)?;
+        if size != bytes.len() {
+            return Err(Failure::error(format!(
+                "fmi2SerializeFMUstate: the buffer has {size} bytes but the state needs {} (ask fmi2SerializedFMUstateSize)",
+                bytes.len()
+            )));
+        }
+        let out = slice_mut(buffer as *mut u8, size, Call::SerializeFMUstate, "serializedState[]")?;
+        out.copy_from_slice(&bytes);
+        Ok(Status::Ok)
+    })
+}
+
+/// `fmi2DeSerializeFMUstate`: refuses buffers of the wrong size, model or checksum.
+pub unsafe fn deserialize_fmu_state<M: Model>(c: *mut c_void, buffer: *const c_char, size: usize, state: *mut *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::DeSerializeFMUstate, |inst| {
+        inst.check(Call::DeSerializeFMUstate)?;
+        if state.is_null() {
+            return Err(Failure::error("fmi2DeSerializeFMUstate: the FMUstate pointer is NULL"));
+        }
+        let bytes = slice(buffer as *const u8, size, Call::DeSerializeFMUstate, "serializedState[]")?;
+        let saved = snapshot::decode::<M, FmiState>(bytes, model_tag::<M>())
+            .map_err(|e| Failure::error(format!("fmi2DeSerializeFMUstate: {e}")))?;
+        if (*state).is_null() {
+            *state = Box::into_raw(Box::new(StateBox { magic: model_tag::<M>(), saved })) as *mut c_void;
+        } else {
+            state_box::<M>(*state, Call::DeSerializeFMUstate)?.saved = saved;
+        }
+        Ok(Status::Ok)
+    })
+}
+
+/// `fmi2GetDirectionalDerivative`: not provided (`providesDirectionalDerivative="false"`).
+pub unsafe fn get_directional_derivative<M: Model>(c: *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::GetDirectionalDerivative, |inst| {
+        inst.check(Call::GetDirectionalDerivative)?;
+        Err(Failure::error(
+            "fmi2GetDirectionalDerivative: this FMU does not provide directional derivatives (providesDirectionalDerivative=\"false\")",
+        ))
+    })
+}
+
+/// `fmi2SetRealInputDerivatives`: inputs are held constant (`canInterpolateInputs="false"`).
+pub unsafe fn set_real_input_derivatives<M: Model>(c: *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::SetRealInputDerivatives, |inst| {
+        inst.check(Call::SetRealInputDerivatives)?;
+        Err(Failure::error("fmi2SetRealInputDerivatives: this FMU holds inputs constant over a step and cannot interpolate them (canInterpolateInputs=\"false\")"))
+    })
+}
+
+/// `fmi2GetRealOutputDerivatives`: not provided (`maxOutputDerivativeOrder="0"`).
+pub unsafe fn get_real_output_derivatives<M: Model>(c: *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::GetRealOutputDerivatives, |inst| {
+        inst.check(Call::GetRealOutputDerivatives)?;
+        Err(Failure::error("fmi2GetRealOutputDerivatives: this FMU does not provide output derivatives (maxOutputDerivativeOrder=\"0\")"))
+    })
+}
+
+/// `fmi2DoStep`.
+pub unsafe fn do_step<M: Model>(c: *mut c_void, current: f64, h: f64, _no_set_prior: c_int) -> c_int {
+    with_instance::<M>(c, Call::DoStep, |inst| {
+        inst.trace(Call::DoStep, || format!("currentCommunicationPoint={current}, communicationStepSize={h}"));
+        inst.do_step(current, h)
+    })
+}
+
+/// `fmi2CancelStep`: never allowed, steps are synchronous.
+pub unsafe fn cancel_step<M: Model>(c: *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::CancelStep, |inst| inst.check(Call::CancelStep).map(|()| Status::Ok))
+}
+
+fn unsupported_kind(call: Call, kind: c_int) -> Failure {
+    Failure {
+        status: Status::Discard,
+        message: format!("{}: status kind {kind} is not available from this FMU", call.name()),
+        broken: false,
+    }
+}
+
+/// `fmi2GetStatus`: `fmi2DoStepStatus` gives the last step's status.
+pub unsafe fn get_status<M: Model>(c: *mut c_void, kind: c_int, value: *mut c_int) -> c_int {
+    with_instance::<M>(c, Call::GetStatus, |inst| {
+        if value.is_null() {
+            return Err(Failure::error("fmi2GetStatus: value is NULL"));
+        }
+        match kind {
+            DO_STEP_STATUS => {
+                *value = inst.do_step_status()? as c_int;
+                Ok(Status::Ok)
+            }
+            _ => {
+                inst.check(Call::GetStatus)?;
+                Err(unsupported_kind(Call::GetStatus, kind))
+            }
+        }
+    })
+}
+
+/// `fmi2GetRealStatus`: `fmi2LastSuccessfulTime`.
+pub unsafe fn get_real_status<M: Model>(c: *mut c_void, kind: c_int, value: *mut f64) -> c_int {
+    with_instance::<M>(c, Call::GetRealStatus, |inst| {
+        if value.is_null() {
+            return Err(Failure::error("fmi2GetRealStatus: value is NULL"));
+        }
+        match kind {
+            LAST_SUCCESSFUL_TIME => {
+                *value = inst.last_successful_time()?;
+                Ok(Status::Ok)
+            }
+            _ => {
+                inst.check(Call::GetRealStatus)?;
+                Err(unsupported_kind(Call::GetRealStatus, kind))
+            }
+        }
+    })
+}
+
+/// `fmi2GetIntegerStatus`: no integer status kinds exist in FMI 2.0.
+pub unsafe fn get_integer_status<M: Model>(c: *mut c_void, kind: c_int, _value: *mut c_int) -> c_int {
+    with_instance::<M>(c, Call::GetIntegerStatus, |inst| {
+        inst.check(Call::GetIntegerStatus)?;
+        Err(unsupported_kind(Call::GetIntegerStatus, kind))
+    })
+}
+
+/// `fmi2GetBooleanStatus`: `fmi2Terminated`, true once the model ended the experiment.
+pub unsafe fn get_boolean_status<M: Model>(c: *mut c_void, kind: c_int, value: *mut c_int) -> c_int {
+    with_instance::<M>(c, Call::GetBooleanStatus, |inst| {
+        if value.is_null() {
+            return Err(Failure::error("fmi2GetBooleanStatus: value is NULL"));
+        }
+        match kind {
+            TERMINATED => {
+                *value = inst.terminated()? as c_int;
+                Ok(Status::Ok)
+            }
+            _ => {
+                inst.check(Call::GetBooleanStatus)?;
+                Err(unsupported_kind(Call::GetBooleanStatus, kind))
+            }
+        }
+    })
+}
+
+/// `fmi2GetStringStatus`: `fmi2PendingStatus` is meaningless for synchronous steps.
+pub unsafe fn get_string_status<M: Model>(c: *mut c_void, kind: c_int, _value: *mut *const c_char) -> c_int {
+    with_instance::<M>(c, Call::GetStringStatus, |inst| {
+        inst.check(Call::GetStringStatus)?;
+        Err(unsupported_kind(Call::GetStringStatus, kind))
+    })
+}
+
+/// Copies `text` NUL-terminated into `buffer` when it fits; returns the bytes needed
+/// (including the NUL), like `snprintf`, so the caller can size its buffer.
+pub unsafe fn copy_out(text: &str, buffer: *mut c_char, size: usize) -> usize {
+    let needed = text.len() + 1;
+    if !buffer.is_null() && size >= needed {
+        std::ptr::copy_nonoverlapping(text.as_ptr(), buffer as *mut u8, text.len());
+        *buffer.add(text.len()) = 0;
+    }
+    needed
+}
+
+/// Exports all 34 FMI 2.0 Co-Simulation functions for `$model`, plus
+/// `fmu_model_description` and `fmu_documentation` (used by `runner build` to write the
+/// `.fmu`'s XML and HTML from the compiled table). Invoke once per model crate.
+#[macro_export]
+macro_rules! export_fmu {
+    ($model:ty) => {
+        /// The C ABI of this FMU (generated by `fmu::export_fmu!`).
+        #[allow(unsafe_code, non_snake_case, clippy::missing_safety_doc)]
+        pub mod fmi2_exports {
+            #[allow(unused_imports)]
+            use super::*;
+            use ::std::ffi::{c_char, c_int, c_uint, c_void};
+            use $crate::fmi2::ffi as f;
+            type M = $model;
+
+            #[no_mangle]
+            pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {
+                f::get_types_platform()
+            }
+            #[no_mangle]
+            pub extern "C" fn fmi2GetVersion() -> *const c_char {
+                f::get_version()
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetDebugLogging(c: *mut c_void, on: c_int, n: usize, cats: *const *const c_char) -> c_int {
+                f::set_debug_logging::<M>(c, on, n, cats)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2Instantiate(
+                name: *const c_char,
+                ty: c_int,
+                guid: *const c_char,
+                res: *const c_char,
+                fns: *const f::CallbackFunctions,
+                visible: c_int,
+                logging: c_int,
+            ) -> *mut c_void {
+                f::instantiate::<M>(name, ty, guid, res, fns, visible, logging)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2FreeInstance(c: *mut c_void) {
+                f::free_instance::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetupExperiment(
+                c: *mut c_void,
+                tol_defined: c_int,
+                tol: f64,
+                start: f64,
+                stop_defined: c_int,
+                stop: f64,
+            ) -> c_int {
+                f::setup_experiment::<M>(c, tol_defined, tol, start, stop_defined, stop)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2EnterInitializationMode(c: *mut c_void) -> c_int {
+                f::enter_initialization_mode::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2ExitInitializationMode(c: *mut c_void) -> c_int {
+                f::exit_initialization_mode::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2Terminate(c: *mut c_void) -> c_int {
+                f::terminate::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2Reset(c: *mut c_void) -> c_int {
+                f::reset::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetReal(c: *mut c_void, vr: *const c_uint, n: usize, v: *mut f64) -> c_int {
+                f::get_real::<M>(c, vr, n, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetInteger(c: *mut c_void, vr: *const c_uint, n: usize, v: *mut c_int) -> c_int {
+                f::get_integer::<M>(c, vr, n, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetBoolean(c: *mut c_void, vr: *const c_uint, n: usize, v: *mut c_int) -> c_int {
+                f::get_boolean::<M>(c, vr, n, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetString(c: *mut c_void, vr: *const c_uint, n: usize, v: *mut *const c_char) -> c_int {
+                f::get_string::<M>(c, vr, n, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetReal(c: *mut c_void, vr: *const c_uint, n: usize, v: *const f64) -> c_int {
+                f::set_real::<M>(c, vr, n, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetInteger(c: *mut c_void, vr: *const c_uint, n: usize, v: *const c_int) -> c_int {
+                f::set_integer::<M>(c, vr, n, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetBoolean(c: *mut c_void, vr: *const c_uint, n: usize, v: *const c_int) -> c_int {
+                f::set_boolean::<M>(c, vr, n, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetString(c: *mut c_void, vr: *const c_uint, n: usize, v: *const *const c_char) -> c_int {
+                f::set_string::<M>(c, vr, n, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetFMUstate(c: *mut c_void, s: *mut *mut c_void) -> c_int {
+                f::get_fmu_state::<M>(c, s)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetFMUstate(c: *mut c_void, s: *mut c_void) -> c_int {
+                f::set_fmu_state::<M>(c, s)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2FreeFMUstate(c: *mut c_void, s: *mut *mut c_void) -> c_int {
+                f::free_fmu_state::<M>(c, s)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: *mut c_void, s: *mut c_void, size: *mut usize) -> c_int {
+                f::serialized_fmu_state_size::<M>(c, s, size)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SerializeFMUstate(c: *mut c_void, s: *mut c_void, buf: *mut c_char, size: usize) -> c_int {
+                f::serialize_fmu_state::<M>(c, s, buf, size)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
+                c: *mut c_void,
+                buf: *const c_char,
+                size: usize,
+                s: *mut *mut c_void,
+            ) -> c_int {
+                f::deserialize_fmu_state::<M>(c, buf, size, s)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
+                c: *mut c_void,
+                _u: *const c_uint,
+                _nu: usize,
+                _k: *const c_uint,
+                _nk: usize,
+                _dk: *const f64,
+                _du: *mut f64,
+            ) -> c_int {
+                f::get_directional_derivative::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
+                c: *mut c_void,
+                _vr: *const c_uint,
+                _n: usize,
+                _order: *const c_int,
+                _v: *const f64,
+            ) -> c_int {
+                f::set_real_input_derivatives::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
+                c: *mut c_void,
+                _vr: *const c_uint,
+                _n: usize,
+                _order: *const c_int,
+                _v: *mut f64,
+            ) -> c_int {
+                f::get_real_output_derivatives::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2DoStep(c: *mut c_void, t: f64, h: f64, no_set_prior: c_int) -> c_int {
+                f::do_step::<M>(c, t, h, no_set_prior)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2CancelStep(c: *mut c_void) -> c_int {
+                f::cancel_step::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetStatus(c: *mut c_void, kind: c_int, v: *mut c_int) -> c_int {
+                f::get_status::<M>(c, kind, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetRealStatus(c: *mut c_void, kind: c_int, v: *mut f64) -> c_int {
+                f::get_real_status::<M>(c, kind, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetIntegerStatus(c: *mut c_void, kind: c_int, v: *mut c_int) -> c_int {
+                f::get_integer_status::<M>(c, kind, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetBooleanStatus(c: *mut c_void, kind: c_int, v: *mut c_int) -> c_int {
+                f::get_boolean_status::<M>(c, kind, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetStringStatus(c: *mut c_void, kind: c_int, v: *mut *const c_char) -> c_int {
+                f::get_string_status::<M>(c, kind, v)
+            }
+
+            /// Writes this FMU's modelDescription.xml into `buf`; returns the size needed.
+            #[no_mangle]
+            pub unsafe extern "C" fn fmu_model_description(buf: *mut c_char, size: usize) -> usize {
+                match ::std::panic::catch_unwind(|| $crate::fmi2::describe::model_description_xml::<M>()) {
+                    Ok(Ok(xml)) => f::copy_out(&xml, buf, size),
+                    _ => 0,
+                }
+            }
+            /// Writes this FMU's documentation/index.html into `buf`; returns the size needed.
+            #[no_mangle]
+            pub unsafe extern "C" fn fmu_documentation(buf: *mut c_char, size: usize) -> usize {
+                match ::std::panic::catch_unwind(|| $crate::documentation::index_html::<M>()) {
+                    Ok(html) => f::copy_out(&html, buf, size),
+                    _ => 0,
+                }
+            }
+        }
+    };
+}

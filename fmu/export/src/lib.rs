@@ -1,0 +1,24 @@
+//! The export toolkit: turns a model (equations and variables declared once) into an FMU.
+//!
+//! A model crate implements [`Model`] (equations plus a declarative variable table) and calls
+//! [`export_fmu!`]. The toolkit's model [`core`] owns time, the solver ([`solvers`]), events,
+//! the variable rules and FMU-state capture, independently of the FMI version; the front end
+//! [`fmi2`] puts the FMI 2.0 state machine and all `fmi2*` C functions over it and writes
+//! `modelDescription.xml`; [`documentation`] renders the page from the same table.
+
+pub mod core;
+pub mod documentation;
+pub mod fmi2;
+pub mod harness;
+pub mod logging;
+pub mod model;
+pub mod phase_cosine;
+pub mod table;
+pub mod units;
+
+pub use model::{
+    require_finite, require_non_negative, require_positive, Causality, EventOutcome, Initial, Model, ModelError, ModelInfo, Variability,
+    Variable,
+};
+pub use phase_cosine::PhaseCosine;
+pub use solvers;

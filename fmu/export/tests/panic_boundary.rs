@@ -1,0 +1,88 @@
+//! A panic in model code must not cross the C boundary: it becomes fmi2Error with a logged
+//! message, the instance moves to the Error state, and the importer can still read and free it.
+
+use std::ffi::{c_char, c_int, c_void, CStr};
+use std::sync::Mutex;
+
+use fmu_export::fmi2::ffi::{self, CallbackFunctions, LoggerFn};
+use fmu_export::{Model, ModelError, ModelInfo, Variable};
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+struct Exploding {
+    fuse: f64,
+}
+
+impl Model for Exploding {
+    const N_STATES: usize = 1;
+    fn info() -> ModelInfo {
+        ModelInfo {
+            identifier: "exploding",
+            description: "panics once t passes fuse",
+            stop_time: 1.0,
+            tolerance: 1e-6,
+            output_interval: 0.1,
+            documentation: "",
+        }
+    }
+    fn variables() -> Vec<Variable<Self>> {
+        vec![Variable::<Exploding>::parameter("fuse", "time of the panic", |m| m.fuse, |m, v| m.fuse = v), Variable::state("x", "x", 0)]
+    }
+    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
+        x[0] = 1.0;
+        Ok(())
+    }
+    fn derivatives(&self, t: f64, x: &[f64], dx: &mut [f64]) {
+        if t > self.fuse {
+            panic!("model bug at t = {t}");
+        }
+        dx[0] = -x[0];
+    }
+}
+
+static MESSAGES: Mutex<Vec<String>> = Mutex::new(Vec::new());
+
+/// Reads only the fixed arguments: our FMUs pass preformatted messages (with `%` escaped).
+extern "C" fn record(_env: *mut c_void, _name: *const c_char, status: c_int, _cat: *const c_char, msg: *const c_char) {
+    let msg = unsafe { CStr::from_ptr(msg) }.to_string_lossy().into_owned();
+    MESSAGES.lock().unwrap().push(format!("{status}: {msg}"));
+}
+
+#[test]
+fn a_panic_becomes_fmi2_error_with_a_message() {
+    // SAFETY: on x86-64 System V a variadic call with only the fixed arguments matches this
+    // non-variadic callee; the test runs only there.
+    let logger: LoggerFn = unsafe { std::mem::transmute(record as extern "C" fn(_, _, _, _, _)) };
+    let callbacks = CallbackFunctions {
+        logger: Some(logger),
+        allocate_memory: None,
+        free_memory: None,
+        step_finished: None,
+        component_environment: std::ptr::null_mut(),
+    };
+    let guid = std::ffi::CString::new(fmu_export::table::guid::<Exploding>()).unwrap();
+    unsafe {
+        let c = ffi::instantiate::<Exploding>(c"boom".as_ptr(), ffi::FMI2_COSIMULATION, guid.as_ptr(), std::ptr::null(), &callbacks, 0, 0);
+        assert!(!c.is_null());
+        let vr = [0u32];
+        assert_eq!(ffi::set_real::<Exploding>(c, vr.as_ptr(), 1, [0.25].as_ptr()), 0);
+        assert_eq!(ffi::setup_experiment::<Exploding>(c, 0, 0.0, 0.0, 0, 0.0), 0);
+        assert_eq!(ffi::enter_initialization_mode::<Exploding>(c), 0);
+        assert_eq!(ffi::exit_initialization_mode::<Exploding>(c), 0);
+        assert_eq!(ffi::do_step::<Exploding>(c, 0.0, 0.1, 1), 0);
+        // The step across t = 0.25 panics inside derivatives.
+        assert_eq!(ffi::do_step::<Exploding>(c, 0.1, 0.5, 1), 3);
+        let logged = MESSAGES.lock().unwrap().join("\n");
+        assert!(logged.contains("fmi2DoStep") && logged.contains("model bug"), "{logged}");
+        // Error state: no more steps, but values can be read and the instance freed or reset.
+        assert_eq!(ffi::do_step::<Exploding>(c, 0.1, 0.1, 1), 3);
+        let mut x = [f64::NAN];
+        let state_vr = [1u32];
+        assert_eq!(ffi::get_real::<Exploding>(c, state_vr.as_ptr(), 1, x.as_mut_ptr()), 0);
+        assert!(x[0].is_finite());
+        assert_eq!(ffi::reset::<Exploding>(c), 0);
+        ffi::free_instance::<Exploding>(c);
+        // NULL components are refused, not dereferenced.
+        assert_eq!(ffi::do_step::<Exploding>(std::ptr::null_mut(), 0.0, 0.1, 1), 3);
+    }
+}

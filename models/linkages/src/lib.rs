@@ -1,0 +1,71 @@
+//! The vector-loop models shared by the lab's linkage FMUs. The crank-rocker and the double
+//! rocker are the same four-bar, and the crank-slider is the offset crank-slider with
+//! y_OC = 0: each FMU crate supplies only a preset (its defaults and identity), its derivation
+//! and its tests, so the equations exist once.
+#![deny(unsafe_code)]
+
+pub mod four_bar;
+pub mod slider_crank;
+
+pub use four_bar::FourBar;
+pub use slider_crank::SliderCrank;
+
+use fmu_export::{ModelError, ModelInfo};
+
+/// Refuses any assembly choice but +1 and -1.
+pub fn check_branch(branch: i32) -> Result<(), ModelError> {
+    if branch == 1 || branch == -1 {
+        Ok(())
+    } else {
+        Err(ModelError(format!("parameter branch = {branch} must be +1 or -1")))
+    }
+}
+
+/// Position and velocity of the crank pin A of an input link of length `l_oa` at angle
+/// `theta` turning at `omega`: (A_x, A_y, v_A_x, v_A_y).
+pub fn crank_point(l_oa: f64, theta: f64, omega: f64) -> (f64, f64, f64, f64) {
+    let (s, c) = theta.sin_cos();
+    (l_oa * c, l_oa * s, -l_oa * omega * s, l_oa * omega * c)
+}
+
+/// Default parameters of a four-bar FMU.
+#[derive(Debug, Clone, Copy)]
+pub struct FourBarParameters {
+    pub l_oa: f64,
+    pub l_ab: f64,
+    pub l_bc: f64,
+    pub l_co: f64,
+    pub theta_co: f64,
+    pub theta0: f64,
+    pub omega: f64,
+    pub branch: i32,
+}
+
+/// What makes a four-bar FMU itself: its defaults and its identity.
+pub trait FourBarPreset: Clone + std::fmt::Debug + Send + 'static {
+    /// The FMU's default parameters.
+    fn parameters() -> FourBarParameters;
+    /// Identifier, description, default experiment and documentation.
+    fn info() -> ModelInfo;
+}
+
+/// Default parameters of a slider-crank FMU.
+#[derive(Debug, Clone, Copy)]
+pub struct SliderCrankParameters {
+    pub l_oa: f64,
+    pub l_ab: f64,
+    pub y_oc: f64,
+    pub theta0: f64,
+    pub omega: f64,
+    pub branch: i32,
+}
+
+/// What makes a slider-crank FMU itself: its defaults, identity and whether y_OC is a parameter.
+pub trait SliderCrankPreset: Clone + std::fmt::Debug + Send + 'static {
+    /// True when the slider's line height y_OC is a settable parameter (offset crank-slider).
+    const HAS_OFFSET: bool;
+    /// The FMU's default parameters.
+    fn parameters() -> SliderCrankParameters;
+    /// Identifier, description, default experiment and documentation.
+    fn info() -> ModelInfo;
+}

@@ -1,0 +1,7 @@
+//! One module per command; each owns its options and defaults.
+
+pub mod build;
+pub mod compare;
+pub mod info;
+pub mod simulate;
+pub mod sweep;

@@ -1,0 +1,9 @@
+//! The `runner` command line: the commands (build, info, simulate, sweep, compare) over the
+//! engine, and the reporting they share (CSV, plots, progress, result files that appear only
+//! when complete). `main.rs` is only the argument parser.
+
+pub mod commands;
+pub mod experiment;
+pub mod interrupt;
+pub mod report;
+pub mod workspace;

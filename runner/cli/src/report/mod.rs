@@ -1,0 +1,5 @@
+//! What the commands write and show: result files, CSV, SVG plots, progress bars.
+
+pub mod output;
+pub mod plot;
+pub mod progress;

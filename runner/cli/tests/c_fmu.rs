@@ -1,0 +1,249 @@
+//! End-to-end tests of the importer on an FMU this project did not export: the Dahlquist
+//! equation x' = -k x written directly in C (tests/c_fmu), compiled here with `cc` and zipped
+//! into a temporary .fmu; plus the importer's refusals (bad archives, missing symbols, typos).
+
+mod common;
+
+use common::*;
+
+/// The C FMU steps with the exact solution, so the only error is rounding: 300 products of
+/// exp(-k h) lose at most a few hundred ulps, far below 1e-12 relative.
+#[test]
+fn simulate_matches_the_exact_solution_and_reads_all_types() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+    let out = dir.path().join("x.csv");
+    ok(runner(dir.path(), &["simulate", fmu.to_str().unwrap(), "--set", "k=0.7", "--set", "x0=2", "--out", "x.csv", "--plot", "x.svg"]));
+    let (header, rows) = read_csv(&out);
+    assert_eq!(header, ["time", "x", "steps", "ended"], "time first, then the outputs in ModelVariables order, like fmpy");
+    // DefaultExperiment: stop 3 s, step 0.01 s: 301 rows.
+    assert_eq!(rows.len(), 301);
+    let (t, x, steps) = (column(&header, &rows, "time"), column(&header, &rows, "x"), column(&header, &rows, "steps"));
+    for i in 0..rows.len() {
+        let exact = 2.0 * (-0.7 * t[i]).exp();
+        assert!((x[i] / exact - 1.0).abs() < 1e-12, "t = {}: x = {} but 2 exp(-0.7 t) = {exact}", t[i], x[i]);
+        assert_eq!(steps[i], i as f64, "the Integer output counts fmi2DoStep calls");
+    }
+    assert!((t[300] - 3.0).abs() < 1e-12);
+    let svg = std::fs::read_to_string(dir.path().join("x.svg")).unwrap();
+    assert!(svg.contains("time (s)") && svg.contains("dahlquist: outputs"), "the plot has its axis label and title");
+}
+
+/// fmi2Discard + fmi2Terminated: the run stops, keeps its rows plus the state at the crossing
+/// (fmi2LastSuccessfulTime = ln(x0 / x_min) / k exactly), and says why.
+#[test]
+fn a_model_that_ends_early_keeps_its_rows_and_says_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+    let o = runner(dir.path(), &["simulate", fmu.to_str().unwrap(), "--set", "x_min=0.2", "--out", "x.csv"]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "an early end is not an error: {err}");
+    assert!(
+        err.contains("stopped before the stop time") && err.contains("x fell below x_min = 0.2"),
+        "reason printed, formatted by the C logger shim: {err}"
+    );
+    assert!(err.contains("[dahlquist]"), "log lines carry the instance name: {err}");
+    let (header, rows) = read_csv(&dir.path().join("x.csv"));
+    let (t, x, ended) = (column(&header, &rows, "time"), column(&header, &rows, "x"), column(&header, &rows, "ended"));
+    let crossing = 5f64.ln();
+    assert!((t.last().unwrap() - crossing).abs() < 1e-12, "last row at ln 5, got {}", t.last().unwrap());
+    assert_eq!(*x.last().unwrap(), 0.2);
+    assert_eq!(*ended.last().unwrap(), 1.0, "the Boolean output is read as 1");
+    // Rows before: every 0.01 s up to 1.60 < ln 5 = 1.6094.
+    assert_eq!(rows.len(), 162);
+}
+
+/// Each point's final x must equal x0 exp(-3 k); the k = -1 point is refused by the model and
+/// recorded with the model's own message, the other points still run, and the exit code says so.
+#[test]
+fn sweep_records_failures_and_is_independent_of_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+    let f = fmu.to_str().unwrap();
+    let args = |threads: &'static str, out: &'static str| {
+        vec![
+            "sweep",
+            f,
+            "--param",
+            "k=-1,0.5,1,2",
+            "--param",
+            "x0=1:2:0.5",
+            "--metric",
+            "end=final(x)",
+            "--metric",
+            "drop=(max(x) - min(x)) / max(x)",
+            "--threads",
+            threads,
+            "--out",
+            out,
+        ]
+    };
+    let o = runner(dir.path(), &args("2", "two.csv"));
+    let err = fails(o);
+    assert!(err.contains("3 of 12 sweep point(s) failed"), "{err}");
+    let (header, rows) = read_csv(&dir.path().join("two.csv"));
+    assert_eq!(header, ["k", "x0", "end", "drop", "status"]);
+    assert_eq!(rows.len(), 12, "4 x 3 points");
+    for row in &rows {
+        let (k, x0): (f64, f64) = (row[0].parse().unwrap(), row[1].parse().unwrap());
+        if k < 0.0 {
+            assert!(row[4].contains("k = -1 must not be negative"), "the FMU's logged reason is the status: {row:?}");
+            assert_eq!(row[2], "", "no metric for a failed point");
+        } else {
+            assert_eq!(row[4], "ok");
+            let end: f64 = row[2].parse().unwrap();
+            assert!((end / (x0 * (-3.0 * k).exp()) - 1.0).abs() < 1e-12, "{row:?}");
+            let drop: f64 = row[3].parse().unwrap();
+            assert!((drop - (1.0 - (-3.0 * k).exp())).abs() < 1e-12, "{row:?}");
+        }
+    }
+    // Points are in product order, the last --param fastest.
+    assert_eq!((rows[0][0].as_str(), rows[0][1].as_str(), rows[1][1].as_str(), rows[3][0].as_str()), ("-1.0", "1.0", "1.5", "0.5"));
+    let _ = runner(dir.path(), &args("1", "one.csv"));
+    assert_eq!(
+        std::fs::read(dir.path().join("one.csv")).unwrap(),
+        std::fs::read(dir.path().join("two.csv")).unwrap(),
+        "same CSV with 1 and 2 threads"
+    );
+}
+
+#[test]
+fn info_lists_variables_units_and_capabilities() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+    let out = ok(runner(dir.path(), &["info", fmu.to_str().unwrap()]));
+    for expected in ["dahlquist", "Co-Simulation: modelIdentifier dahlquist", "get/set FMU state", "stop 3 s"] {
+        assert!(out.contains(expected), "info lacks {expected:?}:\n{out}");
+    }
+    let k = out.lines().find(|l| l.starts_with("k ")).expect("a line for k");
+    assert!(k.contains("parameter") && k.contains("1/s") && k.contains("Decay rate"), "{k}");
+    let steps = out.lines().find(|l| l.starts_with("steps ")).expect("a line for steps");
+    assert!(steps.contains("output") && steps.contains("Integer"), "{steps}");
+}
+
+#[test]
+fn unknown_names_and_bad_ranges_are_explained() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+    let f = fmu.to_str().unwrap();
+    let err = fails(runner(dir.path(), &["simulate", f, "--set", "x_mni=1"]));
+    assert!(err.contains("no variable 'x_mni'") && err.contains("did you mean 'x_min'"), "{err}");
+    let err = fails(runner(dir.path(), &["sweep", f, "--param", "k=1,2", "--metric", "m=max(xx)"]));
+    assert!(err.contains("no variable 'xx'") && err.contains("'x'"), "{err}");
+    let err = fails(runner(dir.path(), &["simulate", f, "--set", "x=1"]));
+    assert!(err.contains("only parameters and inputs can be set"), "{err}");
+    for (range, expected) in [
+        ("k=5:1:0.5", "below START"),
+        ("k=1:5:0", "STEP must be positive"),
+        ("k=1:five:1", "STOP 'five' is not a number"),
+        ("k=a,b", "'a' is not a number"),
+    ] {
+        let err = fails(runner(dir.path(), &["sweep", f, "--param", range, "--metric", "m=final(x)"]));
+        assert!(err.contains(expected), "{range}: {err}");
+    }
+    let err = fails(runner(dir.path(), &["sweep", f, "--param", "k=1", "--metric", "m=max(x"]));
+    assert!(err.contains("expected ')'"), "{err}");
+}
+
+#[test]
+fn missing_files_and_foreign_platforms_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let err = fails(runner(dir.path(), &["info", "no_such.fmu"]));
+    assert!(err.contains("no_such.fmu does not exist"), "{err}");
+    let win = c_fmu(dir.path(), "win.fmu", "win64", &[]);
+    let err = fails(runner(dir.path(), &["info", win.to_str().unwrap()]));
+    assert!(err.contains("binaries/linux64/dahlquist.so is missing") && err.contains("win64"), "{err}");
+}
+
+/// Names that would land outside the extraction directory, and links, are refused before
+/// anything is written.
+#[test]
+fn zip_slip_and_links_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = std::fs::read(c_fmu_dir().join("modelDescription.xml")).unwrap();
+    let cases: [(&str, ZipItem, &str); 4] = [
+        ("dotdot.fmu", ZipItem::File("../escaped.txt", b"x"), "a '..' component"),
+        ("nested.fmu", ZipItem::File("resources/../../escaped.txt", b"x"), "a '..' component"),
+        ("absolute.fmu", ZipItem::File("/tmp/escaped.txt", b"x"), "an absolute path"),
+        ("link.fmu", ZipItem::Link("resources/passwd", "/etc/passwd"), "symbolic link"),
+    ];
+    for (file, bad, expected) in cases {
+        let path = dir.path().join(file);
+        write_zip(&path, &[ZipItem::File("modelDescription.xml", &xml), bad]);
+        let err = fails(runner(dir.path(), &["info", path.to_str().unwrap()]));
+        assert!(err.contains("refusing entry") && err.contains(expected), "{file}: {err}");
+    }
+    assert!(!dir.path().parent().unwrap().join("escaped.txt").exists());
+}
+
+#[test]
+fn a_missing_function_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "nostep.fmu", "linux64", &["-DOMIT_DO_STEP"]);
+    let err = fails(runner(dir.path(), &["simulate", fmu.to_str().unwrap()]));
+    assert!(err.contains("does not export the function fmi2DoStep"), "{err}");
+}
+
+/// Ctrl-C during a long sweep: the workers stop, the exit code is 130, the previous result
+/// file is left untouched and no temporary `.partial` file remains.
+#[test]
+fn an_interrupted_sweep_leaves_the_previous_file_and_no_partial_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+    let out = dir.path().join("big.csv");
+    std::fs::write(&out, "the previous, complete result\n").unwrap();
+    // 500,001 points: minutes of work, so the interrupt lands mid-sweep.
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_runner"))
+        .current_dir(dir.path())
+        .args([
+            "sweep",
+            fmu.to_str().unwrap(),
+            "--param",
+            "k=0.5:1:0.000001",
+            "--metric",
+            "end=final(x)",
+            "--threads",
+            "2",
+            "--out",
+            "big.csv",
+        ])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let partial =
+        || std::fs::read_dir(dir.path()).unwrap().filter_map(|e| e.ok()).any(|e| e.file_name().to_string_lossy().ends_with(".partial"));
+    let started = std::time::Instant::now();
+    while !partial() {
+        assert!(started.elapsed().as_secs() < 60, "the sweep never started writing");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    // SAFETY: signalling our own child process.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(130), "exit code of an interrupted command: {err}");
+    assert!(err.contains("interrupted after") && err.contains("of 500001 points; no file written"), "{err}");
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "the previous, complete result\n", "the old file is untouched");
+    assert!(!partial(), "the temporary file was removed");
+}
+
+/// Without --out the CSV streams to stdout, and nothing else goes there: the peak summary moves
+/// to stderr so the output can be piped into another tool.
+#[test]
+fn a_sweep_to_stdout_is_pure_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+    let o = runner(dir.path(), &["sweep", fmu.to_str().unwrap(), "--param", "k=0.5,1", "--metric", "end=final(x)", "--threads", "2"]);
+    let err = stderr(&o);
+    let stdout = ok(o);
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.len(), 3, "a header and two rows, nothing else: {stdout}");
+    assert_eq!(lines[0], "k,end,status");
+    for (line, k) in lines[1..].iter().zip([0.5f64, 1.0]) {
+        let fields: Vec<&str> = line.split(',').collect();
+        assert_eq!((fields[0].parse::<f64>().unwrap(), fields[2]), (k, "ok"), "{line}");
+        assert!(fields[1].parse::<f64>().unwrap() > 0.0, "{line}");
+    }
+    assert!(err.contains("end: peak"), "{err}");
+}

@@ -1,0 +1,99 @@
+//! Helpers shared by the runner's integration tests: running the binary, building the C test
+//! FMU, writing zips, reading CSV.
+
+#![allow(dead_code)]
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Runs the runner binary with `args` in `dir`.
+pub fn runner(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_runner")).current_dir(dir).args(args).output().expect("runner starts")
+}
+
+/// stderr as text.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Asserts success and returns stdout.
+pub fn ok(o: Output) -> String {
+    assert!(o.status.success(), "runner failed: {}", stderr(&o));
+    String::from_utf8(o.stdout).expect("UTF-8 output")
+}
+
+/// Asserts failure and returns stderr.
+pub fn fails(o: Output) -> String {
+    assert!(!o.status.success(), "runner should have failed; stdout: {}", String::from_utf8_lossy(&o.stdout));
+    stderr(&o)
+}
+
+/// The workspace's tests/c_fmu directory.
+pub fn c_fmu_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/c_fmu")
+}
+
+/// Compiles tests/c_fmu/dahlquist.c with the system C compiler into `out` (extra flags appended).
+pub fn compile_c_fmu(out: &Path, extra: &[&str]) {
+    let source = c_fmu_dir().join("dahlquist.c");
+    let status = Command::new("cc")
+        .args(["-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-o"])
+        .arg(out)
+        .arg(&source)
+        .args(extra)
+        .arg("-lm")
+        .status()
+        .expect("the C compiler `cc` runs");
+    assert!(status.success(), "cc failed to compile {}", source.display());
+}
+
+/// A zip entry to write: a file with bytes, or a symbolic link to a target.
+pub enum ZipItem<'a> {
+    /// A regular file.
+    File(&'a str, &'a [u8]),
+    /// A symbolic link.
+    Link(&'a str, &'a str),
+}
+
+/// Writes a zip at `dest` with exactly `items` (names taken as given, even unsafe ones).
+pub fn write_zip(dest: &Path, items: &[ZipItem]) {
+    let mut zip = zip::ZipWriter::new(std::fs::File::create(dest).unwrap());
+    let options = zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
+    for item in items {
+        match item {
+            ZipItem::File(name, bytes) => {
+                zip.start_file(*name, options).unwrap();
+                zip.write_all(bytes).unwrap();
+            }
+            ZipItem::Link(name, target) => zip.add_symlink(*name, *target, options).unwrap(),
+        }
+    }
+    zip.finish().unwrap();
+}
+
+/// Builds the C test FMU (binary for `platform`) as `<dir>/<file>`; returns its path.
+pub fn c_fmu(dir: &Path, file: &str, platform: &str, extra_flags: &[&str]) -> PathBuf {
+    let so = dir.join(format!("{file}.so"));
+    compile_c_fmu(&so, extra_flags);
+    let binary = std::fs::read(&so).unwrap();
+    let xml = std::fs::read(c_fmu_dir().join("modelDescription.xml")).unwrap();
+    let entry = format!("binaries/{platform}/dahlquist.so");
+    let path = dir.join(file);
+    write_zip(&path, &[ZipItem::File("modelDescription.xml", &xml), ZipItem::File(&entry, &binary)]);
+    path
+}
+
+/// A CSV file as its header and rows of strings.
+pub fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let mut reader = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    let header = reader.headers().unwrap().iter().map(str::to_owned).collect();
+    let rows = reader.records().map(|r| r.unwrap().iter().map(str::to_owned).collect()).collect();
+    (header, rows)
+}
+
+/// Column `name` of a CSV as numbers.
+pub fn column(header: &[String], rows: &[Vec<String>], name: &str) -> Vec<f64> {
+    let i = header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name} in {header:?}"));
+    rows.iter().map(|r| r[i].parse().unwrap_or_else(|_| panic!("{name} = {:?} is not a number", r[i]))).collect()
+}

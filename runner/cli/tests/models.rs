@@ -1,0 +1,296 @@
+//! End-to-end tests of simulate, sweep and info on this project's own FMUs (quarter_car and
+//! second_order only, to keep the release builds few), built through `runner build` because
+//! tests/run packs the FMUs only after `cargo test`.
+
+mod common;
+
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use common::*;
+
+/// Builds the two FMUs once per test binary (concurrent builds would race on the .fmu files).
+fn fmus() -> &'static (PathBuf, PathBuf) {
+    static BUILT: OnceLock<(PathBuf, PathBuf)> = OnceLock::new();
+    BUILT.get_or_init(|| {
+        let here = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let out = ok(runner(here, &["build", "quarter_car", "second_order"]));
+        let paths: Vec<PathBuf> = out.lines().map(PathBuf::from).collect();
+        assert_eq!(paths.len(), 2, "runner build prints one path per model: {out}");
+        (paths[0].clone(), paths[1].clone())
+    })
+}
+
+/// |Z_s / Z_r|(i w) of the linear quarter car, from its two equations of motion in the Laplace
+/// domain: (m_s s^2 + K_s) Z_s = K_s Z_u and (m_u s^2 + K_s + K_t) Z_u = K_s Z_s + K_t Z_r with
+/// K_s = k_s + b_s s, K_t = k_t + b_t s (MODELS.md's default parameters).
+fn transmissibility(speed: f64) -> f64 {
+    let (m_s, m_u, k_s, b_s, k_t, b_t) = (200.0, 30.0, 18000.0, 1300.0, 125000.0, 10.0);
+    let w = 2.0 * PI * speed / 3.0;
+    // Complex numbers as (re, im).
+    let mul = |a: (f64, f64), b: (f64, f64)| (a.0 * b.0 - a.1 * b.1, a.0 * b.1 + a.1 * b.0);
+    let ks = (k_s, b_s * w);
+    let kt = (k_t, b_t * w);
+    let body = (k_s - m_s * w * w, b_s * w);
+    let wheel = (k_s + k_t - m_u * w * w, (b_s + b_t) * w);
+    let ks2 = mul(ks, ks);
+    let den = mul(wheel, body);
+    let den = (den.0 - ks2.0, den.1 - ks2.1);
+    let num = mul(kt, ks);
+    (num.0.hypot(num.1)) / den.0.hypot(den.1)
+}
+
+/// The sweep against the frequency response. `steady=max(z_s,5)/max(z_r,5)` looks only at the
+/// last 5 s: the slowest mode decays like exp(-3.3 t), so the start-up transient is below 1e-7
+/// there, and what remains is sampling: the max of a sinusoid sampled every h is low by at most
+/// 1 - cos(w h / 2) ~ (w h)^2 / 8 = 4.9e-4 at 30 m/s (w = 62.8 rad/s, h = 1e-3 s), for z_s and
+/// z_r independently, hence 1e-3 relative. The handbook's whole-run `max(z_s)/max(z_r)` equals
+/// the steady state only near resonance (there the steady response dominates the transient):
+/// at 4 m/s, within the same 1e-3.
+#[test]
+fn quarter_car_sweep_matches_the_frequency_response_and_ignores_thread_count() {
+    let (quarter_car, _) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let q = quarter_car.to_str().unwrap();
+    let args = |threads: &'static str, out: &'static str| {
+        vec![
+            "sweep",
+            q,
+            "--param",
+            "speed=2:30:4",
+            "--metric",
+            "transmissibility=max(z_s)/max(z_r)",
+            "--metric",
+            "steady=max(z_s, 5)/max(z_r, 5)",
+            "--tolerance",
+            "1e-9",
+            "--output-interval",
+            "1e-3",
+            "--threads",
+            threads,
+            "--out",
+            out,
+            "--plot",
+            "t.svg",
+        ]
+    };
+    let stdout = ok(runner(dir.path(), &args("2", "two.csv")));
+    let (header, rows) = read_csv(&dir.path().join("two.csv"));
+    assert_eq!(header, ["speed", "transmissibility", "steady", "status"]);
+    let (speed, whole, steady) =
+        (column(&header, &rows, "speed"), column(&header, &rows, "transmissibility"), column(&header, &rows, "steady"));
+    assert_eq!(speed, [2.0, 6.0, 10.0, 14.0, 18.0, 22.0, 26.0, 30.0]);
+    for i in 0..speed.len() {
+        let h = transmissibility(speed[i]);
+        assert!((steady[i] / h - 1.0).abs() < 1e-3, "speed {}: steady-state ratio {} vs |H| = {h}", speed[i], steady[i]);
+        assert!(whole[i] >= steady[i] * (1.0 - 1e-3), "the whole-run maximum includes the steady state");
+    }
+    assert!(stdout.contains("transmissibility: peak"), "{stdout}");
+    let _ = ok(runner(dir.path(), &args("1", "one.csv")));
+    assert_eq!(
+        std::fs::read(dir.path().join("one.csv")).unwrap(),
+        std::fs::read(dir.path().join("two.csv")).unwrap(),
+        "identical CSV with 1 and 2 threads"
+    );
+    let svg = std::fs::read_to_string(dir.path().join("t.svg")).unwrap();
+    assert!(svg.contains("speed (m/s)") && svg.contains("peak"), "axis label with unit and the peak label");
+
+    let near_resonance = ok(runner(
+        dir.path(),
+        &[
+            "sweep",
+            q,
+            "--param",
+            "speed=4",
+            "--metric",
+            "t=max(z_s)/max(z_r)",
+            "--tolerance",
+            "1e-9",
+            "--output-interval",
+            "1e-3",
+            "--threads",
+            "2",
+            "--out",
+            "res.csv",
+        ],
+    ));
+    let (header, rows) = read_csv(&dir.path().join("res.csv"));
+    let t = column(&header, &rows, "t")[0];
+    assert!((t / transmissibility(4.0) - 1.0).abs() < 1e-3, "at resonance {t} vs {}; {near_resonance}", transmissibility(4.0));
+}
+
+/// Ex. 1 has the closed form q = 7.5 e^{-2t} - 5.5 e^{-3t} - t e^{-3t} / 2 (the forcing e^{-3t}
+/// is at a root of 2 s^2 + 10 s + 12, hence the t e^{-3t} term). With relative tolerance 1e-10
+/// and the default abs_tol 1e-9, DOPRI5's global error stays orders below the 1e-6 allowed.
+#[test]
+fn second_order_simulation_matches_the_closed_form() {
+    let (_, second_order) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    ok(runner(
+        dir.path(),
+        &[
+            "simulate",
+            second_order.to_str().unwrap(),
+            "--tolerance",
+            "1e-10",
+            "--output-interval",
+            "0.01",
+            "--out",
+            "q.csv",
+            "--plot",
+            "q.svg",
+        ],
+    ));
+    let (header, rows) = read_csv(&dir.path().join("q.csv"));
+    assert_eq!(&header[..2], ["time", "q"]);
+    let (t, q) = (column(&header, &rows, "time"), column(&header, &rows, "q"));
+    assert_eq!(rows.len(), 1001, "10 s every 0.01 s");
+    for (t, q) in t.iter().zip(&q) {
+        let exact = 7.5 * (-2.0 * t).exp() - 5.5 * (-3.0 * t).exp() - 0.5 * t * (-3.0 * t).exp();
+        assert!((q - exact).abs() < 1e-6, "t = {t}: q = {q}, exact {exact}");
+    }
+}
+
+#[test]
+fn info_and_typos_on_our_fmu() {
+    let (quarter_car, _) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let q = quarter_car.to_str().unwrap();
+    let out = ok(runner(dir.path(), &["info", q]));
+    let speed = out.lines().find(|l| l.starts_with("speed ")).expect("a line for speed");
+    assert!(speed.contains("parameter") && speed.contains("m/s") && speed.contains("30"), "{speed}");
+    let err = fails(runner(dir.path(), &["simulate", q, "--set", "sped=3"]));
+    assert!(err.contains("did you mean 'speed'"), "{err}");
+    // A value the model refuses is reported with the model's own message.
+    let err = fails(runner(dir.path(), &["simulate", q, "--set", "k_s=0", "--stop-time", "0.1"]));
+    assert!(err.contains("k_s"), "{err}");
+}
+
+/// `runner compare` on second_order: the work-precision table must show each method's order
+/// (an independent property of the methods, not of our numbers): halving RK4's step divides its
+/// error by 2^4 = 16, quartering Euler's divides it by 4; RK4 reaches 1e-6 with fewer
+/// evaluations than Euler, and the reported counters follow from the settings.
+#[test]
+fn compare_shows_each_methods_order_and_the_cheapest_solver() {
+    let (_, second_order) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let out =
+        ok(runner(dir.path(), &["compare", second_order.to_str().unwrap(), "--target-error", "1e-6", "--out", "w.csv", "--plot", "w.svg"]));
+    assert!(out.contains("rk4") && out.contains("dopri5"), "{out}");
+    assert!(dir.path().join("w.svg").is_file());
+    let (header, rows) = read_csv(&dir.path().join("w.csv"));
+    let pick = |solver: &str, col: &str| -> Vec<f64> {
+        let j = header.iter().position(|h| h == col).unwrap();
+        rows.iter().filter(|r| r[0] == solver).map(|r| r[j].parse().unwrap()).collect()
+    };
+    let (rk4_err, rk4_rhs, rk4_steps) = (pick("rk4", "max_relative_error"), pick("rk4", "n_rhs"), pick("rk4", "n_steps"));
+    // The first four halvings are in RK4's asymptotic range (errors 1e-8..1e-12, above roundoff).
+    for k in 0..3 {
+        let ratio = rk4_err[k] / rk4_err[k + 1];
+        assert!((13.0..19.0).contains(&ratio), "RK4 error ratio {ratio} at halving {k}");
+    }
+    for (rhs, steps) in rk4_rhs.iter().zip(&rk4_steps) {
+        assert_eq!(*rhs, 4.0 * steps, "RK4 evaluates f four times per step");
+    }
+    let euler_err = pick("euler", "max_relative_error");
+    for k in 1..4 {
+        let ratio = euler_err[k] / euler_err[k + 1];
+        assert!((3.6..4.4).contains(&ratio), "Euler error ratio {ratio} at step/4 number {k}");
+    }
+    let cheapest = |solver: &str| {
+        let (err, rhs) = (pick(solver, "max_relative_error"), pick(solver, "n_rhs"));
+        err.iter().zip(&rhs).filter(|(e, _)| **e <= 1e-6).map(|(_, r)| *r).fold(f64::INFINITY, f64::min)
+    };
+    assert!(cheapest("rk4") < cheapest("euler"), "rk4 {} vs euler {}", cheapest("rk4"), cheapest("euler"));
+    // A bad target error is refused with a message naming it.
+    let msg = fails(runner(dir.path(), &["compare", second_order.to_str().unwrap(), "--target-error", "0"]));
+    assert!(msg.contains("--target-error"), "{msg}");
+}
+
+/// With a model name, `compare` measures errors against the closed form in the model's
+/// experiment.toml. The closed form is independent of every solver, so DOPRI5 at tight
+/// tolerance must agree with it to about its tolerance (1e-9 bound: rtol 1e-10 plus the error
+/// made between communication points is well below that), and RK4 still shows order 4. With
+/// --set the closed form no longer applies and the reference is DOPRI5.
+#[test]
+fn compare_uses_the_closed_form_reference_of_the_experiment_file() {
+    fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let out = ok(runner(dir.path(), &["compare", "second_order", "--out", "w.csv", "--plot", "w.svg"]));
+    assert!(out.contains("max over q, q_dot, u of") && out.contains("y_ref from the closed-form solution of experiment.toml"), "{out}");
+    let (header, rows) = read_csv(&dir.path().join("w.csv"));
+    let j = header.iter().position(|h| h == "max_relative_error").unwrap();
+    let error =
+        |solver: &str, value: &str| rows.iter().find(|r| r[0] == solver && r[2] == value).map(|r| r[j].parse::<f64>().unwrap()).unwrap();
+    let tight = error("dopri5", "0.0000000001");
+    assert!(tight < 1e-9, "DOPRI5 at rtol 1e-10 against the closed form: {tight}");
+    let ratio = error("rk4", "0.01") / error("rk4", "0.005");
+    assert!((13.0..19.0).contains(&ratio), "RK4 halving ratio {ratio}");
+    let o = runner(dir.path(), &["compare", "second_order", "--set", "q0=1", "--out", "w2.csv", "--plot", "w2.svg"]);
+    assert!(o.status.success() && String::from_utf8_lossy(&o.stdout).contains("y_ref from DOPRI5 at rtol 1e-12"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("holds for its own parameter values"), "{}", stderr(&o));
+}
+
+/// After a call returns fmi2Error (parameters refused at initialization, a diverged step) the
+/// standard allows only fmi2Reset and fmi2FreeInstance: the runner must not send fmi2Terminate,
+/// which the FMU would answer with an "illegal call sequence" line that reads like a bug.
+#[test]
+fn after_an_error_the_runner_makes_no_illegal_call() {
+    let (quarter_car, _) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let q = quarter_car.to_str().unwrap();
+    let refused = fails(runner(dir.path(), &["simulate", q, "--set", "speed=-3", "--out", "a.csv"]));
+    assert!(refused.contains("speed = -3"), "{refused}");
+    let diverged =
+        fails(runner(dir.path(), &["simulate", q, "--set", "solver=0", "--set", "fixed_step=0.01", "--set", "k_t=1e9", "--out", "b.csv"]));
+    assert!(diverged.contains("diverged"), "{diverged}");
+    for err in [refused, diverged] {
+        assert!(!err.contains("not allowed") && !err.contains("illegal call sequence"), "{err}");
+    }
+}
+
+/// A negative number after an option is that option's value, refused with the reason, not an
+/// unknown option with a tip about `--`.
+#[test]
+fn negative_numbers_reach_the_checks_that_explain_them() {
+    let (quarter_car, _) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let q = quarter_car.to_str().unwrap();
+    let err = fails(runner(dir.path(), &["simulate", q, "--tolerance", "-1", "--out", "a.csv"]));
+    assert!(err.contains("tolerance -1 must be a positive number"), "{err}");
+    let err = fails(runner(dir.path(), &["simulate", q, "--stop-time", "-5", "--out", "a.csv"]));
+    assert!(err.contains("stop time -5 must be a number after the start time 0"), "{err}");
+}
+
+/// The same parameter in two --param options is refused before the first run (it would be
+/// swept as two parameters, the later value silently winning).
+#[test]
+fn a_parameter_swept_twice_is_refused_before_running() {
+    let (quarter_car, _) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let q = quarter_car.to_str().unwrap();
+    let err =
+        fails(runner(dir.path(), &["sweep", q, "--param", "speed=1,2", "--param", "speed=3", "--metric", "m=max(z_s)", "--out", "b.csv"]));
+    assert!(err.contains("--param speed is given twice"), "{err}");
+    assert!(!dir.path().join("b.csv").exists());
+}
+
+/// A plot (or a comparison's table) is written after the runs: a destination directory that
+/// does not exist is refused before them, not after the work, and no other file is written.
+#[test]
+fn a_destination_in_a_missing_directory_is_refused_before_running() {
+    let (quarter_car, second_order) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let (q, s) = (quarter_car.to_str().unwrap(), second_order.to_str().unwrap());
+    let cases: [&[&str]; 3] = [
+        &["simulate", q, "--plot", "nodir/p.svg", "--out", "a.csv"],
+        &["sweep", q, "--param", "speed=1,2", "--metric", "m=max(z_s)", "--plot", "nodir/p.svg", "--out", "a.csv"],
+        &["compare", s, "--plot", "nodir/p.svg", "--out", "a.csv"],
+    ];
+    for args in cases {
+        let err = fails(runner(dir.path(), args));
+        assert!(err.contains("cannot write nodir/p.svg: the directory nodir does not exist"), "{args:?}: {err}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "{args:?}: nothing written");
+    }
+}

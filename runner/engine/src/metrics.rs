@@ -1,0 +1,532 @@
+//! Sweep metrics: `NAME=EXPR`, where EXPR combines numbers and per-run summaries of variables
+//! (`max(z_s)`, `min`, `final`, `mean`, `peak_to_peak`, `rms`; an optional second argument
+//! `max(z_s, 5)` only counts samples from t = 5 s on) with + - * / and parentheses. Summaries are
+//! updated sample by sample, so no trajectory is stored.
+//!
+//! The same grammar, with names instead of summaries, gives [`Formula`]: closed-form
+//! expressions of `t` and parameters, such as the analytical references of `runner compare`.
+//! Both also take `^` and the functions of [`FUNCTIONS`].
+
+/// A per-run statistic of one variable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Stat {
+    /// Largest sample.
+    Max,
+    /// Smallest sample.
+    Min,
+    /// Last sample.
+    Final,
+    /// Average of the samples (the grid is uniform, so this is the time average).
+    Mean,
+    /// Largest minus smallest sample.
+    PeakToPeak,
+    /// Root mean square of the samples.
+    Rms,
+}
+
+const STATS: &[(&str, Stat)] = &[
+    ("max", Stat::Max),
+    ("min", Stat::Min),
+    ("final", Stat::Final),
+    ("mean", Stat::Mean),
+    ("peak_to_peak", Stat::PeakToPeak),
+    ("rms", Stat::Rms),
+];
+
+/// What a summary is taken of: a variable, from a start time on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Source {
+    /// Variable name.
+    pub variable: String,
+    /// Samples before this time are ignored.
+    pub from: f64,
+}
+
+/// A function of one argument an expression may call, and its name.
+pub type Function = (&'static str, fn(f64) -> f64);
+
+/// Functions an expression may call, with one argument each.
+pub const FUNCTIONS: &[Function] = &[
+    ("exp", f64::exp),
+    ("log", f64::ln),
+    ("sqrt", f64::sqrt),
+    ("sin", f64::sin),
+    ("cos", f64::cos),
+    ("tan", f64::tan),
+    ("atan", f64::atan),
+    ("abs", f64::abs),
+];
+
+/// A parsed expression.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Expr {
+    /// A number.
+    Number(f64),
+    /// A statistic of source number `.1` (index into [`Metrics::sources`]).
+    Summary(Stat, usize),
+    /// Name number `.0` of a [`Formula`] (index into [`Formula::names`]).
+    Name(usize),
+    /// Function number `.0` of [`FUNCTIONS`] applied to the argument.
+    Call(usize, Box<Expr>),
+    /// Unary minus.
+    Negate(Box<Expr>),
+    /// A binary operation: one of + - * / ^.
+    Binary(char, Box<Expr>, Box<Expr>),
+}
+
+/// Parses the whole of `text` in `mode`.
+fn parse_all(text: &str, mode: Mode) -> Result<Expr, String> {
+    let mut parser = Parser { text, pos: 0, mode };
+    let expr = parser.expression()?;
+    parser.skip_space();
+    if parser.pos < text.len() {
+        return Err(parser.error("expected an operator (+ - * / ^) or the end"));
+    }
+    Ok(expr)
+}
+
+/// Parsed metrics and the sources their summaries read.
+#[derive(Debug, Default)]
+pub struct Metrics {
+    /// `(name, expression)` in command-line order.
+    pub metrics: Vec<(String, Expr)>,
+    /// Distinct (variable, from) pairs the expressions summarize.
+    pub sources: Vec<Source>,
+}
+
+impl Metrics {
+    /// Parses `NAME=EXPR` definitions.
+    pub fn parse(definitions: &[String]) -> Result<Metrics, String> {
+        let mut m = Metrics::default();
+        for definition in definitions {
+            let (name, text) = definition.split_once('=').ok_or_else(|| format!("metric '{definition}' is not of the form NAME=EXPR"))?;
+            let name = name.trim();
+            if name.is_empty() || name.contains(',') || name.contains('"') {
+                return Err(format!("metric '{definition}': the name before '=' must be non-empty, without commas or quotes"));
+            }
+            if m.metrics.iter().any(|(n, _)| n == name) {
+                return Err(format!("metric '{name}' is defined twice"));
+            }
+            let expr = parse_all(text, Mode::Metric(&mut m.sources)).map_err(|e| format!("metric '{name}': {e}"))?;
+            m.metrics.push((name.to_owned(), expr));
+        }
+        Ok(m)
+    }
+
+    /// Fresh accumulators, one per source.
+    pub fn accumulators(&self) -> Vec<Accumulator> {
+        self.sources.iter().map(|s| Accumulator::new(s.from)).collect()
+    }
+
+    /// Evaluates every metric over finished accumulators.
+    pub fn evaluate(&self, acc: &[Accumulator]) -> Vec<f64> {
+        self.metrics
+            .iter()
+            .map(|(_, e)| eval(e, &|leaf| if let Expr::Summary(stat, i) = leaf { acc[*i].value(*stat) } else { f64::NAN }))
+            .collect()
+    }
+}
+
+/// A closed-form expression of named quantities (`t`, parameters), e.g. `2*exp(-3*t)`.
+#[derive(Debug, Clone)]
+pub struct Formula {
+    /// The text it was parsed from.
+    pub text: String,
+    expr: Expr,
+    /// The names it reads, in order of first use; `evaluate` takes their values in this order.
+    pub names: Vec<String>,
+}
+
+impl Formula {
+    /// Parses `text`.
+    pub fn parse(text: &str) -> Result<Formula, String> {
+        let mut names = Vec::new();
+        let expr = parse_all(text, Mode::Formula(&mut names))?;
+        Ok(Formula { text: text.to_owned(), expr, names })
+    }
+
+    /// The value, given the values of [`Formula::names`] in order.
+    pub fn evaluate(&self, values: &[f64]) -> f64 {
+        eval(&self.expr, &|leaf| if let Expr::Name(i) = leaf { values[*i] } else { f64::NAN })
+    }
+}
+
+/// Evaluates `e`; `leaf` gives the value of summaries and names.
+fn eval(e: &Expr, leaf: &dyn Fn(&Expr) -> f64) -> f64 {
+    match e {
+        Expr::Number(x) => *x,
+        Expr::Summary(..) | Expr::Name(_) => leaf(e),
+        Expr::Call(f, a) => (FUNCTIONS[*f].1)(eval(a, leaf)),
+        Expr::Negate(a) => -eval(a, leaf),
+        Expr::Binary(op, a, b) => {
+            let (a, b) = (eval(a, leaf), eval(b, leaf));
+            match op {
+                '+' => a + b,
+                '-' => a - b,
+                '*' => a * b,
+                '^' => a.powf(b),
+                _ => a / b,
+            }
+        }
+    }
+}
+
+/// Streaming statistics of one source.
+#[derive(Debug, Clone)]
+pub struct Accumulator {
+    /// Samples before this time are skipped: `from` less a rounding allowance, so `from = 5`
+    /// includes the grid point 4.999999999999999.
+    threshold: f64,
+    count: usize,
+    min: f64,
+    max: f64,
+    sum: f64,
+    sum_squares: f64,
+    last: f64,
+}
+
+impl Accumulator {
+    fn new(from: f64) -> Accumulator {
+        Accumulator {
+            threshold: from - 1e-9 * from.abs().max(1.0),
+            count: 0,
+            min: f64::INFINITY,
+            max: f64::NEG_INFINITY,
+            sum: 0.0,
+            sum_squares: 0.0,
+            last: f64::NAN,
+        }
+    }
+
+    /// Adds the sample `x` taken at time `t`.
+    pub fn add(&mut self, t: f64, x: f64) {
+        if t < self.threshold {
+            return;
+        }
+        self.count += 1;
+        // Plain comparisons, not f64::min/max: samples are finite (fmi2GetReal refuses others,
+        // and a NaN would be skipped here too), and this is one instruction each per sample.
+        if x < self.min {
+            self.min = x;
+        }
+        if x > self.max {
+            self.max = x;
+        }
+        self.sum += x;
+        self.sum_squares += x * x;
+        self.last = x;
+    }
+
+    /// The statistic; NaN when no sample was counted.
+    pub fn value(&self, stat: Stat) -> f64 {
+        if self.count == 0 {
+            return f64::NAN;
+        }
+        let n = self.count as f64;
+        match stat {
+            Stat::Max => self.max,
+            Stat::Min => self.min,
+            Stat::Final => self.last,
+            Stat::Mean => self.sum / n,
+            Stat::PeakToPeak => self.max - self.min,
+            Stat::Rms => (self.sum_squares / n).sqrt(),
+        }
+    }
+}
+
+/// What leaves an expression may have: summaries of variables (metrics) or bare names (formulas).
+enum Mode<'s> {
+    Metric(&'s mut Vec<Source>),
+    Formula(&'s mut Vec<String>),
+}
+
+/// Recursive descent over `expr := term (('+'|'-') term)*`, `term := unary (('*'|'/') unary)*`,
+/// `unary := '-' unary | power`, `power := atom ['^' unary]` (so -x^2 = -(x^2), 2^-1 = 0.5),
+/// `atom := NUMBER | '(' expr ')' | FUNCTION '(' expr ')' | leaf`, where a leaf is
+/// `STAT '(' VARIABLE [',' NUMBER] ')'` for metrics and `NAME` for formulas.
+struct Parser<'t, 's> {
+    text: &'t str,
+    pos: usize,
+    mode: Mode<'s>,
+}
+
+impl Parser<'_, '_> {
+    fn error(&self, what: &str) -> String {
+        let found = match self.rest().chars().next() {
+            Some(c) => format!("'{c}'"),
+            None => "the end".to_owned(),
+        };
+        format!("{what} at column {} of '{}', found {found}", self.pos + 1, self.text)
+    }
+
+    fn rest(&self) -> &str {
+        &self.text[self.pos..]
+    }
+
+    fn skip_space(&mut self) {
+        let trimmed = self.rest().trim_start();
+        self.pos = self.text.len() - trimmed.len();
+    }
+
+    fn eat(&mut self, c: char) -> bool {
+        self.skip_space();
+        if self.rest().starts_with(c) {
+            self.pos += c.len_utf8();
+            true
+        } else {
+            false
+        }
+    }
+
+    fn expression(&mut self) -> Result<Expr, String> {
+        let mut left = self.term()?;
+        loop {
+            let op = if self.eat('+') {
+                '+'
+            } else if self.eat('-') {
+                '-'
+            } else {
+                return Ok(left);
+            };
+            left = Expr::Binary(op, Box::new(left), Box::new(self.term()?));
+        }
+    }
+
+    fn term(&mut self) -> Result<Expr, String> {
+        let mut left = self.unary()?;
+        loop {
+            let op = if self.eat('*') {
+                '*'
+            } else if self.eat('/') {
+                '/'
+            } else {
+                return Ok(left);
+            };
+            left = Expr::Binary(op, Box::new(left), Box::new(self.unary()?));
+        }
+    }
+
+    fn unary(&mut self) -> Result<Expr, String> {
+        if self.eat('-') {
+            return Ok(Expr::Negate(Box::new(self.unary()?)));
+        }
+        let base = self.atom()?;
+        if self.eat('^') {
+            return Ok(Expr::Binary('^', Box::new(base), Box::new(self.unary()?)));
+        }
+        Ok(base)
+    }
+
+    fn atom(&mut self) -> Result<Expr, String> {
+        if self.eat('(') {
+            let e = self.expression()?;
+            if !self.eat(')') {
+                return Err(self.error("expected ')'"));
+            }
+            return Ok(e);
+        }
+        self.skip_space();
+        let c = self.rest().chars().next();
+        if matches!(c, Some(c) if c.is_ascii_digit() || c == '.') {
+            return Ok(Expr::Number(self.number()?));
+        }
+        if matches!(c, Some(c) if c.is_alphabetic() || c == '_') {
+            return self.word();
+        }
+        Err(self.error(match self.mode {
+            Mode::Metric(_) => "expected a number, '(' or a summary such as max(x)",
+            Mode::Formula(_) => "expected a number, '(', a function such as exp(...) or a name",
+        }))
+    }
+
+    /// A word: a function call, a summary (metrics) or a name (formulas).
+    fn word(&mut self) -> Result<Expr, String> {
+        let len: usize = self.rest().chars().take_while(|&c| c.is_alphanumeric() || c == '_').map(char::len_utf8).sum();
+        let word = self.rest()[..len].to_owned();
+        let called = self.rest()[len..].trim_start().starts_with('(');
+        if let Some(f) = FUNCTIONS.iter().position(|(n, _)| *n == word.as_str()).filter(|_| called) {
+            self.pos += len;
+            self.eat('(');
+            let argument = self.expression()?;
+            if !self.eat(')') {
+                return Err(self.error("expected ')'"));
+            }
+            return Ok(Expr::Call(f, Box::new(argument)));
+        }
+        if let Mode::Formula(names) = &mut self.mode {
+            if called {
+                let known: Vec<&str> = FUNCTIONS.iter().map(|(n, _)| *n).collect();
+                return Err(format!(
+                    "'{word}' at column {} of '{}' is not a function; use one of {}",
+                    self.pos + 1,
+                    self.text,
+                    known.join(", ")
+                ));
+            }
+            let index = match names.iter().position(|n| *n == word) {
+                Some(i) => i,
+                None => {
+                    names.push(word);
+                    names.len() - 1
+                }
+            };
+            self.pos += len;
+            return Ok(Expr::Name(index));
+        }
+        self.summary()
+    }
+
+    fn number(&mut self) -> Result<f64, String> {
+        self.skip_space();
+        let bytes = self.rest().as_bytes();
+        let mut end = 0;
+        while end < bytes.len() {
+            let b = bytes[end];
+            let exponent_sign = (b == b'+' || b == b'-') && end > 0 && matches!(bytes[end - 1], b'e' | b'E');
+            if b.is_ascii_digit() || b == b'.' || b == b'e' || b == b'E' || exponent_sign {
+                end += 1;
+            } else {
+                break;
+            }
+        }
+        let text = &self.rest()[..end];
+        let value = text.parse::<f64>().map_err(|_| {
+            if text.is_empty() {
+                self.error("expected a number")
+            } else {
+                self.error(&format!("'{text}' is not a number"))
+            }
+        })?;
+        self.pos += end;
+        Ok(value)
+    }
+
+    /// A bare name (letters, digits, `_`, `.`, `[`, `]`) or a name in single quotes.
+    fn variable_name(&mut self) -> Result<String, String> {
+        self.skip_space();
+        if self.rest().starts_with('\'') {
+            let close = self.rest()[1..].find('\'').ok_or_else(|| self.error("unterminated quoted variable name"))?;
+            let name = self.rest()[1..1 + close].to_owned();
+            self.pos += close + 2;
+            return Ok(name);
+        }
+        let len: usize =
+            self.rest().chars().take_while(|&c| c.is_alphanumeric() || matches!(c, '_' | '.' | '[' | ']')).map(char::len_utf8).sum();
+        if len == 0 {
+            return Err(self.error("expected a variable name"));
+        }
+        let name = self.rest()[..len].to_owned();
+        self.pos += len;
+        Ok(name)
+    }
+
+    fn summary(&mut self) -> Result<Expr, String> {
+        let start = self.pos;
+        let len: usize = self.rest().chars().take_while(|&c| c.is_alphanumeric() || c == '_').map(char::len_utf8).sum();
+        let word = self.rest()[..len].to_owned();
+        let names: Vec<&str> = STATS.iter().map(|(n, _)| *n).collect();
+        let stat = STATS.iter().find(|(n, _)| *n == word.as_str()).map(|(_, s)| *s).ok_or_else(|| {
+            format!("'{word}' at column {} of '{}' is not a summary; use one of {}, e.g. max(x)", start + 1, self.text, names.join(", "))
+        })?;
+        self.pos += len;
+        if !self.eat('(') {
+            return Err(self.error(&format!("expected '(' after {word}")));
+        }
+        let variable = self.variable_name()?;
+        let from = if self.eat(',') {
+            self.skip_space();
+            self.number()?
+        } else {
+            f64::NEG_INFINITY
+        };
+        if !self.eat(')') {
+            return Err(self.error("expected ')'"));
+        }
+        let source = Source { variable, from };
+        let Mode::Metric(sources) = &mut self.mode else { unreachable!("summaries are parsed in metric mode only") };
+        let index = match sources.iter().position(|s| *s == source) {
+            Some(i) => i,
+            None => {
+                sources.push(source);
+                sources.len() - 1
+            }
+        };
+        Ok(Expr::Summary(stat, index))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(definition: &str, samples: &[(f64, &[f64])]) -> Result<f64, String> {
+        let m = Metrics::parse(&[definition.to_owned()])?;
+        let mut acc = m.accumulators();
+        for (t, values) in samples {
+            for (a, x) in acc.iter_mut().zip(values.iter()) {
+                a.add(*t, *x);
+            }
+        }
+        Ok(m.evaluate(&acc)[0])
+    }
+
+    #[test]
+    fn precedence_parentheses_and_unary_minus() {
+        // x samples 1, 3, 2 (one source): max 3, min 1, final 2, mean 2.
+        let s: &[(f64, &[f64])] = &[(0.0, &[1.0]), (1.0, &[3.0]), (2.0, &[2.0])];
+        assert_eq!(run("a=1 + 2 * 3", s).unwrap(), 7.0);
+        assert_eq!(run("a=(1 + 2) * 3", s).unwrap(), 9.0);
+        assert_eq!(run("a=-max(x) - -1", s).unwrap(), -2.0);
+        assert_eq!(run("a=max(x)/min(x) + final(x) * mean(x)", s).unwrap(), 7.0);
+        assert_eq!(run("a=peak_to_peak(x)", s).unwrap(), 2.0);
+        assert_eq!(run("a=1.5e1/3", s).unwrap(), 5.0);
+        assert_eq!(run("a=max(x, 1.5)", s).unwrap(), 2.0, "the window starts after the peak at t = 1");
+        assert!((run("a=rms(x)", s).unwrap() - (14.0f64 / 3.0).sqrt()).abs() < 1e-15);
+    }
+
+    #[test]
+    fn functions_and_powers_in_metrics() {
+        let s: &[(f64, &[f64])] = &[(0.0, &[4.0])];
+        assert_eq!(run("a=sqrt(max(x)) + 2^3", s).unwrap(), 10.0);
+        assert_eq!(run("a=-2^2", s).unwrap(), -4.0, "unary minus binds looser than ^");
+        assert_eq!(run("a=2^-1", s).unwrap(), 0.5);
+        assert_eq!(run("a=2^3^2", s).unwrap(), 512.0, "^ is right-associative");
+    }
+
+    #[test]
+    fn formulas_read_names_and_call_functions() {
+        let f = Formula::parse("a * exp(-2*t) + sin(t)^2 + cos(t)^2").unwrap();
+        assert_eq!(f.names, ["a", "t"]);
+        let (a, t) = (7.5f64, 0.3f64);
+        assert!((f.evaluate(&[a, t]) - (a * (-2.0 * t).exp() + 1.0)).abs() < 1e-15);
+        assert!(Formula::parse("exq(t)").unwrap_err().contains("'exq' at column 1 of 'exq(t)' is not a function; use one of exp"));
+        assert!(Formula::parse("max(t)").unwrap_err().contains("not a function"), "summaries belong to metrics only");
+        assert!(Formula::parse("2 t").unwrap_err().contains("expected an operator"));
+        assert!(
+            Metrics::parse(&["a=t".into()]).unwrap_err().contains("'t' at column 1 of 't' is not a summary"),
+            "metrics take no bare names"
+        );
+    }
+
+    #[test]
+    fn sources_are_shared_between_summaries() {
+        let m = Metrics::parse(&["t=max(z_s)/max(z_r)".into(), "p=peak_to_peak(z_s)".into()]).unwrap();
+        let names: Vec<&str> = m.sources.iter().map(|s| s.variable.as_str()).collect();
+        assert_eq!(names, ["z_s", "z_r"]);
+    }
+
+    #[test]
+    fn errors_say_where() {
+        let e = Metrics::parse(&["t=max(z_s".into()]).unwrap_err();
+        assert!(e.contains("expected ')'") && e.contains("column 8 of 'max(z_s'"), "{e}");
+        let e = Metrics::parse(&["t=maximum(z_s)".into()]).unwrap_err();
+        assert!(e.contains("'maximum'") && e.contains("peak_to_peak"), "{e}");
+        let e = Metrics::parse(&["t=max(z_s) max(z_r)".into()]).unwrap_err();
+        assert!(e.contains("expected an operator"), "{e}");
+        assert!(Metrics::parse(&["no_equals".into()]).unwrap_err().contains("NAME=EXPR"));
+        assert!(Metrics::parse(&["t=1..2".into()]).unwrap_err().contains("not a number"));
+        // A start time that is not a number is named as missing, not as the empty text ''.
+        let e = Metrics::parse(&["t=max(z_s,abc)".into()]).unwrap_err();
+        assert!(e.contains("expected a number at column 9 of 'max(z_s,abc)', found 'a'"), "{e}");
+    }
+}

@@ -1,0 +1,298 @@
+//! Sweeps: the cartesian product of parameter ranges, one FMU instance per point, run in
+//! parallel on a rayon pool (one loaded FMU for the whole sweep), with metrics per point and
+//! the results handed back in point order as they finish.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc;
+
+use fmi_importer::{Fmu, Value, Variable};
+
+use crate::metrics::Metrics;
+use crate::run::{self, Grid};
+use crate::variables;
+
+/// Values of one `--param`: `START:STOP:STEP` (inclusive, STEP > 0) or a comma list.
+pub fn parse_range(text: &str) -> Result<(String, Vec<f64>), String> {
+    let (name, spec) = variables::split_assignment(text, "--param")?;
+    let number = |s: &str, what: &str| -> Result<f64, String> {
+        s.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("--param {text}: {what} '{}' is not a number", s.trim()))
+    };
+    let values = if spec.contains(':') {
+        let parts: Vec<&str> = spec.split(':').collect();
+        if parts.len() != 3 {
+            return Err(format!("--param {text}: a range is START:STOP:STEP (three numbers)"));
+        }
+        let (start, stop, step) = (number(parts[0], "START")?, number(parts[1], "STOP")?, number(parts[2], "STEP")?);
+        if step <= 0.0 {
+            return Err(format!("--param {text}: STEP must be positive, it is {step}"));
+        }
+        if stop < start {
+            return Err(format!("--param {text}: STOP ({stop}) is below START ({start}); ranges run upwards from START to STOP"));
+        }
+        // Points are START + i STEP (not accumulated, so 1:50:0.5 gives exactly 99 points),
+        // with a relative allowance so STOP itself is included despite rounding.
+        let count = ((stop - start) / step * (1.0 + 1e-12) + 1e-9).floor() as usize + 1;
+        if count > 1_000_000 {
+            return Err(format!("--param {text}: {count} points is too many"));
+        }
+        (0..count).map(|i| start + i as f64 * step).collect()
+    } else {
+        spec.split(',').map(|s| number(s, "value")).collect::<Result<Vec<f64>, String>>()?
+    };
+    Ok((name.to_owned(), values))
+}
+
+/// Largest number of points a sweep may have (the product of its ranges).
+pub const MAX_POINTS: usize = 100_000_000;
+
+/// The swept points, the cartesian product of the ranges with the last parameter varying
+/// fastest. Point `i` is decoded from `i`, so no list of points is ever held.
+pub struct Space {
+    /// Each swept parameter's name and values, in `--param` order.
+    pub ranges: Vec<(String, Vec<f64>)>,
+    /// Number of points.
+    pub len: usize,
+}
+
+impl Space {
+    /// The product of `ranges`, refused when it has more than [`MAX_POINTS`] points.
+    pub fn new(ranges: Vec<(String, Vec<f64>)>) -> Result<Space, String> {
+        let len = ranges.iter().try_fold(1usize, |n, (_, v)| n.checked_mul(v.len())).filter(|&n| n <= MAX_POINTS);
+        let len = len.ok_or_else(|| {
+            let sizes: Vec<String> = ranges.iter().map(|(n, v)| format!("{} values of {n}", v.len())).collect();
+            format!("the sweep has more than {MAX_POINTS} points ({}); narrow the ranges", sizes.join(" x "))
+        })?;
+        Ok(Space { ranges, len })
+    }
+
+    /// The parameter values of point `i`, in `--param` order.
+    pub fn point(&self, mut i: usize, out: &mut Vec<f64>) {
+        out.clear();
+        out.resize(self.ranges.len(), 0.0);
+        for (slot, (_, values)) in out.iter_mut().zip(&self.ranges).rev() {
+            *slot = values[i % values.len()];
+            i /= values.len();
+        }
+    }
+}
+
+/// Result of one point: its metric values (when it ran) and `ok` or the error.
+pub struct PointResult {
+    pub metrics: Option<Vec<f64>>,
+    pub status: String,
+}
+
+/// Everything a sweep runs, checked before the first point.
+pub struct Plan<'a> {
+    pub fmu: &'a Fmu,
+    pub grid: Grid,
+    /// Assignments common to every point.
+    pub fixed: Vec<(&'a Variable, Value)>,
+    /// The swept variables, in the order of the space's ranges.
+    pub swept: Vec<&'a Variable>,
+    pub space: Space,
+    pub metrics: Metrics,
+    /// The variables the metrics read, in the order of `metrics.sources`.
+    pub sources: Vec<&'a Variable>,
+}
+
+impl<'a> Plan<'a> {
+    /// Checks every name and value before the first run, so a typo costs nothing.
+    pub fn new(
+        fmu: &'a Fmu,
+        grid: Grid,
+        fixed: Vec<(&'a Variable, Value)>,
+        ranges: Vec<(String, Vec<f64>)>,
+        metrics: Metrics,
+    ) -> Result<Plan<'a>, String> {
+        let d = &fmu.description;
+        let mut swept: Vec<&Variable> = Vec::new();
+        for (name, values) in &ranges {
+            let v = variables::find(d, name)?;
+            if swept.iter().any(|w| std::ptr::eq(*w, v)) {
+                return Err(format!("--param {name} is given twice; give all its values in one --param (V1,V2,... or START:STOP:STEP)"));
+            }
+            variables::check_settable(v)?;
+            for &x in values {
+                variables::number_value(v, x)?;
+            }
+            swept.push(v);
+        }
+        let sources = metrics
+            .sources
+            .iter()
+            .map(|s| {
+                let v = variables::find(d, &s.variable)?;
+                if !v.kind.is_numeric() {
+                    return Err(format!("'{}' is a String variable; metrics need numbers", v.name));
+                }
+                Ok(v)
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        let space = Space::new(ranges)?;
+        Ok(Plan { fmu, grid, fixed, swept, space, metrics, sources })
+    }
+
+    /// The instance name of point `i`, e.g. `quarter_car[speed=4.0]`.
+    fn instance_name(&self, point: &[f64]) -> String {
+        // The shortest form that reads back as x, as in the CSV: Display would spell 1e308
+        // with 309 digits.
+        let label: Vec<String> = self.swept.iter().zip(point).map(|(v, x)| format!("{}={x:?}", v.name)).collect();
+        format!("{}[{}]", self.fmu.identifier, label.join(","))
+    }
+
+    /// Runs point `i` in its own instance.
+    pub fn run_point(&self, i: usize, point: &mut Vec<f64>, stop: &dyn Fn() -> bool) -> PointResult {
+        self.space.point(i, point);
+        let mut assignments = self.fixed.clone();
+        for (v, &x) in self.swept.iter().zip(point.iter()) {
+            // Checked in `Plan::new`, before any run.
+            assignments.push((*v, variables::number_value(v, x).expect("value checked before the sweep")));
+        }
+        let name = self.instance_name(point);
+        let mut acc = self.metrics.accumulators();
+        let result = run::run(self.fmu, &name, &self.grid, &assignments, &self.sources, false, |t, values| {
+            if stop() {
+                return Err("interrupted".to_owned());
+            }
+            for (a, &x) in acc.iter_mut().zip(values) {
+                a.add(t, x);
+            }
+            Ok(())
+        });
+        match result {
+            Err(e) => PointResult { metrics: None, status: e },
+            Ok(outcome) => {
+                if let Some(reason) = outcome.ended_early {
+                    crate::note(&format!("{name}: {reason}; metrics are over the samples up to there"));
+                }
+                let values = self.metrics.evaluate(&acc);
+                let bad: Vec<String> = self
+                    .metrics
+                    .metrics
+                    .iter()
+                    .zip(&values)
+                    .filter(|(_, v)| !v.is_finite())
+                    .map(|((n, _), v)| format!("metric {n} is {v}"))
+                    .collect();
+                let status = if bad.is_empty() { "ok".to_owned() } else { bad.join("; ") };
+                PointResult { metrics: Some(values), status }
+            }
+        }
+    }
+
+    /// Runs every point on `threads` threads and calls `deliver(i, result)` in point order as
+    /// results arrive. Stops early when `stop()` turns true or `deliver` fails (its error is
+    /// returned); the points in progress then finish first.
+    pub fn execute(
+        &self,
+        threads: usize,
+        stop: &(dyn Fn() -> bool + Sync),
+        mut deliver: impl FnMut(usize, PointResult) -> Result<(), String>,
+    ) -> Result<(), String> {
+        if threads == 0 {
+            return Err("--threads must be at least 1".to_owned());
+        }
+        let pool =
+            rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+        let n = self.space.len;
+        // Workers take points in order from a shared counter (dynamic scheduling: points differ
+        // in cost), so results arrive nearly in order and the reorder buffer stays a few rows
+        // long whatever the sweep's size.
+        let next = AtomicUsize::new(0);
+        let failed = AtomicBool::new(false);
+        let halted = || failed.load(Ordering::Relaxed) || stop();
+        let (sender, receiver) = mpsc::sync_channel::<(usize, PointResult)>(4 * threads);
+        std::thread::scope(|scope| {
+            scope.spawn(|| {
+                pool.broadcast(|_| {
+                    let sender = sender.clone();
+                    let mut point = Vec::new();
+                    loop {
+                        if halted() {
+                            break;
+                        }
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        if i >= n {
+                            break;
+                        }
+                        let result = self.run_point(i, &mut point, stop);
+                        if sender.send((i, result)).is_err() {
+                            break;
+                        }
+                    }
+                });
+                drop(sender);
+            });
+            let mut waiting: BTreeMap<usize, PointResult> = BTreeMap::new();
+            let mut row = 0;
+            let mut outcome = Ok(());
+            for (i, result) in receiver.iter() {
+                if outcome.is_err() || stop() {
+                    continue; // drain, so no worker blocks on a full channel
+                }
+                waiting.insert(i, result);
+                while let Some(r) = waiting.remove(&row) {
+                    if let Err(e) = deliver(row, r) {
+                        outcome = Err(e);
+                        failed.store(true, Ordering::Relaxed);
+                        break;
+                    }
+                    row += 1;
+                }
+            }
+            outcome
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_include_stop_and_do_not_accumulate() {
+        let (name, v) = parse_range("speed=1:50:0.5").unwrap();
+        assert_eq!(name, "speed");
+        assert_eq!(v.len(), 99);
+        assert_eq!((v[0], v[98]), (1.0, 50.0));
+        assert_eq!(parse_range("k=0:0.3:0.1").unwrap().1.len(), 4, "0.3/0.1 = 2.9999999999999996 must still give 4 points");
+        assert_eq!(parse_range("k=1, 2.5,4").unwrap().1, vec![1.0, 2.5, 4.0]);
+    }
+
+    #[test]
+    fn bad_ranges_are_explained() {
+        assert!(parse_range("speed=5:1:0.5").unwrap_err().contains("below START"));
+        assert!(parse_range("speed=1:5:0").unwrap_err().contains("STEP must be positive"));
+        assert!(parse_range("speed=1:x:1").unwrap_err().contains("STOP 'x' is not a number"));
+        assert!(parse_range("speed=1:2").unwrap_err().contains("START:STOP:STEP"));
+        assert!(parse_range("speed").unwrap_err().contains("NAME=VALUE"));
+    }
+
+    #[test]
+    fn cartesian_product_varies_the_last_fastest() {
+        let space = Space::new(vec![("a".into(), vec![1.0, 2.0]), ("b".into(), vec![10.0, 20.0, 30.0])]).unwrap();
+        let mut p = Vec::new();
+        let points: Vec<Vec<f64>> = (0..space.len)
+            .map(|i| {
+                space.point(i, &mut p);
+                p.clone()
+            })
+            .collect();
+        assert_eq!(points, vec![vec![1.0, 10.0], vec![1.0, 20.0], vec![1.0, 30.0], vec![2.0, 10.0], vec![2.0, 20.0], vec![2.0, 30.0]]);
+    }
+
+    #[test]
+    fn a_product_too_large_is_refused_before_anything_runs() {
+        let big = |name: &str| (name.to_owned(), vec![0.0; 100_000]);
+        let err = Space::new(vec![big("a"), big("b")]).err().unwrap();
+        assert!(err.contains("100000 values of a x 100000 values of b"), "{err}");
+        let err = Space::new(vec![big("a"), big("b"), big("c"), big("d")]).err().unwrap();
+        assert!(err.contains("more than"), "overflowing products are caught too: {err}");
+    }
+}

@@ -36,6 +36,7 @@ fn padded_range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
 /// Draws `series` as lines into an SVG at `path`, with axis labels, a legend and the marks.
 /// The file is written whole, once drawn (see `output`).
 pub fn lines(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[Series], marks: &[Mark]) -> Result<(), String> {
+    crate::report::fonts::register();
     let mut svg = String::new();
     draw(&mut svg, title, x_label, y_label, series, marks).map_err(|e| format!("cannot draw {}: {e}", path.display()))?;
     output::write_file(path, svg.as_bytes())

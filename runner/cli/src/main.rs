@@ -32,7 +32,8 @@ struct RunArgs {
     /// Relative tolerance given to fmi2SetupExperiment.
     #[arg(long, value_name = "R", allow_negative_numbers = true)]
     tolerance: Option<f64>,
-    /// Set a parameter or input before initialization (SI units); repeatable.
+    /// Set a parameter or input before initialization, in SI or in a unit the FMU declares for
+    /// it (`--set theta0=120deg`, `--set k=10lbf/in`); repeatable.
     #[arg(long = "set", value_name = "NAME=VALUE")]
     set: Vec<String>,
 }
@@ -75,12 +76,24 @@ enum Cmd {
         /// Write the CSV here instead of stdout.
         #[arg(long, value_name = "FILE.csv")]
         out: Option<PathBuf>,
-        /// Plot the outputs against time into this SVG file.
-        #[arg(long, value_name = "FILE.svg")]
+        /// Plot into this file (.svg or .png): one panel per continuous output on a shared time
+        /// axis, in the FMU's display units (deg, rpm), with events (discrete outputs changing,
+        /// such as a release) marked.
+        #[arg(long, value_name = "FILE.svg|FILE.png")]
         plot: Option<PathBuf>,
         /// Turn on the FMU's debug logging (messages go to stderr with the instance name).
         #[arg(long)]
         log: bool,
+        /// The variables to plot, comma-separated (default: the continuous outputs).
+        #[arg(long, value_name = "A,B,...", value_delimiter = ',')]
+        plot_vars: Vec<String>,
+        /// Plot against this variable instead of time, e.g. `--plot-x theta` (a phase portrait).
+        #[arg(long, value_name = "VAR")]
+        plot_x: Option<String>,
+        /// Run once per value of a parameter and overlay the runs, e.g.
+        /// `--overlay theta0=15deg,120deg`; the CSV gets the parameter (SI) as a first column.
+        #[arg(long, value_name = "NAME=V1,V2,...")]
+        overlay: Option<String>,
     },
     /// Run a parameter sweep: one FMU instance per point, in parallel; metrics per point as CSV.
     ///
@@ -167,7 +180,9 @@ fn main() {
         Cmd::Info { fmu } => {
             experiment::resolve(&fmu).and_then(|t| fmi_importer::Fmu::load(&t.path)).map(|f| print!("{}", info::report(&f.description)))
         }
-        Cmd::Simulate { fmu, run, out, plot, log } => simulate::run(&simulate::Options { fmu, run: run.defaults(), out, plot, log }),
+        Cmd::Simulate { fmu, run, out, plot, log, plot_vars, plot_x, overlay } => {
+            simulate::run(&simulate::Options { fmu, run: run.defaults(), out, plot, log, plot_vars, plot_x, overlay })
+        }
         Cmd::Sweep { fmu, params, metrics, threads, run, out, plot } => {
             match sweep::run(&sweep::Options { fmu, params, metrics, threads, run: run.defaults(), out, plot }) {
                 Ok(s) if s.failed == 0 => Ok(()),

@@ -294,3 +294,86 @@ fn a_destination_in_a_missing_directory_is_refused_before_running() {
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "{args:?}: nothing written");
     }
 }
+
+/// Width and height of a PNG file, from its IHDR chunk (bytes 16..24, big-endian).
+fn png_size(path: &Path) -> (u32, u32) {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{} is a PNG", path.display());
+    let be = |b: &[u8]| u32::from_be_bytes([b[0], b[1], b[2], b[3]]);
+    (be(&bytes[16..20]), be(&bytes[20..24]))
+}
+
+/// The text elements of an SVG file, trimmed.
+fn svg_texts(path: &Path) -> Vec<String> {
+    let svg = std::fs::read_to_string(path).unwrap();
+    svg.split("<text").skip(1).filter_map(|t| Some(t.split_once('>')?.1.split_once("</text>")?.0.trim().to_owned())).collect()
+}
+
+/// `--plot` with `--plot-vars` draws one panel per chosen variable (a PNG as tall as the
+/// panels say), `--plot-x` plots against a variable, and the plot options are checked before
+/// any run: an unknown variable is named, a plot format we cannot write is refused.
+#[test]
+fn plots_show_the_chosen_variables_against_time_or_a_variable() {
+    let (_, second_order) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let s = second_order.to_str().unwrap();
+    ok(runner(dir.path(), &["simulate", s, "--out", "a.csv", "--plot", "two.png", "--plot-vars", "q,u"]));
+    // Two panels of 210 px under a 40 px title, 900 px wide (one column).
+    assert_eq!(png_size(&dir.path().join("two.png")), (900, 2 * 210 + 40));
+    ok(runner(dir.path(), &["simulate", s, "--out", "a.csv", "--plot", "phase.svg", "--plot-vars", "q_dot", "--plot-x", "q"]));
+    let texts = svg_texts(&dir.path().join("phase.svg"));
+    let has = |texts: &[String], t: &str| texts.iter().any(|x| x == t);
+    assert!(has(&texts, "q") && has(&texts, "q_dot") && !has(&texts, "time (s)"), "q_dot against q, not time: {texts:?}");
+    ok(runner(dir.path(), &["simulate", s, "--out", "a.csv", "--plot", "all.svg"]));
+    let texts = svg_texts(&dir.path().join("all.svg"));
+    assert!(has(&texts, "q") && has(&texts, "q_dot") && has(&texts, "u"), "every continuous output: {texts:?}");
+    assert!(!texts.iter().any(|t| t.contains("n_steps") || t.contains("n_rhs")), "not the solver counters");
+    let err = fails(runner(dir.path(), &["simulate", s, "--out", "b.csv", "--plot", "p.svg", "--plot-vars", "qq"]));
+    assert!(err.contains("no variable 'qq'") && err.contains("did you mean 'q'"), "{err}");
+    assert!(!dir.path().join("b.csv").exists(), "refused before the run");
+    let err = fails(runner(dir.path(), &["simulate", s, "--out", "b.csv", "--plot", "p.pdf"]));
+    assert!(err.contains(".svg or .png"), "{err}");
+    let err = fails(runner(dir.path(), &["simulate", s, "--out", "b.csv", "--plot-x", "q"]));
+    assert!(err.contains("give --plot too"), "{err}");
+}
+
+/// `--overlay` runs once per value, the CSV gaining the overlaid parameter as a first column;
+/// the runs differ as the closed form says (q0 enters linearly, q(0) = q0 exactly).
+#[test]
+fn overlays_run_once_per_value() {
+    let (_, second_order) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let s = second_order.to_str().unwrap();
+    ok(runner(dir.path(), &["simulate", s, "--overlay", "q0=1,3", "--output-interval", "0.1", "--out", "o.csv", "--plot", "o.svg"]));
+    let (header, rows) = read_csv(&dir.path().join("o.csv"));
+    assert_eq!(&header[..3], ["q0", "time", "q"]);
+    let (q0, time, q) = (column(&header, &rows, "q0"), column(&header, &rows, "time"), column(&header, &rows, "q"));
+    assert_eq!(rows.len(), 2 * 101);
+    assert_eq!((q0[0], q0[101]), (1.0, 3.0));
+    assert_eq!((time[0], q[0], time[101], q[101]), (0.0, 1.0, 0.0, 3.0));
+    let texts = svg_texts(&dir.path().join("o.svg"));
+    assert!(texts.iter().any(|t| t == "q0 = 1") && texts.iter().any(|t| t == "q0 = 3"), "a legend entry per run: {texts:?}");
+    let err = fails(runner(dir.path(), &["simulate", s, "--overlay", "q0=1", "--out", "p.csv"]));
+    assert!(err.contains("at least two values"), "{err}");
+}
+
+/// A value given in a display unit the FMU declares is converted to SI (1 in/s = 0.0254 m/s
+/// exactly, so 3937.007874 in/s is 100 m/s to 1e-9); an undeclared one is refused with the
+/// units the variable can be given in.
+#[test]
+fn set_accepts_declared_display_units_and_refuses_others() {
+    let (quarter_car, _) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let q = quarter_car.to_str().unwrap();
+    let run = |speed: &str, out: &str| ok(runner(dir.path(), &["simulate", q, "--set", speed, "--stop-time", "0.2", "--out", out]));
+    run("speed=25", "si.csv");
+    run("speed=984.2519685039370in/s", "in.csv");
+    let (h, a) = read_csv(&dir.path().join("si.csv"));
+    let (_, b) = read_csv(&dir.path().join("in.csv"));
+    let (za, zb) = (column(&h, &a, "z_r"), column(&h, &b, "z_r"));
+    for (x, y) in za.iter().zip(&zb) {
+        assert!((x - y).abs() <= 1e-12, "the same road at 25 m/s either way: {x} vs {y}");
+    }
+    let err = fails(runner(dir.path(), &["simulate", q, "--set", "speed=30rpm", "--out", "c.csv"]));
+    assert!(err.contains("'speed' cannot be given in 'rpm'") && err.contains("m/s, mm/s, in/s"), "{err}");
+}

@@ -1,10 +1,11 @@
-//! `runner`: builds, inspects, simulates, sweeps and compares FMI 2.0 Co-Simulation FMUs.
+//! `runner`: builds, inspects, simulates, sweeps, compares and animates FMI 2.0 Co-Simulation
+//! FMUs.
 
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
-use runner::commands::{build, compare, info, simulate, sweep};
+use runner::commands::{animate, build, compare, info, simulate, sweep};
 use runner::experiment::{self, RunDefaults};
 use runner::interrupt;
 use runner::report::progress;
@@ -143,6 +144,42 @@ enum Cmd {
     ///
     /// Example: `runner compare quarter_car --solvers euler,rk4,dopri5 --target-error 1e-6`
     Compare(CompareArgs),
+    /// Animate an FMU whose outputs include point coordinates (<P>_x, <P>_y) into a GIF.
+    ///
+    /// Drawn to scale (equal axis scales) with a time stamp. The links, trails, ground lines and
+    /// the frame come from the `[animate]` section of the model's experiment.toml; for an FMU
+    /// given by path, from `--experiment FILE.toml`; without one, every point is drawn with its
+    /// path. One frame per output interval (at most 50 per second) unless --fps says otherwise.
+    ///
+    /// Example: `runner animate trebuchet --out trebuchet.gif`
+    ///
+    /// Example: `runner animate my.fmu --experiment my_animate.toml --out my.gif --fps 25`
+    Animate(AnimateArgs),
+}
+
+/// Arguments of `runner animate`.
+#[derive(clap::Args)]
+struct AnimateArgs {
+    /// Model name or path to a .fmu file.
+    fmu: String,
+    /// The GIF file to write.
+    #[arg(long, value_name = "FILE.gif")]
+    out: PathBuf,
+    #[command(flatten)]
+    run: RunArgs,
+    /// Frames per second of the GIF (default: one frame per output interval, at most 50).
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    fps: Option<f64>,
+    /// Simulated seconds per second of playback: 1 is real time, 0.25 four times slower.
+    #[arg(long, value_name = "X", allow_negative_numbers = true)]
+    speed: Option<f64>,
+    /// Width of the GIF in pixels (default 640; the height follows the scene, at least 480).
+    #[arg(long, value_name = "PX")]
+    size: Option<u32>,
+    /// An experiment.toml with an [animate] section to use instead of the model's (for an FMU
+    /// given by path, the way to give it one).
+    #[arg(long, value_name = "FILE.toml")]
+    experiment: Option<PathBuf>,
 }
 
 /// Arguments of `runner compare`.
@@ -205,6 +242,16 @@ fn main() {
             })
             .map(|_| ())
         }
+        Cmd::Animate(a) => animate::run(&animate::Options {
+            fmu: a.fmu,
+            run: a.run.defaults(),
+            out: a.out,
+            fps: a.fps,
+            speed: a.speed,
+            size: a.size,
+            experiment: a.experiment,
+        })
+        .map(|_| ()),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

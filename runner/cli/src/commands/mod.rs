@@ -1,5 +1,6 @@
 //! One module per command; each owns its options and defaults.
 
+pub mod animate;
 pub mod build;
 pub mod compare;
 pub mod info;

@@ -1,8 +1,10 @@
 //! What the commands write and show: result files, CSV, plots and figures (SVG, PNG),
-//! progress bars.
+//! animations (GIF), progress bars.
 
 pub mod figure;
 pub mod fonts;
+pub mod gif;
 pub mod output;
 pub mod plot;
 pub mod progress;
+pub mod scene;

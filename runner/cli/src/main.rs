@@ -1,13 +1,14 @@
 //! `runner`: builds, inspects, simulates, sweeps, compares and animates FMI 2.0 Co-Simulation
-//! FMUs.
+//! FMUs, and reproduces the lab handbook's figures.
 
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
-use runner::commands::{animate, build, compare, info, simulate, sweep};
+use runner::commands::{animate, build, compare, handbook, info, simulate, sweep};
 use runner::experiment::{self, RunDefaults};
 use runner::interrupt;
+use runner::report::figure::Format;
 use runner::report::progress;
 
 /// Build and run FMI 2.0 Co-Simulation FMUs.
@@ -155,6 +156,24 @@ enum Cmd {
     ///
     /// Example: `runner animate my.fmu --experiment my_animate.toml --out my.gif --fps 25`
     Animate(AnimateArgs),
+    /// Reproduce every figure the lab handbook's "Discussion and Deliverables" sections ask for.
+    ///
+    /// Ex. 1 to 6 and App. E from this workspace's FMUs (built if missing): the figures (SVG, or
+    /// PNG with --format png), the Ex. 5B and Ex. 6 GIFs, DIR/index.html with every figure, its
+    /// caption and the numbers a report quotes, and DIR/summary.json with those numbers.
+    ///
+    /// Example: `runner handbook --out handbook`
+    Handbook {
+        /// The directory to write into (created if missing).
+        #[arg(long, value_name = "DIR")]
+        out: PathBuf,
+        /// Figure format: svg or png.
+        #[arg(long, value_name = "FORMAT", default_value = "svg")]
+        format: String,
+        /// Worker threads (default: one per core).
+        #[arg(long, value_name = "N")]
+        threads: Option<usize>,
+    },
 }
 
 /// Arguments of `runner animate`.
@@ -252,6 +271,12 @@ fn main() {
             experiment: a.experiment,
         })
         .map(|_| ()),
+        Cmd::Handbook { out, format, threads } => match format.as_str() {
+            "svg" => Ok(Format::Svg),
+            "png" => Ok(Format::Png),
+            other => Err(format!("--format {other}: use svg or png")),
+        }
+        .and_then(|format| handbook::run(&handbook::Options { out, format, threads }).map(|_| ())),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

@@ -3,6 +3,7 @@
 pub mod animate;
 pub mod build;
 pub mod compare;
+pub mod handbook;
 pub mod info;
 pub mod simulate;
 pub mod sweep;

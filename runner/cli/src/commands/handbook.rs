@@ -27,6 +27,9 @@ use crate::report::scene::Scene;
 use crate::trace::{self, Event, Trace};
 use crate::workspace;
 
+/// One degree in radians.
+const DEGREE: f64 = PI / 180.0;
+
 /// The models the handbook uses.
 pub const MODELS: [&str; 10] = [
     "second_order",
@@ -709,7 +712,7 @@ fn exercise_5a(ctx: &Context) -> Result<Section, String> {
         let trace = Trace::record(ctx.fmu(id), id, &grid, &variables::parse_sets(md, &config.set)?, &scene.variables(md))?;
         let motion = scene.motion(&trace)?;
         let view = motion.bounds(|i| i == 0);
-        let theta0 = ctx.parameter(id, "theta0")? / animate_degree();
+        let theta0 = ctx.parameter(id, "theta0")? / DEGREE;
         let mut panel = motion.panel(0, &view, Some(format!("{title}, theta = {}°", trace::short(theta0))));
         panel.shapes = motion.shapes(0, false, true);
         panel.corner_text = None;
@@ -723,10 +726,6 @@ fn exercise_5a(ctx: &Context) -> Result<Section, String> {
     };
     s.figures.push(ctx.figure("ex5a_initial_configurations", &fig, "Ex. 5A: each mechanism in its initial configuration, drawn to scale (equal axes, metres); ground pivots are squares, the slider's guide dashed.")?);
     Ok(s)
-}
-
-fn animate_degree() -> f64 {
-    PI / 180.0
 }
 
 /// Ex. 5B: the crank-slider and the crank-rocker over two crank revolutions.
@@ -889,7 +888,7 @@ fn appendix_e(ctx: &Context) -> Result<Section, String> {
     let run =
         ctx.run(id, &RunSpec { stop_time: Some(revolution), output_interval: Some(revolution / 720.0), ..RunSpec::default() }, &[])?;
     let theta = run.get("theta2")?;
-    let turned: Vec<f64> = theta.iter().map(|t| (t - theta[0]).abs() / animate_degree()).collect();
+    let turned: Vec<f64> = theta.iter().map(|t| (t - theta[0]).abs() / DEGREE).collect();
     let pairs =
         |name: &str| -> Result<Vec<(f64, f64)>, String> { Ok(turned.iter().copied().zip(run.get(name)?.iter().copied()).collect()) };
     let forces = ["F_Ax", "F_Ay", "F_Bx", "F_By", "F_C"];

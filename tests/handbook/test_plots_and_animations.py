@@ -99,3 +99,9 @@ def test_animate_an_fmu_given_by_path_with_an_experiment_file(tmp_path):
     assert "no point coordinates" in err, err
     err = runner("animate", "crank_slider", "--out", tmp_path / "c.png", check=False).stderr
     assert "must end in .gif" in err, err
+    # Sizes and lengths that would exhaust memory or time are refused before the run.
+    err = runner("animate", "crank_slider", "--out", tmp_path / "c.gif", "--size", "100000", check=False).stderr
+    assert "480 to 4096 px" in err, err
+    err = runner("animate", "crank_slider", "--out", tmp_path / "c.gif", "--stop-time", "1e5", check=False).stderr
+    assert "more than the 20000 an animation may have" in err, err
+    assert not (tmp_path / "c.gif").exists()

@@ -23,6 +23,10 @@ pub const MAX_FPS: f64 = 50.0;
 pub const DEFAULT_SIZE: u32 = 640;
 /// Smallest width and height of a GIF (px).
 pub const MIN_SIZE: u32 = 480;
+/// Largest width of a GIF (px): a frame is drawn in memory, width x height x 3 bytes.
+pub const MAX_SIZE: u32 = 4096;
+/// Most frames an animation may have: 20,000 frames are minutes of GIF at 50 per second.
+pub const MAX_FRAMES: usize = 20_000;
 
 /// Options of `runner animate`.
 #[derive(Default)]
@@ -208,13 +212,24 @@ pub fn run(options: &Options) -> Result<Written, String> {
     }
     output::check_destination(&options.out)?;
     let prepared = prepare(options)?;
+    let width = options.size.or(prepared.config.size).unwrap_or(DEFAULT_SIZE);
+    if !(MIN_SIZE..=MAX_SIZE).contains(&width) {
+        return Err(format!("a GIF width of {width} px: the width (--size, or [animate] size) must be {MIN_SIZE} to {MAX_SIZE} px"));
+    }
+    let expected = ((prepared.grid.stop - prepared.grid.start) / prepared.timing.frame_step).ceil();
+    if expected > MAX_FRAMES as f64 {
+        return Err(format!(
+            "{} s of motion at {} s per frame is {expected:.0} frames, more than the {MAX_FRAMES} an animation may have: raise --speed or the output interval, or lower --fps",
+            prepared.grid.stop - prepared.grid.start,
+            crate::trace::short(prepared.timing.frame_step)
+        ));
+    }
     let trace = prepared.record()?;
     if let Some(reason) = &trace.ended_early {
         eprintln!("{}: the run ended at t = {} s: {reason}", prepared.fmu.identifier, trace.time.last().copied().unwrap_or(0.0));
     }
     let motion = prepared.scene.motion(&trace)?;
     let frames = prepared.timing.frames(&trace.time);
-    let width = options.size.or(prepared.config.size).unwrap_or(DEFAULT_SIZE);
     let progress = Progress::start(frames.len() as u64, "frames");
     let written =
         write_gif(&options.out, &motion, &frames, &prepared.fmu.description.model_name, width, prepared.timing.fps, Some(&progress))?;

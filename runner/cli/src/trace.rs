@@ -4,6 +4,7 @@
 
 use fmi_importer::{Causality, Description, Fmu, Kind, Value, Variability, Variable};
 use runner_engine::run::{self as sim, Grid};
+use runner_engine::variables;
 use solvers::controls::CONTROLS;
 
 /// Time and values of a run.
@@ -80,6 +81,16 @@ impl Trace {
     /// The value of `name` at the last sample.
     pub fn last(&self, name: &str) -> Result<f64, String> {
         self.get(name)?.last().copied().ok_or_else(|| format!("the run of '{name}' has no samples"))
+    }
+}
+
+/// The variable called `name` if its values are numbers (any numeric type, Booleans as 0/1).
+pub fn numeric_variable<'a>(description: &'a Description, name: &str) -> Result<&'a Variable, String> {
+    let v = variables::find(description, name)?;
+    if v.kind.is_numeric() {
+        Ok(v)
+    } else {
+        Err(format!("'{name}' is a {}; only numbers can be plotted or shown", v.kind))
     }
 }
 

@@ -70,17 +70,24 @@ pub struct Quoted {
 /// A figure file and its caption.
 #[derive(Debug, Clone)]
 pub struct Entry {
+    /// File name inside the output directory.
     pub file: String,
+    /// Caption on the page.
     pub caption: String,
 }
 
 /// One exercise's part of the page.
 #[derive(Debug, Clone, Default)]
 pub struct Section {
+    /// HTML anchor, e.g. `ex3`.
     pub id: &'static str,
+    /// Heading.
     pub title: String,
+    /// What was run, in a sentence or two.
     pub intro: String,
+    /// Figures in page order.
     pub figures: Vec<Entry>,
+    /// Numbers for the page's table (and summary.json, where keyed).
     pub numbers: Vec<Quoted>,
     /// Extra JSON values for summary.json (objects such as the trebuchet's release state).
     pub extra: Vec<(String, serde_json::Value)>,
@@ -88,7 +95,9 @@ pub struct Section {
 
 /// What the handbook build produced.
 pub struct Built {
+    /// The page's sections, in handbook order.
     pub sections: Vec<Section>,
+    /// Every file written.
     pub files: Vec<PathBuf>,
 }
 

@@ -160,16 +160,6 @@ pub fn figure(title: String, runs: &[(Option<String>, &Trace, Vec<Event>)], ys: 
     Ok(Figure { title: Some(title), panels, columns, panel_size: (width, height) })
 }
 
-/// The variable called `name` if its values are numbers (any numeric type, Booleans as 0/1).
-pub fn numeric_variable<'a>(description: &'a Description, name: &str) -> Result<&'a Variable, String> {
-    let v = variables::find(description, name)?;
-    if v.kind.is_numeric() {
-        Ok(v)
-    } else {
-        Err(format!("'{name}' is a {}; only numbers can be plotted or shown", v.kind))
-    }
-}
-
 /// Checks a plot destination before any run: its extension and its directory.
 pub fn check_plot_path(path: &Path) -> Result<Format, String> {
     let format = Format::of(path)?;
@@ -201,7 +191,7 @@ pub fn run(options: &Options) -> Result<(), String> {
     };
 
     // What the plot needs, checked before running: the y variables, x, and the event flags.
-    let numeric = |name: &str| numeric_variable(md, name);
+    let numeric = |name: &str| trace::numeric_variable(md, name);
     let (plotted, x_variable, flags) = if options.plot.is_some() {
         let plotted: Vec<&Variable> = if options.plot_vars.is_empty() {
             trace::continuous_outputs(md)

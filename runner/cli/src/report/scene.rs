@@ -206,7 +206,7 @@ impl Scene {
             scene.levels.push(Bound::parse(&level.text(), description, "level")?);
         }
         for name in &config.show {
-            crate::commands::simulate::numeric_variable(description, name)?;
+            trace::numeric_variable(description, name)?;
             scene.show.push(name.clone());
         }
         if scene.links.is_empty() && scene.trails.is_empty() {

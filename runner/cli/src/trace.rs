@@ -161,7 +161,7 @@ pub fn short(x: f64) -> String {
         return format!("{x}");
     }
     // A whole number up to rounding (60 deg read back from radians) is shown as one.
-    if (x - x.round()).abs() < 1e-9 * x.abs().max(1.0) && x.abs() < 1e6 {
+    if x.round() != 0.0 && (x - x.round()).abs() < 1e-9 * x.abs() && x.abs() < 1e6 {
         return format!("{}", x.round());
     }
     let digits = (3 - x.abs().log10().floor() as i32).max(0) as usize;
@@ -238,5 +238,6 @@ mod tests {
         assert_eq!(short(-2.5e-7), "-2.500e-7");
         assert_eq!(short(3.0), "3", "a whole number (an Integer output) has no decimals");
         assert_eq!(short(1.0471975511965976 / (std::f64::consts::PI / 180.0)), "60");
+        assert_eq!(short(1.2e-15), "1.200e-15", "a tiny number is not rounded to 0");
     }
 }

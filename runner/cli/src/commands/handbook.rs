@@ -654,9 +654,9 @@ fn exercise_4(ctx: &Context) -> Result<Section, String> {
         categories.push((x, name.to_owned()));
         bars.push((x - 0.55, e.n_steps.log10(), format!("Euler: {}", e.n_steps), figure::color(1)));
         bars.push((x + 0.55, d.n_steps.log10(), format!("DOPRI5: {}", d.n_steps), figure::color(0)));
-        for (solver, c) in [("euler", e), ("dopri5", d)] {
+        for (solver, shown, c) in [("euler", "forward Euler", e), ("dopri5", "DOPRI5", d)] {
             s.numbers.push(quoted(
-                format!("{name}: {solver} steps ({}, error {})", c.setting, trace::short(c.error)),
+                format!("{name}: {shown} steps ({}, error {})", c.setting, trace::short(c.error)),
                 c.n_steps,
                 "",
                 Some(&format!("{key}_{solver}_steps")),

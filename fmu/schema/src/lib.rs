@@ -109,4 +109,23 @@ macro_rules! fmi_enum {
     };
 }
 
+/// Shortest text that parses back to the same f64 (Rust's float formatting is shortest
+/// round-trip); exponent form for tiny/huge values keeps 1e-9 or 1e308 short, and the XML
+/// Schema spellings are used for the non-finite values.
+pub(crate) fn format_real(value: f64) -> String {
+    if value.is_nan() {
+        return "NaN".to_string();
+    }
+    if value.is_infinite() {
+        return if value > 0.0 { "INF" } else { "-INF" }.to_string();
+    }
+    let text = format!("{value:?}");
+    match text.strip_suffix(".0") {
+        Some(integral) => integral.to_string(),
+        None => text,
+    }
+}
+
 pub mod fmi2;
+pub mod fmi3;
+mod tree;

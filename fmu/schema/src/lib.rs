@@ -126,6 +126,34 @@ pub(crate) fn format_real(value: f64) -> String {
     }
 }
 
+/// The `fmiVersion` attribute of a modelDescription.xml's root element, read without parsing
+/// the rest, to choose the schema to read it with.
+pub fn fmi_version(xml: &str) -> Result<String, DescriptionError> {
+    use quick_xml::events::Event;
+    let text = xml.strip_prefix('\u{feff}').unwrap_or(xml);
+    let mut reader = quick_xml::Reader::from_str(text);
+    loop {
+        match reader.read_event() {
+            Ok(Event::Start(e) | Event::Empty(e)) => {
+                let version = e
+                    .try_get_attribute("fmiVersion")
+                    .ok()
+                    .flatten()
+                    .and_then(|a| a.normalized_value(quick_xml::XmlVersion::Implicit1_0).ok().map(|v| v.trim().to_owned()));
+                return version.ok_or_else(|| {
+                    DescriptionError::new(format!(
+                        "the root element <{}> has no fmiVersion attribute (not a modelDescription.xml)",
+                        e.name().0
+                    ))
+                });
+            }
+            Ok(Event::Eof) => return Err(DescriptionError::new("malformed XML: no root element found")),
+            Err(e) => return Err(DescriptionError::new(format!("malformed XML: {e}"))),
+            Ok(_) => {}
+        }
+    }
+}
+
 pub mod fmi2;
 pub mod fmi3;
 mod tree;

@@ -81,6 +81,10 @@ enum Cmd {
         /// Turn on the FMU's debug logging (messages go to stderr with the instance name).
         #[arg(long)]
         log: bool,
+        /// Also write a row at each event an FMI 3.0 FMU stops a step at (the values just
+        /// before the event is handled), besides the rows at the communication points.
+        #[arg(long)]
+        record_events: bool,
     },
     /// Run a parameter sweep: one FMU instance per point, in parallel; metrics per point as CSV.
     ///
@@ -167,7 +171,9 @@ fn main() {
         Cmd::Info { fmu } => {
             experiment::resolve(&fmu).and_then(|t| fmi_importer::Fmu::load(&t.path)).map(|f| print!("{}", info::report(&f.description)))
         }
-        Cmd::Simulate { fmu, run, out, plot, log } => simulate::run(&simulate::Options { fmu, run: run.defaults(), out, plot, log }),
+        Cmd::Simulate { fmu, run, out, plot, log, record_events } => {
+            simulate::run(&simulate::Options { fmu, run: run.defaults(), out, plot, log, record_events })
+        }
         Cmd::Sweep { fmu, params, metrics, threads, run, out, plot } => {
             match sweep::run(&sweep::Options { fmu, params, metrics, threads, run: run.defaults(), out, plot }) {
                 Ok(s) if s.failed == 0 => Ok(()),

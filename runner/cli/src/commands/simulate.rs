@@ -2,8 +2,8 @@
 
 use std::path::PathBuf;
 
-use fmi_importer::Fmu;
-use runner_engine::run::{self as sim, Grid};
+use fmi_importer::{FmiVersion, Fmu, Kind, Variable};
+use runner_engine::run::{self as sim, Grid, Recording};
 use runner_engine::variables;
 
 use crate::experiment::{self, RunDefaults};
@@ -22,6 +22,8 @@ pub struct Options {
     pub plot: Option<PathBuf>,
     /// Turns the FMU's debug logging on.
     pub log: bool,
+    /// Also writes a row at each event a step stops at (FMI 3.0), before the event is handled.
+    pub record_events: bool,
 }
 
 /// Runs `runner simulate`.
@@ -35,18 +37,27 @@ pub fn run(options: &Options) -> Result<(), String> {
     let mut set_texts = target.experiment.simulate.set.clone();
     set_texts.extend(options.run.set.iter().cloned());
     let assignments = variables::parse_sets(&fmu.description, &set_texts)?;
-    let outputs: Vec<_> = fmu.description.outputs().filter(|v| v.kind.is_numeric()).collect();
+    // FMI 2.0 String outputs are left out, as fmpy leaves them out; FMI 3.0's Strings and
+    // Binaries (hexadecimal) are written. Clocks have no value to record.
+    let recordable = |v: &&Variable| match fmu.description.fmi_version {
+        FmiVersion::Fmi2 => v.kind.is_numeric(),
+        FmiVersion::Fmi3 => v.kind != Kind::Clock,
+    };
+    let outputs: Vec<&Variable> = fmu.description.outputs().filter(recordable).collect();
+    let mut recording = Recording::new(&fmu.description, &outputs, &assignments)?;
+    recording.events = options.record_events;
     let mut writer = output::csv_writer(options.out.as_deref())?;
     let mut header = vec!["time".to_owned()];
-    header.extend(outputs.iter().map(|v| v.name.clone()));
+    header.extend(recording.names.iter().cloned());
     writer.write_record(&header).map_err(|e| format!("cannot write CSV: {e}"))?;
     // Only a plot needs the trajectory kept; the CSV is written as the samples arrive.
-    let mut kept: Vec<Vec<(f64, f64)>> = vec![Vec::new(); if options.plot.is_some() { outputs.len() } else { 0 }];
-    let mut row = Vec::with_capacity(outputs.len() + 1);
-    let outcome = sim::run(&fmu, &fmu.identifier, &grid, &assignments, &outputs, options.log, |t, values| {
+    let columns = recording.names.len();
+    let mut kept: Vec<Vec<(f64, f64)>> = vec![Vec::new(); if options.plot.is_some() { columns } else { 0 }];
+    let mut row = Vec::with_capacity(columns + 1);
+    let outcome = sim::run_recording(&fmu, &fmu.identifier, &grid, &assignments, &recording, options.log, |t, values, reader| {
         row.clear();
         row.push(format!("{t:?}"));
-        row.extend(values.iter().map(|v| format!("{v:?}")));
+        row.extend((0..columns).map(|c| reader.text(c, values)));
         for (series, &v) in kept.iter_mut().zip(values) {
             series.push((t, v));
         }
@@ -57,16 +68,20 @@ pub fn run(options: &Options) -> Result<(), String> {
         eprintln!("{}: stopped before the stop time {} s: {reason}", fmu.identifier, grid.stop);
     }
     if let Some(path) = &options.plot {
-        let units: Vec<Option<&str>> = outputs.iter().map(|v| v.unit.as_deref()).collect();
+        // One unit per column: an array's elements share its unit.
+        let units: Vec<Option<&str>> =
+            outputs.iter().zip(&recording.sizes).flat_map(|(v, &n)| std::iter::repeat_n(v.unit.as_deref(), n)).collect();
         let shared_unit = units.first().copied().flatten().filter(|u| units.iter().all(|x| *x == Some(*u)));
-        let series: Vec<Series> = outputs
+        let series: Vec<Series> = recording
+            .names
             .iter()
             .zip(kept)
             .zip(&units)
-            .map(|((v, points), unit)| Series {
+            .filter(|((_, points), _)| points.iter().all(|p| !p.1.is_nan()))
+            .map(|((name, points), unit)| Series {
                 label: match (shared_unit, unit) {
-                    (None, Some(u)) => format!("{} ({u})", v.name),
-                    _ => v.name.clone(),
+                    (None, Some(u)) => format!("{name} ({u})"),
+                    _ => name.clone(),
                 },
                 points,
             })

@@ -109,4 +109,51 @@ macro_rules! fmi_enum {
     };
 }
 
+/// Shortest text that parses back to the same f64 (Rust's float formatting is shortest
+/// round-trip); exponent form for tiny/huge values keeps 1e-9 or 1e308 short, and the XML
+/// Schema spellings are used for the non-finite values.
+pub(crate) fn format_real(value: f64) -> String {
+    if value.is_nan() {
+        return "NaN".to_string();
+    }
+    if value.is_infinite() {
+        return if value > 0.0 { "INF" } else { "-INF" }.to_string();
+    }
+    let text = format!("{value:?}");
+    match text.strip_suffix(".0") {
+        Some(integral) => integral.to_string(),
+        None => text,
+    }
+}
+
+/// The `fmiVersion` attribute of a modelDescription.xml's root element, read without parsing
+/// the rest, to choose the schema to read it with.
+pub fn fmi_version(xml: &str) -> Result<String, DescriptionError> {
+    use quick_xml::events::Event;
+    let text = xml.strip_prefix('\u{feff}').unwrap_or(xml);
+    let mut reader = quick_xml::Reader::from_str(text);
+    loop {
+        match reader.read_event() {
+            Ok(Event::Start(e) | Event::Empty(e)) => {
+                let version = e
+                    .try_get_attribute("fmiVersion")
+                    .ok()
+                    .flatten()
+                    .and_then(|a| a.normalized_value(quick_xml::XmlVersion::Implicit1_0).ok().map(|v| v.trim().to_owned()));
+                return version.ok_or_else(|| {
+                    DescriptionError::new(format!(
+                        "the root element <{}> has no fmiVersion attribute (not a modelDescription.xml)",
+                        e.name().0
+                    ))
+                });
+            }
+            Ok(Event::Eof) => return Err(DescriptionError::new("malformed XML: no root element found")),
+            Err(e) => return Err(DescriptionError::new(format!("malformed XML: {e}"))),
+            Ok(_) => {}
+        }
+    }
+}
+
 pub mod fmi2;
+pub mod fmi3;
+mod tree;

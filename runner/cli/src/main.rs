@@ -96,6 +96,10 @@ enum Cmd {
         /// `--overlay theta0=15deg,120deg`; the CSV gets the parameter (SI) as a first column.
         #[arg(long, value_name = "NAME=V1,V2,...")]
         overlay: Option<String>,
+        /// Also write a row at each event an FMI 3.0 FMU stops a step at (the values just
+        /// before the event is handled), besides the rows at the communication points.
+        #[arg(long)]
+        record_events: bool,
     },
     /// Run a parameter sweep: one FMU instance per point, in parallel; metrics per point as CSV.
     ///
@@ -236,8 +240,8 @@ fn main() {
         Cmd::Info { fmu } => {
             experiment::resolve(&fmu).and_then(|t| fmi_importer::Fmu::load(&t.path)).map(|f| print!("{}", info::report(&f.description)))
         }
-        Cmd::Simulate { fmu, run, out, plot, log, plot_vars, plot_x, overlay } => {
-            simulate::run(&simulate::Options { fmu, run: run.defaults(), out, plot, log, plot_vars, plot_x, overlay })
+        Cmd::Simulate { fmu, run, out, plot, log, plot_vars, plot_x, overlay, record_events } => {
+            simulate::run(&simulate::Options { fmu, run: run.defaults(), out, plot, log, plot_vars, plot_x, overlay, record_events })
         }
         Cmd::Sweep { fmu, params, metrics, threads, run, out, plot } => {
             match sweep::run(&sweep::Options { fmu, params, metrics, threads, run: run.defaults(), out, plot }) {

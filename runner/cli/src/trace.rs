@@ -2,8 +2,8 @@
 //! point, looked up by name, and the events found in it (changes of discrete outputs such as
 //! the bumper's `in_contact` or the trebuchet's `regime`). Plots and animations are drawn from it.
 
-use fmi_importer::{Causality, Description, Fmu, Kind, Value, Variability, Variable};
-use runner_engine::run::{self as sim, Grid};
+use fmi_importer::{Causality, Description, Fmu, Kind, Reader, Value, Variability, Variable};
+use runner_engine::run::{self as sim, Grid, Recording};
 use runner_engine::variables;
 use solvers::controls::CONTROLS;
 
@@ -29,30 +29,45 @@ impl Trace {
         assignments: &[(&Variable, Value)],
         variables: &[&Variable],
     ) -> Result<Trace, String> {
-        Trace::record_with(fmu, instance_name, grid, assignments, variables, false, |_, _| Ok(()))
+        let recording = Trace::recording(&fmu.description, variables, assignments, false)?;
+        Trace::record_with(fmu, instance_name, grid, assignments, &recording, false, |_, _, _| Ok(()))
     }
 
-    /// [`Trace::record`], also handing every sample to `sample` as it arrives (a CSV row).
+    /// The columns that recording `variables` gives (an array's elements each, sized with
+    /// `assignments`), with a row at each event too when `events`.
+    pub fn recording<'a>(
+        description: &Description,
+        variables: &[&'a Variable],
+        assignments: &[(&Variable, Value)],
+        events: bool,
+    ) -> Result<Recording<'a>, String> {
+        let mut recording = Recording::new(description, variables, assignments)?;
+        recording.events = events;
+        Ok(recording)
+    }
+
+    /// [`Trace::record`] of a [`Recording`]'s columns, also handing every sample to `sample`
+    /// as it arrives (a CSV row), with the reader that gives each column exactly.
     pub fn record_with(
         fmu: &Fmu,
         instance_name: &str,
         grid: &Grid,
         assignments: &[(&Variable, Value)],
-        variables: &[&Variable],
+        recording: &Recording,
         debug_logging: bool,
-        mut sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
+        mut sample: impl FnMut(f64, &[f64], &Reader) -> Result<(), String>,
     ) -> Result<Trace, String> {
         let mut trace = Trace {
-            names: variables.iter().map(|v| v.name.clone()).collect(),
-            columns: vec![Vec::with_capacity(grid.steps() + 1); variables.len()],
+            names: recording.names.clone(),
+            columns: vec![Vec::with_capacity(grid.steps() + 1); recording.names.len()],
             ..Trace::default()
         };
-        let outcome = sim::run(fmu, instance_name, grid, assignments, variables, debug_logging, |t, values| {
+        let outcome = sim::run_recording(fmu, instance_name, grid, assignments, recording, debug_logging, |t, values, reader| {
             trace.time.push(t);
             for (column, &v) in trace.columns.iter_mut().zip(values) {
                 column.push(v);
             }
-            sample(t, values)
+            sample(t, values, reader)
         })?;
         trace.ended_early = outcome.ended_early;
         Ok(trace)
@@ -197,6 +212,7 @@ mod tests {
             unit: None,
             display_unit: None,
             start: None,
+            dimensions: Vec::new(),
         }
     }
 

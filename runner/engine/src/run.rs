@@ -97,8 +97,65 @@ pub struct Outcome {
     pub ended_early: Option<String>,
 }
 
+/// The columns a run records: its variables, with each array expanded into its elements
+/// (`name[i]`, `name[i,j]`, 1-based as FMI's structured names), sized by the structural
+/// parameters the run's assignments set (else their start values).
+pub struct Recording<'a> {
+    pub variables: Vec<&'a Variable>,
+    /// Elements per variable (1 for a scalar).
+    pub sizes: Vec<usize>,
+    /// One name per column.
+    pub names: Vec<String>,
+    /// Also sample at each event an FMU stops a step at (before handling it), besides the
+    /// communication points.
+    pub events: bool,
+}
+
+impl<'a> Recording<'a> {
+    /// The columns of `variables`, arrays sized with `assignments` applied.
+    pub fn new(description: &Description, variables: &[&'a Variable], assignments: &[(&Variable, Value)]) -> Result<Recording<'a>, String> {
+        let size_of = |vr: u32| {
+            assignments.iter().rev().find(|(v, _)| v.value_reference == vr).and_then(|(_, value)| match value {
+                Value::Integer(n) => u64::try_from(*n).ok(),
+                Value::Int(n) => u64::try_from(*n).ok(),
+                _ => None,
+            })
+        };
+        let mut recording = Recording { variables: variables.to_vec(), sizes: Vec::new(), names: Vec::new(), events: false };
+        for v in variables {
+            if !v.is_array() {
+                recording.sizes.push(1);
+                recording.names.push(v.name.clone());
+                continue;
+            }
+            let shape = description.shape(v, &size_of)?;
+            let count: u64 = shape.iter().product();
+            if count > MAX_ARRAY_ELEMENTS {
+                return Err(format!("{} has {count} elements, more than the {MAX_ARRAY_ELEMENTS} a recorded array may have", v.name));
+            }
+            recording.sizes.push(count as usize);
+            for flat in 0..count {
+                // Row-major: the last index varies fastest.
+                let mut rest = flat;
+                let mut index = vec![0u64; shape.len()];
+                for (slot, n) in index.iter_mut().zip(&shape).rev() {
+                    *slot = rest % n + 1;
+                    rest /= n;
+                }
+                let index: Vec<String> = index.iter().map(u64::to_string).collect();
+                recording.names.push(format!("{}[{}]", v.name, index.join(",")));
+            }
+        }
+        Ok(recording)
+    }
+}
+
+/// Most elements a recorded array may have: one CSV column each.
+pub const MAX_ARRAY_ELEMENTS: u64 = 100_000;
+
 /// Runs one instance named `name`: sets `assignments` before initialization, then calls
-/// `sample(t, values)` at every communication point with the values of `recorded` in order.
+/// `sample(t, values)` at every communication point with the values of `recorded` in order
+/// (scalars only: arrays go through [`run_recording`]).
 pub fn run(
     fmu: &Fmu,
     name: &str,
@@ -108,8 +165,26 @@ pub fn run(
     debug_logging: bool,
     mut sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
 ) -> Result<Outcome, String> {
-    let mut reader = Reader::new(recorded)?;
-    let mut values = vec![0.0; recorded.len()];
+    if let Some(array) = recorded.iter().find(|v| v.is_array()) {
+        return Err(format!("{} is an array; name one of its elements", array.name));
+    }
+    let recording = Recording { variables: recorded.to_vec(), sizes: vec![1; recorded.len()], names: Vec::new(), events: false };
+    run_recording(fmu, name, grid, assignments, &recording, debug_logging, |t, values, _| sample(t, values))
+}
+
+/// [`run`] for the columns of a [`Recording`], arrays included; `sample` also gets the reader,
+/// whose `text` gives each column exactly (strings, binary, wide integers).
+pub fn run_recording(
+    fmu: &Fmu,
+    name: &str,
+    grid: &Grid,
+    assignments: &[(&Variable, Value)],
+    recording: &Recording,
+    debug_logging: bool,
+    mut sample: impl FnMut(f64, &[f64], &Reader) -> Result<(), String>,
+) -> Result<Outcome, String> {
+    let mut reader = Reader::with_sizes(fmu.description.fmi_version, &recording.variables, &recording.sizes)?;
+    let mut values = vec![0.0; reader.len()];
     let mut instance = fmu.instantiate(name, debug_logging)?;
     instance.setup_experiment(grid.tolerance, grid.start, grid.stop)?;
     for (variable, value) in assignments {
@@ -118,25 +193,43 @@ pub fn run(
     instance.enter_initialization_mode()?;
     instance.exit_initialization_mode()?;
     instance.read(&mut reader, &mut values)?;
-    sample(grid.start, &values)?;
+    sample(grid.start, &values, &reader)?;
     let n = grid.steps();
     let mut t = grid.time_of(0, n);
     for i in 0..n {
         let t_next = grid.time_of(i + 1, n);
-        match instance.do_step(t, t_next - t)? {
-            Step::Done => {
-                instance.read(&mut reader, &mut values)?;
-                sample(t_next, &values)?;
-            }
-            Step::Ended { reason, last_time } => {
-                // Like fmpy: keep the state the model reached as a last row, when it is new.
-                if let Some(last) = last_time.filter(|&last| last > t) {
-                    instance.read(&mut reader, &mut values)?;
-                    sample(last, &values)?;
+        // A step may stop at events before its end: go on from each until t_next.
+        let mut now = t;
+        loop {
+            match instance.do_step(now, t_next - now)? {
+                Step::Done => break,
+                Step::Event { time } => {
+                    if recording.events {
+                        instance.read(&mut reader, &mut values)?;
+                        sample(time, &values, &reader)?;
+                    }
+                    if let Some(reason) = instance.handle_event(time)? {
+                        instance.read(&mut reader, &mut values)?;
+                        sample(time, &values, &reader)?;
+                        return Ok(Outcome { ended_early: Some(reason) });
+                    }
+                    if time >= t_next {
+                        break;
+                    }
+                    now = time;
                 }
-                return Ok(Outcome { ended_early: Some(reason) });
+                Step::Ended { reason, last_time } => {
+                    // Like fmpy: keep the state the model reached as a last row, when it is new.
+                    if let Some(last) = last_time.filter(|&last| last > t) {
+                        instance.read(&mut reader, &mut values)?;
+                        sample(last, &values, &reader)?;
+                    }
+                    return Ok(Outcome { ended_early: Some(reason) });
+                }
             }
         }
+        instance.read(&mut reader, &mut values)?;
+        sample(t_next, &values, &reader)?;
         t = t_next;
     }
     Ok(Outcome { ended_early: None })
@@ -145,6 +238,55 @@ pub fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use fmi_importer::model::{Dimension, FmiVersion, Start};
+    use fmi_importer::{Causality, Kind, Variability};
+
+    fn variable(name: &str, vr: u32, kind: Kind, causality: Causality, start: Option<Start>, dimensions: Vec<Dimension>) -> Variable {
+        Variable {
+            name: name.into(),
+            value_reference: vr,
+            description: None,
+            kind,
+            causality,
+            variability: Variability::Tunable,
+            unit: None,
+            display_unit: None,
+            start,
+            dimensions,
+        }
+    }
+
+    /// A 2 x n matrix output, n a structural parameter with start 3: its columns are named
+    /// row-major, 1-based, and follow a value set for n.
+    #[test]
+    fn arrays_expand_to_row_major_columns_sized_by_structural_parameters() {
+        let n = variable("n", 1, Kind::UInt64, Causality::StructuralParameter, Some(Start::Integer(3)), vec![]);
+        let y = variable("y", 2, Kind::Real, Causality::Output, None, vec![Dimension::Fixed(2), Dimension::Variable(1)]);
+        let s = variable("s", 3, Kind::Real, Causality::Output, None, vec![]);
+        let description = Description {
+            fmi_version: FmiVersion::Fmi3,
+            fmi_version_text: "3.0".into(),
+            model_name: "m".into(),
+            description: None,
+            instantiation_token: "t".into(),
+            generation_tool: None,
+            co_simulation: None,
+            model_exchange: None,
+            default_experiment: None,
+            units: vec![],
+            variables: vec![n.clone(), y.clone(), s.clone()],
+            number_of_continuous_states: 0,
+            number_of_event_indicators: 0,
+        };
+        let r = Recording::new(&description, &[&s, &y], &[]).unwrap();
+        assert_eq!(r.names, ["s", "y[1,1]", "y[1,2]", "y[1,3]", "y[2,1]", "y[2,2]", "y[2,3]"]);
+        assert_eq!(r.sizes, [1, 6]);
+        let r = Recording::new(&description, &[&y], &[(&n, Value::Int(1))]).unwrap();
+        assert_eq!(r.names, ["y[1,1]", "y[2,1]"]);
+        let no_size = Variable { start: None, ..n.clone() };
+        let description = Description { variables: vec![no_size, y.clone()], ..description };
+        assert!(Recording::new(&description, &[&y], &[]).err().unwrap().contains("the size of y is given by value reference 1"));
+    }
 
     /// A typo such as an output interval of 1e-300 must be refused at once, not start a run
     /// of 1e301 steps; a billion steps is still allowed, and so is any sane grid.

@@ -117,29 +117,64 @@ pub fn check_settable(variable: &Variable) -> Result<(), String> {
     }
 }
 
-/// Converts `text` to a value of `variable`'s type.
+/// Converts `text` to a value of `variable`'s type; for an array, whitespace-separated
+/// element values (row-major; one value sets every element).
 pub fn parse_value(variable: &Variable, text: &str) -> Result<Value, String> {
     let text = text.trim();
+    if variable.is_array() && variable.kind != Kind::String {
+        let items = text.split_whitespace().map(|item| parse_element(variable, item)).collect::<Result<Vec<_>, _>>()?;
+        if items.is_empty() {
+            return Err(format!("'{}' is an array: give its element values separated by spaces", variable.name));
+        }
+        return Ok(Value::List(items));
+    }
+    parse_element(variable, text)
+}
+
+/// Converts `text` to one value of `variable`'s element type.
+fn parse_element(variable: &Variable, text: &str) -> Result<Value, String> {
     let bad = |what: &str| format!("'{}' is {what}, and '{text}' is not one", variable.name, what = what);
     match variable.kind {
         Kind::Real => text.parse::<f64>().ok().filter(|v| v.is_finite()).map(Value::Real).ok_or_else(|| bad("a Real (a finite number)")),
+        Kind::Float32 => text
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite() && v.abs() <= f32::MAX as f64)
+            .map(Value::Real)
+            .ok_or_else(|| bad("a Float32 (a finite number within single precision)")),
         Kind::Integer | Kind::Enumeration => text.parse::<i32>().map(Value::Integer).map_err(|_| bad("an Integer")),
+        kind @ (Kind::Int8 | Kind::UInt8 | Kind::Int16 | Kind::UInt16 | Kind::UInt32 | Kind::Int64 | Kind::UInt64) => {
+            let (lo, hi) = kind.integer_range().expect("an integer type");
+            text.parse::<i128>()
+                .ok()
+                .filter(|v| (lo..=hi).contains(v))
+                .map(Value::Int)
+                .ok_or_else(|| bad(&format!("an {kind} (a whole number from {lo} to {hi})")))
+        }
         Kind::Boolean => match text {
             "true" | "1" => Ok(Value::Boolean(true)),
             "false" | "0" => Ok(Value::Boolean(false)),
             _ => Err(bad("a Boolean (true/false/1/0)")),
         },
         Kind::String => Ok(Value::String(text.to_owned())),
+        Kind::Binary => {
+            fmi_importer::model::parse_hex(text).map(Value::Binary).map_err(|_| bad("a Binary (hexadecimal bytes, e.g. 666f6f)"))
+        }
+        Kind::Clock => Err(format!("'{}' is a Clock; clocks cannot be set", variable.name)),
     }
 }
 
 /// Converts a number from a sweep range to `variable`'s type (integers must be whole).
 pub fn number_value(variable: &Variable, x: f64) -> Result<Value, String> {
     match variable.kind {
-        Kind::Real => Ok(Value::Real(x)),
+        _ if variable.is_array() => Err(format!("'{}' is an array; a sweep sets scalars", variable.name)),
+        Kind::Real | Kind::Float32 => Ok(Value::Real(x)),
         Kind::Integer | Kind::Enumeration if x.fract() == 0.0 && x.abs() <= i32::MAX as f64 => Ok(Value::Integer(x as i32)),
         Kind::Boolean if x == 0.0 || x == 1.0 => Ok(Value::Boolean(x == 1.0)),
-        kind => Err(format!("'{}' is {kind}; {x} is not a value of that type", variable.name)),
+        kind => match kind.integer_range() {
+            Some((lo, hi)) if x.fract() == 0.0 && x >= lo as f64 && x <= hi as f64 => Ok(Value::Int(x as i128)),
+            _ => Err(format!("'{}' is {kind}; {x} is not a value of that type", variable.name)),
+        },
     }
 }
 
@@ -156,7 +191,8 @@ pub fn split_assignment<'s>(text: &'s str, what: &str) -> Result<(&'s str, &'s s
 /// display unit the FMU declares for it; any other is refused with the ones it may use.
 pub fn parse_quantity(description: &Description, variable: &Variable, text: &str) -> Result<Value, String> {
     let text = text.trim();
-    if variable.kind != Kind::Real {
+    // Arrays take plain numbers (SI), element by element.
+    if variable.kind != Kind::Real || variable.is_array() {
         return parse_value(variable, text);
     }
     let Some((number, unit)) = split_number_and_unit(text) else { return parse_value(variable, text) };
@@ -227,6 +263,7 @@ mod tests {
             unit: unit.map(str::to_owned),
             display_unit: display.map(str::to_owned),
             start: None,
+            dimensions: Vec::new(),
         };
         let pi = std::f64::consts::PI;
         Description {

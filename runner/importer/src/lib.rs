@@ -5,14 +5,17 @@
 
 pub mod archive;
 pub mod fmi2;
+pub mod fmi3;
 mod logging;
 pub mod model;
+mod reader;
 
 use std::ffi::CString;
 use std::path::{Path, PathBuf};
 
 pub use logging::{print_line, set_log_printer};
 pub use model::{Causality, Description, FmiVersion, Interface, Kind, Variability, Variable};
+pub use reader::Reader;
 
 /// An FMU archive unpacked into a temporary directory and checked up to the point of loading its
 /// binary: everything the importer reads from a file it did not write, before running any of it.
@@ -21,6 +24,8 @@ pub struct Unpacked {
     pub description: Description,
     /// The FMI 2.0 description as written (for checks that need the raw schema).
     pub fmi2: Option<fmi_schema::fmi2::ModelDescription>,
+    /// The FMI 3.0 description as written.
+    pub fmi3: Option<fmi_schema::fmi3::ModelDescription>,
     /// The interface the binary will be driven through.
     pub interface: Interface,
     /// The modelIdentifier of that interface.
@@ -43,9 +48,16 @@ impl Unpacked {
         archive::extract_zip(path, dir.path())?;
         let xml_path = dir.path().join("modelDescription.xml");
         let xml = std::fs::read_to_string(&xml_path).map_err(|e| format!("{}: no readable modelDescription.xml: {e}", path.display()))?;
-        let raw =
-            fmi_schema::fmi2::ModelDescription::from_xml(&xml).map_err(|e| format!("{}: modelDescription.xml: {e}", path.display()))?;
-        let description = fmi2::describe(&raw);
+        let at = |e: &dyn std::fmt::Display| format!("{}: modelDescription.xml: {e}", path.display());
+        let version = fmi_schema::fmi_version(&xml).map_err(|e| at(&e))?;
+        let (description, raw2, raw3) = if version.starts_with("3.") {
+            let raw = fmi_schema::fmi3::ModelDescription::from_xml(&xml).map_err(|e| at(&e))?;
+            refuse_unsupported_fmi3(&raw).map_err(|e| format!("{}: {e}", path.display()))?;
+            (fmi3::describe(&raw), None, Some(raw))
+        } else {
+            let raw = fmi_schema::fmi2::ModelDescription::from_xml(&xml).map_err(|e| at(&e))?;
+            (fmi2::describe(&raw), Some(raw), None)
+        };
         let interface = Interface::CoSimulation;
         let identifier = match description.interface(interface) {
             Some(caps) => caps.model_identifier.clone(),
@@ -55,7 +67,10 @@ impl Unpacked {
         if identifier.is_empty() || identifier.contains(['/', '\0']) {
             return Err(format!("{}: modelIdentifier {identifier:?} is not a file name (FMI requires a C identifier)", path.display()));
         }
-        let platform = fmi2::PLATFORM;
+        let platform = match description.fmi_version {
+            FmiVersion::Fmi2 => fmi2::PLATFORM,
+            FmiVersion::Fmi3 => fmi3::PLATFORM,
+        };
         let binary = dir.path().join("binaries").join(platform).join(format!("{identifier}.so"));
         if !binary.is_file() {
             return Err(format!(
@@ -64,8 +79,23 @@ impl Unpacked {
                 platforms(&dir.path().join("binaries"))
             ));
         }
-        Ok(Unpacked { description, fmi2: Some(raw), interface, identifier, binary, dir })
+        Ok(Unpacked { description, fmi2: raw2, fmi3: raw3, interface, identifier, binary, dir })
     }
+}
+
+/// Refuses the FMI 3.0 features the runner does not simulate, naming them: Scheduled Execution
+/// (an FMU offering nothing else) and clocks.
+fn refuse_unsupported_fmi3(md: &fmi_schema::fmi3::ModelDescription) -> Result<(), String> {
+    if md.co_simulation.is_none() && md.model_exchange.is_none() && md.scheduled_execution.is_some() {
+        return Err(
+            "this FMU offers only Scheduled Execution, which the runner does not support (it runs Co-Simulation and Model Exchange)"
+                .to_owned(),
+        );
+    }
+    if let Some(clock) = md.model_variables.iter().find(|v| matches!(v.kind, fmi_schema::fmi3::VariableKind::Clock(_))) {
+        return Err(format!("the FMU has clocks (variable '{}' is a Clock), which the runner does not support", clock.name));
+    }
+    Ok(())
 }
 
 fn platforms(binaries: &Path) -> String {
@@ -83,6 +113,7 @@ fn platforms(binaries: &Path) -> String {
 /// The loaded binary of an FMU, by FMI version.
 enum Binding {
     Fmi2(fmi2::Binary),
+    Fmi3(fmi3::Binary),
 }
 
 /// A loaded FMU: its description, its open binary and the directory it was unpacked into
@@ -94,6 +125,8 @@ pub struct Fmu {
     pub identifier: String,
     /// The interface instances are created for.
     pub interface: Interface,
+    /// Where the FMU's resources are, as instantiation wants it: a `file://` URI for FMI 2.0,
+    /// a directory path with a trailing separator for FMI 3.0.
     pub(crate) resource_uri: CString,
     /// GUID (FMI 2.0) or instantiation token (FMI 3.0), as instantiation wants it.
     pub(crate) token: CString,
@@ -106,18 +139,28 @@ impl Fmu {
     /// Unpacks and loads the `.fmu` at `path`.
     pub fn load(path: &Path) -> Result<Fmu, String> {
         let Unpacked { description, interface, identifier, binary, dir, .. } = Unpacked::open(path)?;
-        let loaded = fmi2::Binary::load(&binary, interface == Interface::CoSimulation).map_err(|e| format!("{}: {e}", path.display()))?;
-        let resource_uri = CString::new(format!("file://{}/", dir.path().join("resources").display()))
-            .map_err(|_| "temporary path contains a NUL byte".to_owned())?;
+        let loaded = match description.fmi_version {
+            FmiVersion::Fmi2 => Binding::Fmi2(
+                fmi2::Binary::load(&binary, interface == Interface::CoSimulation).map_err(|e| format!("{}: {e}", path.display()))?,
+            ),
+            FmiVersion::Fmi3 => Binding::Fmi3(fmi3::Binary::load(&binary).map_err(|e| format!("{}: {e}", path.display()))?),
+        };
+        let resources = dir.path().join("resources");
+        let resource_uri = match description.fmi_version {
+            FmiVersion::Fmi2 => format!("file://{}/", resources.display()),
+            FmiVersion::Fmi3 => format!("{}/", resources.display()),
+        };
+        let resource_uri = CString::new(resource_uri).map_err(|_| "temporary path contains a NUL byte".to_owned())?;
         let token = CString::new(description.instantiation_token.clone())
             .map_err(|_| format!("{}: the GUID contains a NUL byte", path.display()))?;
-        Ok(Fmu { description, identifier, interface, resource_uri, token, binding: Binding::Fmi2(loaded), _dir: dir })
+        Ok(Fmu { description, identifier, interface, resource_uri, token, binding: loaded, _dir: dir })
     }
 
     /// A new instance named `name`; `debug_logging` turns the FMU's debug logging on.
     pub fn instantiate(&self, name: &str, debug_logging: bool) -> Result<Instance<'_>, String> {
         match &self.binding {
             Binding::Fmi2(binary) => Ok(Instance::Fmi2Cs(fmi2::CoSimulation::new(self, binary, name, debug_logging)?)),
+            Binding::Fmi3(binary) => Ok(Instance::Fmi3Cs(fmi3::CoSimulation::new(self, binary, name, debug_logging)?)),
         }
     }
 }
@@ -125,12 +168,31 @@ impl Fmu {
 /// A value to set, already converted to the variable's type.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Value {
-    /// Real (Float64).
+    /// Real, Float64 and Float32 (rounded to single precision when set).
     Real(f64),
-    /// Integer (also Enumeration).
+    /// Integer (Int32, and FMI 2.0's Enumeration).
     Integer(i32),
+    /// The other integer types and FMI 3.0's Enumeration, checked against the type's range.
+    Int(i128),
     Boolean(bool),
     String(String),
+    /// FMI 3.0 Binary.
+    Binary(Vec<u8>),
+    /// The elements of an FMI 3.0 array, row-major, set whole.
+    List(Vec<Value>),
+}
+
+impl Value {
+    /// The value as a number, where it is one (Booleans as 0/1).
+    pub fn as_number(&self) -> Option<f64> {
+        match self {
+            Value::Real(x) => Some(*x),
+            Value::Integer(i) => Some(f64::from(*i)),
+            Value::Int(i) => Some(*i as f64),
+            Value::Boolean(b) => Some(f64::from(u8::from(*b))),
+            Value::String(_) | Value::Binary(_) | Value::List(_) => None,
+        }
+    }
 }
 
 /// How a step ended.
@@ -140,6 +202,9 @@ pub enum Step {
     /// The FMU refused to continue (it terminated the simulation): why, and the last time it
     /// reached when it reports one.
     Ended { reason: String, last_time: Option<f64> },
+    /// The step stopped at an event at `time` (FMI 3.0 Event Mode or early return), before
+    /// handling it: call [`Instance::handle_event`], then step on from `time`.
+    Event { time: f64 },
 }
 
 /// One instance of an FMU, whatever its version and interface: the calls of a simulation run.
@@ -147,6 +212,7 @@ pub enum Step {
 /// communication point, and a match inlines where a virtual call cannot.
 pub enum Instance<'a> {
     Fmi2Cs(fmi2::CoSimulation<'a>),
+    Fmi3Cs(fmi3::CoSimulation<'a>),
 }
 
 impl Instance<'_> {
@@ -154,6 +220,7 @@ impl Instance<'_> {
     pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.setup_experiment(tolerance, start, stop),
+            Instance::Fmi3Cs(i) => i.setup_experiment(tolerance, start, stop),
         }
     }
 
@@ -161,6 +228,7 @@ impl Instance<'_> {
     pub fn enter_initialization_mode(&mut self) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.enter_initialization_mode(),
+            Instance::Fmi3Cs(i) => i.enter_initialization_mode(),
         }
     }
 
@@ -168,6 +236,7 @@ impl Instance<'_> {
     pub fn exit_initialization_mode(&mut self) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.exit_initialization_mode(),
+            Instance::Fmi3Cs(i) => i.exit_initialization_mode(),
         }
     }
 
@@ -175,6 +244,7 @@ impl Instance<'_> {
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.set(variable, value),
+            Instance::Fmi3Cs(i) => i.set(variable, value),
         }
     }
 
@@ -183,6 +253,7 @@ impl Instance<'_> {
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.read(reader, out),
+            Instance::Fmi3Cs(i) => i.read(reader, out),
         }
     }
 
@@ -191,57 +262,16 @@ impl Instance<'_> {
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         match self {
             Instance::Fmi2Cs(i) => i.do_step(t, h),
+            Instance::Fmi3Cs(i) => i.do_step(t, h),
         }
     }
-}
 
-/// Reads a fixed list of numeric variables in one get call per type.
-pub struct Reader {
-    layout: Vec<(Kind, usize)>,
-    pub(crate) real_vrs: Vec<u32>,
-    pub(crate) real_buf: Vec<f64>,
-    pub(crate) integer_vrs: Vec<u32>,
-    pub(crate) integer_buf: Vec<i32>,
-    pub(crate) boolean_vrs: Vec<u32>,
-    pub(crate) boolean_buf: Vec<i32>,
-}
-
-impl Reader {
-    /// A reader for `variables`, in order; String variables are refused.
-    pub fn new(variables: &[&Variable]) -> Result<Reader, String> {
-        let mut r = Reader {
-            layout: Vec::new(),
-            real_vrs: Vec::new(),
-            real_buf: Vec::new(),
-            integer_vrs: Vec::new(),
-            integer_buf: Vec::new(),
-            boolean_vrs: Vec::new(),
-            boolean_buf: Vec::new(),
-        };
-        for v in variables {
-            let list = match v.kind {
-                Kind::Real => &mut r.real_vrs,
-                Kind::Integer | Kind::Enumeration => &mut r.integer_vrs,
-                Kind::Boolean => &mut r.boolean_vrs,
-                Kind::String => return Err(format!("{} is a String variable; only numbers can be recorded", v.name)),
-            };
-            r.layout.push((v.kind, list.len()));
-            list.push(v.value_reference);
-        }
-        r.real_buf = vec![0.0; r.real_vrs.len()];
-        r.integer_buf = vec![0; r.integer_vrs.len()];
-        r.boolean_buf = vec![0; r.boolean_vrs.len()];
-        Ok(r)
-    }
-
-    /// Copies the per-type buffers into `out` in the reader's order.
-    pub(crate) fn gather(&self, out: &mut [f64]) {
-        for (slot, &(kind, i)) in out.iter_mut().zip(&self.layout) {
-            *slot = match kind {
-                Kind::Real => self.real_buf[i],
-                Kind::Boolean => (self.boolean_buf[i] != 0) as i32 as f64,
-                _ => self.integer_buf[i] as f64,
-            };
+    /// Handles the event a [`Step::Event`] stopped at: `Ok(Some(reason))` when the FMU ends
+    /// the simulation there.
+    pub fn handle_event(&mut self, time: f64) -> Result<Option<String>, String> {
+        match self {
+            Instance::Fmi2Cs(_) => Ok(None),
+            Instance::Fmi3Cs(i) => i.handle_event(time),
         }
     }
 }

@@ -47,29 +47,76 @@ impl fmt::Display for Interface {
 pub enum Kind {
     /// FMI 2.0 Real, FMI 3.0 Float64.
     Real,
+    /// FMI 3.0 Float32.
+    Float32,
     /// FMI 2.0 Integer, FMI 3.0 Int32.
     Integer,
+    Int8,
+    UInt8,
+    Int16,
+    UInt16,
+    UInt32,
+    Int64,
+    UInt64,
     Boolean,
     String,
-    /// An Integer-valued enumeration item.
+    /// FMI 3.0 Binary: bytes, written as hexadecimal text.
+    Binary,
+    /// An enumeration item (Int32 in FMI 2.0, Int64 in FMI 3.0).
     Enumeration,
+    /// FMI 3.0 Clock (Scheduled Execution and clocked Co-Simulation; not simulated).
+    Clock,
 }
 
 impl Kind {
-    /// The type's name as FMI 2.0 spells it.
+    /// The type's name (FMI 2.0's spelling for the types it has).
     pub fn as_str(self) -> &'static str {
         match self {
             Kind::Real => "Real",
+            Kind::Float32 => "Float32",
             Kind::Integer => "Integer",
+            Kind::Int8 => "Int8",
+            Kind::UInt8 => "UInt8",
+            Kind::Int16 => "Int16",
+            Kind::UInt16 => "UInt16",
+            Kind::UInt32 => "UInt32",
+            Kind::Int64 => "Int64",
+            Kind::UInt64 => "UInt64",
             Kind::Boolean => "Boolean",
             Kind::String => "String",
+            Kind::Binary => "Binary",
             Kind::Enumeration => "Enumeration",
+            Kind::Clock => "Clock",
+        }
+    }
+
+    /// The type's name as the FMU's FMI version spells it (`Real` or `Float64`, ...).
+    pub fn name_in(self, version: FmiVersion) -> &'static str {
+        match (self, version) {
+            (Kind::Real, FmiVersion::Fmi3) => "Float64",
+            (Kind::Integer, FmiVersion::Fmi3) => "Int32",
+            _ => self.as_str(),
         }
     }
 
     /// True for the types whose values are numbers (Booleans as 0/1).
     pub fn is_numeric(self) -> bool {
-        !matches!(self, Kind::String)
+        !matches!(self, Kind::String | Kind::Binary | Kind::Clock)
+    }
+
+    /// The smallest and largest value of an integer type (`None` for the others).
+    pub fn integer_range(self) -> Option<(i128, i128)> {
+        Some(match self {
+            Kind::Int8 => (i8::MIN.into(), i8::MAX.into()),
+            Kind::UInt8 => (0, u8::MAX.into()),
+            Kind::Int16 => (i16::MIN.into(), i16::MAX.into()),
+            Kind::UInt16 => (0, u16::MAX.into()),
+            Kind::Integer => (i32::MIN.into(), i32::MAX.into()),
+            Kind::UInt32 => (0, u32::MAX.into()),
+            Kind::Int64 => (i64::MIN.into(), i64::MAX.into()),
+            Kind::UInt64 => (0, u64::MAX.into()),
+            _ => return None,
+        })
     }
 }
 
@@ -146,9 +193,12 @@ impl fmt::Display for Variability {
 #[derive(Debug, Clone, PartialEq)]
 pub enum Start {
     Real(f64),
-    Integer(i64),
+    Integer(i128),
     Boolean(bool),
     String(String),
+    Binary(Vec<u8>),
+    /// The element values of an array variable, row-major (one value: all elements equal).
+    List(Vec<Start>),
 }
 
 impl Start {
@@ -158,7 +208,7 @@ impl Start {
             Start::Real(x) => Some(*x),
             Start::Integer(i) => Some(*i as f64),
             Start::Boolean(b) => Some(*b as i32 as f64),
-            Start::String(_) => None,
+            Start::String(_) | Start::Binary(_) | Start::List(_) => None,
         }
     }
 }
@@ -170,8 +220,24 @@ impl fmt::Display for Start {
             Start::Integer(x) => write!(f, "{x}"),
             Start::Boolean(x) => write!(f, "{x}"),
             Start::String(x) => write!(f, "{x:?}"),
+            Start::Binary(x) => f.write_str(&x.iter().map(|b| format!("{b:02x}")).collect::<String>()),
+            Start::List(items) => f.write_str(&items.iter().map(Start::to_string).collect::<Vec<_>>().join(" ")),
         }
     }
+}
+
+/// Bytes of hexadecimal text, as FMI 3.0 and result files write Binary values.
+pub fn parse_hex(text: &str) -> Result<Vec<u8>, String> {
+    fmi_schema::fmi3::unhex(text)
+}
+
+/// One dimension of an array variable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dimension {
+    /// A fixed size.
+    Fixed(u64),
+    /// The size is the value of this (structural parameter's) value reference.
+    Variable(u32),
 }
 
 /// One variable of an FMU.
@@ -188,6 +254,15 @@ pub struct Variable {
     /// The effective display unit.
     pub display_unit: Option<String>,
     pub start: Option<Start>,
+    /// FMI 3.0 arrays: the dimensions (empty for a scalar).
+    pub dimensions: Vec<Dimension>,
+}
+
+impl Variable {
+    /// True for an array variable.
+    pub fn is_array(&self) -> bool {
+        !self.dimensions.is_empty()
+    }
 }
 
 /// A display unit of a unit: `display = factor * value + offset`.
@@ -230,6 +305,10 @@ pub struct Capabilities {
     pub can_interpolate_inputs: bool,
     /// Co-Simulation: highest output derivative order provided.
     pub max_output_derivative_order: u32,
+    /// FMI 3.0 Co-Simulation: events can be handled in Event Mode (`hasEventMode`).
+    pub has_event_mode: bool,
+    /// FMI 3.0 Co-Simulation: `fmi3DoStep` may return early at an event.
+    pub might_return_early_from_do_step: bool,
 }
 
 /// An FMU's description, whatever its version.
@@ -267,6 +346,29 @@ impl Description {
     /// Variables with causality input, in description order.
     pub fn inputs(&self) -> impl Iterator<Item = &Variable> + '_ {
         self.variables.iter().filter(|v| v.causality == Causality::Input)
+    }
+
+    /// The variable with value reference `vr`: in FMI 3.0 value references are unique; in
+    /// FMI 2.0 aliases share one, and the first is returned.
+    pub fn variable_by_reference(&self, vr: u32) -> Option<&Variable> {
+        self.variables.iter().find(|v| v.value_reference == vr)
+    }
+
+    /// The sizes of an array variable's dimensions, with structural parameters at `size_of`
+    /// (a value set for them) or else at their start values; an error names what is missing.
+    pub fn shape(&self, v: &Variable, size_of: &dyn Fn(u32) -> Option<u64>) -> Result<Vec<u64>, String> {
+        v.dimensions
+            .iter()
+            .map(|d| match *d {
+                Dimension::Fixed(n) => Ok(n),
+                Dimension::Variable(vr) => size_of(vr)
+                    .or_else(|| match self.variable_by_reference(vr).and_then(|p| p.start.as_ref()) {
+                        Some(Start::Integer(n)) => u64::try_from(*n).ok(),
+                        _ => None,
+                    })
+                    .ok_or_else(|| format!("the size of {} is given by value reference {vr}, which has no usable value", v.name)),
+            })
+            .collect()
     }
 
     /// The Unit called `name`.

@@ -923,22 +923,7 @@ pub(super) fn write(model: &ModelDescription) -> Result<String, DescriptionError
     Ok(format!("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n{body}\n"))
 }
 
-/// Shortest text that parses back to the same f64 (Rust's float formatting is shortest
-/// round-trip); exponent form for tiny/huge values keeps 1e-9 or 1e308 short, and the XML
-/// Schema spellings are used for the non-finite values.
-pub(super) fn format_real(value: f64) -> String {
-    if value.is_nan() {
-        return "NaN".to_string();
-    }
-    if value.is_infinite() {
-        return if value > 0.0 { "INF" } else { "-INF" }.to_string();
-    }
-    let text = format!("{value:?}");
-    match text.strip_suffix(".0") {
-        Some(integral) => integral.to_string(),
-        None => text,
-    }
-}
+pub(super) use crate::format_real;
 
 fn opt_real(v: Option<f64>) -> Option<String> {
     v.map(format_real)

@@ -133,10 +133,7 @@ fn closed_form<'a>(
                 format!("[compare.reference] {output} = {text}: '{name}' is neither t nor a parameter of {}", md.model_name)
             })?;
             let value = match base.iter().rev().find(|(p, _)| p.name == *name).map(|(_, value)| value) {
-                Some(Value::Real(x)) => Some(*x),
-                Some(Value::Integer(i)) => Some(*i as f64),
-                Some(Value::Boolean(b)) => Some(*b as i32 as f64),
-                Some(Value::String(_)) => None,
+                Some(value) => value.as_number(),
                 None => variable.start.as_ref().and_then(|s| s.as_number()),
             };
             bound.push(Some(value.ok_or_else(|| format!("[compare.reference] {output}: parameter '{name}' has no numeric value"))?));

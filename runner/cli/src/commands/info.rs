@@ -1,5 +1,6 @@
 //! `runner info`: what an FMU offers: its variables (causality, type, unit, start) and capabilities.
 
+use fmi_importer::model::Dimension;
 use fmi_importer::{Causality, Description};
 
 /// The report `runner info` prints.
@@ -72,12 +73,23 @@ pub fn report(d: &Description) -> String {
                 _ => "-".to_owned(),
             };
             let start = v.start.as_ref().map_or("-".to_owned(), |s| s.to_string());
+            // An array's type shows its dimensions: fixed sizes, or the structural parameters.
+            let dimensions: Vec<String> = v
+                .dimensions
+                .iter()
+                .map(|dim| match *dim {
+                    Dimension::Fixed(n) => n.to_string(),
+                    Dimension::Variable(vr) => d.variable_by_reference(vr).map_or(format!("vr {vr}"), |p| p.name.clone()),
+                })
+                .collect();
+            let kind = v.kind.name_in(d.fmi_version);
+            let kind = if dimensions.is_empty() { kind.to_owned() } else { format!("{kind}[{}]", dimensions.join(",")) };
             line(format!(
                 "{:<20} {:<12} {:<11} {:<8} {:<12} {:<14} {}",
                 v.name,
                 v.causality.as_str(),
                 v.variability.as_str(),
-                v.kind.as_str(),
+                kind,
                 unit,
                 start,
                 v.description.as_deref().unwrap_or("")

@@ -5,8 +5,8 @@
 
 use std::path::{Path, PathBuf};
 
-use fmi_importer::{Description, Fmu, Value, Variable};
-use runner_engine::run::Grid;
+use fmi_importer::{Causality, Description, FmiVersion, Fmu, Kind, Value, Variable};
+use runner_engine::run::{Grid, Recording};
 use runner_engine::variables::{self, UnitConversion};
 
 use crate::experiment::{self, RunDefaults};
@@ -33,6 +33,8 @@ pub struct Options {
     pub plot_x: Option<String>,
     /// `NAME=V1,V2,...`: one run per value, overlaid.
     pub overlay: Option<String>,
+    /// Also writes a row at each event a step stops at (FMI 3.0), before the event is handled.
+    pub record_events: bool,
 }
 
 /// One run of an overlay: its label and the assignment that makes it.
@@ -47,18 +49,18 @@ fn overlay_cases<'a>(description: &'a Description, text: &str) -> Result<(&'a Va
     let (name, values) = variables::split_assignment(text, "--overlay")?;
     let variable = variables::find(description, name)?;
     variables::check_settable(variable)?;
+    if variable.causality == Causality::StructuralParameter {
+        return Err(format!(
+            "--overlay {text}: '{name}' sizes arrays, so the runs would not share one CSV layout: overlay another parameter"
+        ));
+    }
     let mut cases = Vec::new();
     for item in values.split(',').map(str::trim) {
         if item.is_empty() {
             return Err(format!("--overlay {text}: an empty value between commas"));
         }
         let value = variables::parse_quantity(description, variable, item)?;
-        let si = match &value {
-            Value::Real(x) => *x,
-            Value::Integer(i) => *i as f64,
-            Value::Boolean(b) => *b as i32 as f64,
-            Value::String(_) => f64::NAN,
-        };
+        let si = value.as_number().unwrap_or(f64::NAN);
         cases.push(Case { label: Some(format!("{name} = {}", spaced_unit(item))), assignment: Some((variable, value)), si });
     }
     if cases.len() < 2 {
@@ -207,7 +209,15 @@ pub fn run(options: &Options) -> Result<(), String> {
         (Vec::new(), None, Vec::new())
     };
 
-    let outputs: Vec<&Variable> = md.outputs().filter(|v| v.kind.is_numeric()).collect();
+    // FMI 2.0 String outputs are left out, as fmpy leaves them out; FMI 3.0's Strings and
+    // Binaries (hexadecimal) are written. Clocks have no value to record.
+    let recordable = |v: &&Variable| match md.fmi_version {
+        FmiVersion::Fmi2 => v.kind.is_numeric(),
+        FmiVersion::Fmi3 => v.kind != Kind::Clock,
+    };
+    let outputs: Vec<&Variable> = md.outputs().filter(recordable).collect();
+    // One CSV column per output, an array's elements each.
+    let output_columns = Recording::new(md, &outputs, &assignments)?.names;
     // The CSV has the outputs; the plot may also read other variables, recorded after them.
     let mut recorded = outputs.clone();
     for v in plotted.iter().chain(x_variable.iter()).chain(flags.iter()) {
@@ -218,20 +228,22 @@ pub fn run(options: &Options) -> Result<(), String> {
     let mut writer = output::csv_writer(options.out.as_deref())?;
     let mut header: Vec<String> = overlaid.iter().map(|v| v.name.clone()).collect();
     header.push("time".to_owned());
-    header.extend(outputs.iter().map(|v| v.name.clone()));
+    header.extend(output_columns.iter().cloned());
     writer.write_record(&header).map_err(|e| format!("cannot write CSV: {e}"))?;
     let mut row = Vec::with_capacity(header.len());
     let mut traces = Vec::new();
     for case in &cases {
         let mut case_assignments = assignments.clone();
         case_assignments.extend(case.assignment.clone());
-        let trace = Trace::record_with(&fmu, &fmu.identifier, &grid, &case_assignments, &recorded, options.log, |t, values| {
+        let recording = Trace::recording(md, &recorded, &case_assignments, options.record_events)?;
+        let trace = Trace::record_with(&fmu, &fmu.identifier, &grid, &case_assignments, &recording, options.log, |t, values, reader| {
             row.clear();
             if overlaid.is_some() {
                 row.push(format!("{:?}", case.si));
             }
             row.push(format!("{t:?}"));
-            row.extend(values[..outputs.len()].iter().map(|v| format!("{v:?}")));
+            // Exactly as the FMU gave them: 64-bit integers in full, Binary in hexadecimal.
+            row.extend((0..output_columns.len()).map(|c| reader.text(c, values)));
             writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
         })?;
         if let Some(reason) = &trace.ended_early {

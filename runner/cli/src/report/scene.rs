@@ -446,6 +446,7 @@ mod tests {
             unit: Some(unit.into()),
             display_unit: None,
             start: None,
+            dimensions: Vec::new(),
         }
     }
 

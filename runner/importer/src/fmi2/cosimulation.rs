@@ -6,6 +6,7 @@ use fmi_c::fmi2 as c;
 
 use super::{Binary, Callbacks};
 use crate::model::{Kind, Variable};
+use crate::reader::Buffer;
 use crate::{Fmu, Reader, Step, Value};
 
 const OK: c_int = c::Status::Ok as c_int;
@@ -118,13 +119,16 @@ impl<'a> CoSimulation<'a> {
                     let s = CString::new(v.as_str()).map_err(|_| format!("the value of {} contains a NUL byte", variable.name))?;
                     (api.set_string)(comp, &vr, 1, &s.as_ptr())
                 }
+                Value::Int(_) | Value::Binary(_) | Value::List(_) => {
+                    return Err(format!("{}: {value:?} is not a value of an FMI 2.0 variable", variable.name));
+                }
             }
         };
         let kind = match variable.kind {
-            Kind::Real => "Real",
             Kind::Boolean => "Boolean",
             Kind::String => "String",
             Kind::Integer | Kind::Enumeration => "Integer",
+            _ => "Real",
         };
         self.check(&format!("fmi2Set{kind} of {}", variable.name), status)
     }
@@ -132,36 +136,36 @@ impl<'a> CoSimulation<'a> {
     /// Reads the variables of `reader` into `out` (one f64 per variable, Booleans as 0/1).
     #[inline]
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
-        if reader.integer_vrs.is_empty() && reader.boolean_vrs.is_empty() && out.len() == reader.real_vrs.len() {
+        if reader.direct {
             // Only Reals (the usual sweep): they are in `out`'s order, so read straight into it.
-            if !out.is_empty() {
-                let status = unsafe { (self.binary.api.get_real)(self.component, reader.real_vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
+            if let Some(group) = reader.groups.first() {
+                let status = unsafe { (self.binary.api.get_real)(self.component, group.vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
                 self.check("fmi2GetReal", status)?;
             }
             return Ok(());
         }
-        self.read_mixed(reader, out)
+        self.read_groups(reader)?;
+        reader.gather(out);
+        Ok(())
     }
 
     /// [`CoSimulation::read`] for variables of several types, through the reader's buffers.
-    fn read_mixed(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
+    fn read_groups(&mut self, reader: &mut Reader) -> Result<(), String> {
         let comp = self.component;
-        let api = &self.binary.api;
-        if !reader.real_vrs.is_empty() {
-            let status = unsafe { (api.get_real)(comp, reader.real_vrs.as_ptr(), reader.real_vrs.len(), reader.real_buf.as_mut_ptr()) };
-            self.check("fmi2GetReal", status)?;
+        for group in &mut reader.groups {
+            let (vrs, n) = (group.vrs.as_ptr(), group.vrs.len());
+            let api = &self.binary.api;
+            // SAFETY: each buffer holds one value per value reference of its group.
+            let (call, status) = unsafe {
+                match &mut group.buffer {
+                    Buffer::F64(b) => ("fmi2GetReal", (api.get_real)(comp, vrs, n, b.as_mut_ptr())),
+                    Buffer::I32(b) => ("fmi2GetInteger", (api.get_integer)(comp, vrs, n, b.as_mut_ptr())),
+                    Buffer::IntBool(b) => ("fmi2GetBoolean", (api.get_boolean)(comp, vrs, n, b.as_mut_ptr())),
+                    _ => return Err(format!("{}: a {} variable cannot be read from an FMI 2.0 FMU", self.name, group.kind)),
+                }
+            };
+            self.check(call, status)?;
         }
-        if !reader.integer_vrs.is_empty() {
-            let status =
-                unsafe { (api.get_integer)(comp, reader.integer_vrs.as_ptr(), reader.integer_vrs.len(), reader.integer_buf.as_mut_ptr()) };
-            self.check("fmi2GetInteger", status)?;
-        }
-        if !reader.boolean_vrs.is_empty() {
-            let status =
-                unsafe { (api.get_boolean)(comp, reader.boolean_vrs.as_ptr(), reader.boolean_vrs.len(), reader.boolean_buf.as_mut_ptr()) };
-            self.check("fmi2GetBoolean", status)?;
-        }
-        reader.gather(out);
         Ok(())
     }
 

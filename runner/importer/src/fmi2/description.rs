@@ -40,7 +40,7 @@ fn kind(k: s::TypeKind) -> Kind {
 fn start(v: Option<s::StartValue>) -> Option<Start> {
     Some(match v? {
         s::StartValue::Real(x) => Start::Real(x),
-        s::StartValue::Integer(i) | s::StartValue::Enumeration(i) => Start::Integer(i64::from(i)),
+        s::StartValue::Integer(i) | s::StartValue::Enumeration(i) => Start::Integer(i128::from(i)),
         s::StartValue::Boolean(b) => Start::Boolean(b),
         s::StartValue::String(t) => Start::String(t),
     })
@@ -93,6 +93,7 @@ pub fn describe(md: &s::ModelDescription) -> Description {
             unit: md.unit_of(v).map(str::to_owned),
             display_unit: md.display_unit_of(v).map(str::to_owned),
             start: start(v.start()),
+            dimensions: Vec::new(),
         })
         .collect();
     let units = md

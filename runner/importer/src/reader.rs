@@ -1,0 +1,185 @@
+//! Reading a fixed list of variables at every communication point: one get call per type,
+//! into buffers made once, and one number per array element for the caller (Booleans as 0/1).
+//! Every value is also available exactly, as text, for result files (String, Binary, and
+//! integers too wide for an f64).
+
+use crate::model::{FmiVersion, Kind, Variable};
+
+/// The values of one type, as the FMI functions of the FMU's version fill them.
+#[derive(Debug, Clone)]
+pub(crate) enum Buffer {
+    F64(Vec<f64>),
+    F32(Vec<f32>),
+    I8(Vec<i8>),
+    U8(Vec<u8>),
+    I16(Vec<i16>),
+    U16(Vec<u16>),
+    I32(Vec<i32>),
+    U32(Vec<u32>),
+    I64(Vec<i64>),
+    U64(Vec<u64>),
+    /// FMI 2.0 `fmi2Boolean` (a C int).
+    IntBool(Vec<i32>),
+    /// FMI 3.0 `fmi3Boolean` (a C bool).
+    Bool(Vec<bool>),
+    /// Strings, copied out of the FMU's memory at each read.
+    Text(Vec<String>),
+    /// Binary values, copied out at each read.
+    Bytes(Vec<Vec<u8>>),
+}
+
+impl Buffer {
+    fn new(kind: Kind, version: FmiVersion, n: usize) -> Buffer {
+        match kind {
+            Kind::Real => Buffer::F64(vec![0.0; n]),
+            Kind::Float32 => Buffer::F32(vec![0.0; n]),
+            Kind::Int8 => Buffer::I8(vec![0; n]),
+            Kind::UInt8 => Buffer::U8(vec![0; n]),
+            Kind::Int16 => Buffer::I16(vec![0; n]),
+            Kind::UInt16 => Buffer::U16(vec![0; n]),
+            Kind::Integer => Buffer::I32(vec![0; n]),
+            Kind::UInt32 => Buffer::U32(vec![0; n]),
+            Kind::Int64 => Buffer::I64(vec![0; n]),
+            Kind::UInt64 => Buffer::U64(vec![0; n]),
+            // FMI 2.0 enumerations are Integers, FMI 3.0's Int64.
+            Kind::Enumeration if version == FmiVersion::Fmi2 => Buffer::I32(vec![0; n]),
+            Kind::Enumeration => Buffer::I64(vec![0; n]),
+            Kind::Boolean if version == FmiVersion::Fmi2 => Buffer::IntBool(vec![0; n]),
+            Kind::Boolean => Buffer::Bool(vec![false; n]),
+            Kind::String => Buffer::Text(vec![String::new(); n]),
+            Kind::Binary | Kind::Clock => Buffer::Bytes(vec![Vec::new(); n]),
+        }
+    }
+
+    /// Element `i` as a number (NaN for text and bytes).
+    fn number(&self, i: usize) -> f64 {
+        match self {
+            Buffer::F64(v) => v[i],
+            Buffer::F32(v) => v[i] as f64,
+            Buffer::I8(v) => v[i] as f64,
+            Buffer::U8(v) => v[i] as f64,
+            Buffer::I16(v) => v[i] as f64,
+            Buffer::U16(v) => v[i] as f64,
+            Buffer::I32(v) => v[i] as f64,
+            Buffer::U32(v) => v[i] as f64,
+            Buffer::I64(v) => v[i] as f64,
+            Buffer::U64(v) => v[i] as f64,
+            Buffer::IntBool(v) => (v[i] != 0) as i32 as f64,
+            Buffer::Bool(v) => v[i] as i32 as f64,
+            Buffer::Text(_) | Buffer::Bytes(_) => f64::NAN,
+        }
+    }
+
+    /// Element `i` exactly, as text: integers in full, Float32 in its own shortest form,
+    /// Binary as hexadecimal; Float64 as its f64 is printed, and with `as_f64` (FMI 2.0's
+    /// result files, as they always were) Int32 and Booleans too.
+    fn text(&self, i: usize, as_f64: bool) -> String {
+        match self {
+            Buffer::I32(v) if !as_f64 => v[i].to_string(),
+            Buffer::Bool(v) if !as_f64 => u8::from(v[i]).to_string(),
+            Buffer::F32(v) => format!("{:?}", v[i]),
+            Buffer::I8(v) => v[i].to_string(),
+            Buffer::U8(v) => v[i].to_string(),
+            Buffer::I16(v) => v[i].to_string(),
+            Buffer::U16(v) => v[i].to_string(),
+            Buffer::U32(v) => v[i].to_string(),
+            Buffer::I64(v) => v[i].to_string(),
+            Buffer::U64(v) => v[i].to_string(),
+            Buffer::Text(v) => v[i].clone(),
+            Buffer::Bytes(v) => v[i].iter().map(|b| format!("{b:02x}")).collect(),
+            Buffer::F64(_) | Buffer::I32(_) | Buffer::IntBool(_) | Buffer::Bool(_) => format!("{:?}", self.number(i)),
+        }
+    }
+}
+
+/// The variables of one type a reader gets in one call.
+#[derive(Debug, Clone)]
+pub(crate) struct Group {
+    pub(crate) kind: Kind,
+    pub(crate) vrs: Vec<u32>,
+    pub(crate) buffer: Buffer,
+}
+
+/// Reads a fixed list of variables in one get call per type.
+#[derive(Debug, Clone)]
+pub struct Reader {
+    pub(crate) groups: Vec<Group>,
+    /// Per output column: its group and its element in that group's buffer.
+    columns: Vec<(usize, usize)>,
+    /// Only scalar Float64s, in column order: the binding reads straight into the output.
+    pub(crate) direct: bool,
+    /// FMI 2.0: every number prints as an f64 (`3.0`), as result files always had it.
+    integers_as_f64: bool,
+}
+
+impl Reader {
+    /// A reader for scalar `variables`, in order.
+    pub fn new(version: FmiVersion, variables: &[&Variable]) -> Result<Reader, String> {
+        Reader::with_sizes(version, variables, &vec![1; variables.len()])
+    }
+
+    /// A reader for `variables` with `sizes[k]` elements each (1 for a scalar, the product of
+    /// the dimensions for an array); its columns are the elements in order, row-major.
+    pub fn with_sizes(version: FmiVersion, variables: &[&Variable], sizes: &[usize]) -> Result<Reader, String> {
+        let mut groups: Vec<Group> = Vec::new();
+        let mut columns = Vec::new();
+        let mut counts: Vec<usize> = Vec::new();
+        for (v, &n) in variables.iter().zip(sizes) {
+            if v.kind == Kind::Clock {
+                return Err(format!("{} is a Clock; clocks cannot be recorded", v.name));
+            }
+            if version == FmiVersion::Fmi2 && matches!(v.kind, Kind::String) {
+                return Err(format!("{} is a String variable; only numbers can be recorded", v.name));
+            }
+            let g = match groups.iter().position(|g| g.kind == v.kind) {
+                Some(g) => g,
+                None => {
+                    groups.push(Group { kind: v.kind, vrs: Vec::new(), buffer: Buffer::F64(Vec::new()) });
+                    counts.push(0);
+                    groups.len() - 1
+                }
+            };
+            groups[g].vrs.push(v.value_reference);
+            for e in 0..n {
+                columns.push((g, counts[g] + e));
+            }
+            counts[g] += n;
+        }
+        for (g, n) in groups.iter_mut().zip(counts) {
+            g.buffer = Buffer::new(g.kind, version, n);
+        }
+        let direct = groups.len() <= 1
+            && groups.first().is_none_or(|g| g.kind == Kind::Real && matches!(&g.buffer, Buffer::F64(b) if b.len() == g.vrs.len()));
+        Ok(Reader { groups, columns, direct, integers_as_f64: version == FmiVersion::Fmi2 })
+    }
+
+    /// Number of columns (array elements count one each).
+    pub fn len(&self) -> usize {
+        self.columns.len()
+    }
+
+    /// True when the reader reads nothing.
+    pub fn is_empty(&self) -> bool {
+        self.columns.is_empty()
+    }
+
+    /// Copies the buffers into `out` in column order, as numbers.
+    pub(crate) fn gather(&self, out: &mut [f64]) {
+        for (slot, &(g, i)) in out.iter_mut().zip(&self.columns) {
+            *slot = self.groups[g].buffer.number(i);
+        }
+    }
+
+    /// Column `c` of the last read, exactly, as text, for result files; `values` are the
+    /// numbers that read gave. Float64 prints as its f64 does (`1.5`), integers in full (FMI
+    /// 2.0's Integers and Booleans as f64s, `3.0`, as its result files always had them),
+    /// Float32 in its own shortest form, Binary in hexadecimal.
+    pub fn text(&self, c: usize, values: &[f64]) -> String {
+        if self.direct {
+            // Read straight into `values`, not into the buffers.
+            return format!("{:?}", values[c]);
+        }
+        let (g, i) = self.columns[c];
+        self.groups[g].buffer.text(i, self.integers_as_f64)
+    }
+}

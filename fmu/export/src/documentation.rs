@@ -41,7 +41,7 @@ pub fn index_html<M: Model>() -> String {
     for (vr, row) in Table::<M>::new().rows.iter().enumerate() {
         let start = row.start(&model).map(|s| s.to_string()).unwrap_or_default();
         rows.push_str(&format!(
-            "<tr><td><code>{}</code></td><td>{vr}</td><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            "<tr><td><code>{}</code></td><td>{vr}</td><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
             escape(row.name),
             causality(row.causality),
             variability(row.variability),
@@ -49,6 +49,7 @@ pub fn index_html<M: Model>() -> String {
             escape(row.unit.unwrap_or("")),
             escape(row.display_unit.unwrap_or("")),
             escape(&start),
+            escape(&row.range.to_string()),
             escape(row.description),
         ));
     }
@@ -73,7 +74,7 @@ pre {{ padding: 0.5em; overflow-x: auto; }}
 <h2>Variables</h2>
 <p>All values are SI; display units are the handbook's. Value references number the variables in this order.</p>
 <table>
-<tr><th>name</th><th>vr</th><th>causality</th><th>variability</th><th>type</th><th>unit</th><th>display unit</th><th>start</th><th>description</th></tr>
+<tr><th>name</th><th>vr</th><th>causality</th><th>variability</th><th>type</th><th>unit</th><th>display unit</th><th>start</th><th>range</th><th>description</th></tr>
 {rows}</table>
 <h2>Simulation</h2>
 <p>Default experiment: stop time {stop} s, relative tolerance {tol}, output interval {dt} s.

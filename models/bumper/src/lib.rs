@@ -1,7 +1,7 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu_export::{require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable, Variables};
 use serde::{Deserialize, Serialize};
 
 /// Rows of this model's variable table.
@@ -48,21 +48,7 @@ impl Bumper {
     }
 }
 
-impl Model for Bumper {
-    const N_STATES: usize = 3;
-    const N_EVENT_INDICATORS: usize = 1;
-
-    fn info() -> ModelInfo {
-        ModelInfo {
-            identifier: "bumper",
-            description: "ME326 Ex. 3: a mass hits a massless spring-damper bumper and separates when the contact force vanishes",
-            stop_time: 3.0,
-            tolerance: 1e-6,
-            output_interval: 1e-3,
-            documentation: include_str!("../derivation.md"),
-        }
-    }
-
+impl Variables for Bumper {
     fn variables() -> Vec<Variable<Self>> {
         vec![
             V::parameter("M", "Mass of the moving body", |s| s.mass, |s, v| s.mass = v).unit("kg"),
@@ -84,6 +70,22 @@ impl Model for Bumper {
             V::boolean_output("in_contact", "True while the mass touches the plate", |s| s.in_contact),
             V::discrete_output("t_release", "Time the mass left the plate (-1 until it has)", |s| s.t_release).unit("s"),
         ]
+    }
+}
+
+impl Model for Bumper {
+    const N_STATES: usize = 3;
+    const N_EVENT_INDICATORS: usize = 1;
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            identifier: "bumper",
+            description: "ME326 Ex. 3: a mass hits a massless spring-damper bumper and separates when the contact force vanishes",
+            stop_time: 3.0,
+            tolerance: 1e-6,
+            output_interval: 1e-3,
+            documentation: include_str!("../derivation.md"),
+        }
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {

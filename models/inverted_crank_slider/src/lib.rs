@@ -1,7 +1,7 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu_export::{require_finite, require_non_negative, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_finite, require_non_negative, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable, Variables};
 use nalgebra::{Matrix2, Matrix6, Matrix6x2, Vector2, Vector6};
 use serde::{Deserialize, Serialize};
 
@@ -150,22 +150,7 @@ impl InvertedCrankSlider {
     }
 }
 
-impl Model for InvertedCrankSlider {
-    const N_STATES: usize = 5;
-
-    fn info() -> ModelInfo {
-        ModelInfo {
-            identifier: "inverted_crank_slider",
-            description:
-                "ME326 App. E: crank AB drives link BD through a pivoted collar at C; vector-loop kinematics and the E.17-E.24 kinetics",
-            // Two crank revolutions at 60 rpm.
-            stop_time: 2.0,
-            tolerance: 1e-6,
-            output_interval: 1e-3,
-            documentation: include_str!("../derivation.md"),
-        }
-    }
-
+impl Variables for InvertedCrankSlider {
     fn variables() -> Vec<Variable<Self>> {
         vec![
             V::parameter("r1", "Ground distance from the collar pivot C to the crank pivot A", |s| s.r1, |s, v| s.r1 = v)
@@ -202,6 +187,23 @@ impl Model for InvertedCrankSlider {
             V::output("T", "Input torque on the crank (counter-clockwise positive)", |s| s.y[5]).unit("N.m"),
             V::output("loop_residual", "Vector-loop gap |e| (E.16)", |s| s.loop_residual).unit("m"),
         ]
+    }
+}
+
+impl Model for InvertedCrankSlider {
+    const N_STATES: usize = 5;
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            identifier: "inverted_crank_slider",
+            description:
+                "ME326 App. E: crank AB drives link BD through a pivoted collar at C; vector-loop kinematics and the E.17-E.24 kinetics",
+            // Two crank revolutions at 60 rpm.
+            stop_time: 2.0,
+            tolerance: 1e-6,
+            output_interval: 1e-3,
+            documentation: include_str!("../derivation.md"),
+        }
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {

@@ -1,6 +1,6 @@
 //! The four-bar OABC of Ex. 5A #3 and #4 (crank-rocker, double rocker).
 
-use fmu_export::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable, Variables};
 use nalgebra::{Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 use std::marker::PhantomData;
@@ -206,14 +206,7 @@ impl<P: FourBarPreset> FourBar<P> {
     }
 }
 
-impl<P: FourBarPreset> Model for FourBar<P> {
-    const N_STATES: usize = 5;
-    const N_EVENT_INDICATORS: usize = 1;
-
-    fn info() -> ModelInfo {
-        P::info()
-    }
-
+impl<P: FourBarPreset> Variables for FourBar<P> {
     fn variables() -> Vec<Variable<Self>> {
         vec![
             V::<P>::parameter("l_OA", "Input link length OA", |s| s.l_oa, |s, v| s.l_oa = v).unit("m").display("mm"),
@@ -252,6 +245,15 @@ impl<P: FourBarPreset> Model for FourBar<P> {
             V::<P>::output("v_B_y", "y velocity of B", |s| s.v_b_y).unit("m/s"),
             V::<P>::output("loop_residual", "Vector-loop gap |e| (E.16)", |s| s.loop_residual).unit("m"),
         ]
+    }
+}
+
+impl<P: FourBarPreset> Model for FourBar<P> {
+    const N_STATES: usize = 5;
+    const N_EVENT_INDICATORS: usize = 1;
+
+    fn info() -> ModelInfo {
+        P::info()
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {

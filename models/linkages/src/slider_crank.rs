@@ -1,6 +1,6 @@
 //! The slider-crank of Ex. 5A #1 and #2 (slider on the x-axis, or offset to y = y_OC).
 
-use fmu_export::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable, Variables};
 use nalgebra::{Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 use std::marker::PhantomData;
@@ -181,14 +181,7 @@ impl<P: SliderCrankPreset> SliderCrank<P> {
     }
 }
 
-impl<P: SliderCrankPreset> Model for SliderCrank<P> {
-    const N_STATES: usize = 5;
-    const N_EVENT_INDICATORS: usize = 1;
-
-    fn info() -> ModelInfo {
-        P::info()
-    }
-
+impl<P: SliderCrankPreset> Variables for SliderCrank<P> {
     fn variables() -> Vec<Variable<Self>> {
         let mut rows = vec![
             V::<P>::parameter("l_OA", "Crank length OA", |s| s.l_oa, |s, v| s.l_oa = v).unit("m").display("mm"),
@@ -232,6 +225,15 @@ impl<P: SliderCrankPreset> Model for SliderCrank<P> {
             );
         }
         rows
+    }
+}
+
+impl<P: SliderCrankPreset> Model for SliderCrank<P> {
+    const N_STATES: usize = 5;
+    const N_EVENT_INDICATORS: usize = 1;
+
+    fn info() -> ModelInfo {
+        P::info()
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {

@@ -2,7 +2,7 @@
 #![deny(unsafe_code)]
 
 use fmu_export::units::{INCH, LBF};
-use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable, Variables};
 
 /// Rows of this model's variable table.
 type V = Variable<MassSpringDamper>;
@@ -36,20 +36,7 @@ impl MassSpringDamper {
     }
 }
 
-impl Model for MassSpringDamper {
-    const N_STATES: usize = 2;
-
-    fn info() -> ModelInfo {
-        ModelInfo {
-            identifier: "mass_spring_damper",
-            description: "ME326 Ex. 4 prelab, App. A/B: m x'' + b x' + k x = F(t), F an input",
-            stop_time: 10.0,
-            tolerance: 1e-6,
-            output_interval: 0.01,
-            documentation: include_str!("../derivation.md"),
-        }
-    }
-
+impl Variables for MassSpringDamper {
     fn variables() -> Vec<Variable<Self>> {
         vec![
             V::parameter("m", "Mass (2 lbf.s2/in)", |s| s.m, |s, v| s.m = v).unit("kg").display("lbf.s2/in"),
@@ -63,6 +50,21 @@ impl Model for MassSpringDamper {
             V::output("a", "Acceleration", |s| s.a).unit("m/s2").display("in/s2"),
             V::output("F_total", "Force through spring and damper, k x + b v", |s| s.f_total).unit("N").display("lbf"),
         ]
+    }
+}
+
+impl Model for MassSpringDamper {
+    const N_STATES: usize = 2;
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            identifier: "mass_spring_damper",
+            description: "ME326 Ex. 4 prelab, App. A/B: m x'' + b x' + k x = F(t), F an input",
+            stop_time: 10.0,
+            tolerance: 1e-6,
+            output_interval: 0.01,
+            documentation: include_str!("../derivation.md"),
+        }
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {

@@ -2,7 +2,7 @@
 #![deny(unsafe_code)]
 
 use fmu_export::units::DEGREE;
-use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable, Variables};
 use serde::{Deserialize, Serialize};
 
 /// Rows of this model's variable table.
@@ -38,20 +38,7 @@ impl Pendulum {
     }
 }
 
-impl Model for Pendulum {
-    const N_STATES: usize = 2;
-
-    fn info() -> ModelInfo {
-        ModelInfo {
-            identifier: "pendulum",
-            description: "ME326 Ex. 2: nonlinear simple pendulum (point mass on a light rod) with optional viscous friction",
-            stop_time: 10.0,
-            tolerance: 1e-6,
-            output_interval: 0.01,
-            documentation: include_str!("../derivation.md"),
-        }
-    }
-
+impl Variables for Pendulum {
     fn variables() -> Vec<Variable<Self>> {
         vec![
             V::parameter("L", "Rod length, pivot to bob", |s| s.l, |s, v| s.l = v).unit("m"),
@@ -66,6 +53,21 @@ impl Model for Pendulum {
             V::state("omega", "Angular velocity theta'", 1).unit("rad/s").display("deg/s"),
             V::output("energy", "Kinetic plus potential energy, zero hanging at rest", |s| s.energy).unit("J"),
         ]
+    }
+}
+
+impl Model for Pendulum {
+    const N_STATES: usize = 2;
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            identifier: "pendulum",
+            description: "ME326 Ex. 2: nonlinear simple pendulum (point mass on a light rod) with optional viscous friction",
+            stop_time: 10.0,
+            tolerance: 1e-6,
+            output_interval: 0.01,
+            documentation: include_str!("../derivation.md"),
+        }
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {

@@ -3,7 +3,7 @@
 
 use std::f64::consts::PI;
 
-use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, PhaseCosine, Variable};
+use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, PhaseCosine, Variable, Variables};
 use serde::{Deserialize, Serialize};
 
 /// Rows of this model's variable table.
@@ -110,20 +110,7 @@ impl QuarterCar {
     }
 }
 
-impl Model for QuarterCar {
-    const N_STATES: usize = 5;
-
-    fn info() -> ModelInfo {
-        ModelInfo {
-            identifier: "quarter_car",
-            description: "ME326 Ex. 4: quarter-car suspension (sprung and unsprung mass) on a sinusoidal road",
-            stop_time: 10.0,
-            tolerance: 1e-6,
-            output_interval: 1e-3,
-            documentation: include_str!("../derivation.md"),
-        }
-    }
-
+impl Variables for QuarterCar {
     fn variables() -> Vec<Variable<Self>> {
         vec![
             V::parameter("m_s", "Sprung mass (a quarter of the body)", |s| s.m_s, |s, v| s.m_s = v).unit("kg"),
@@ -153,6 +140,21 @@ impl Model for QuarterCar {
             V::output("z_u_ddot", "Unsprung mass acceleration", |s| s.z_u_ddot).unit("m/s2"),
             V::output("z_r_dot", "Road rate u = z_r' (sinusoidal road plus z_r_dot_ext)", |s| s.z_r_dot).unit("m/s"),
         ]
+    }
+}
+
+impl Model for QuarterCar {
+    const N_STATES: usize = 5;
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            identifier: "quarter_car",
+            description: "ME326 Ex. 4: quarter-car suspension (sprung and unsprung mass) on a sinusoidal road",
+            stop_time: 10.0,
+            tolerance: 1e-6,
+            output_interval: 1e-3,
+            documentation: include_str!("../derivation.md"),
+        }
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {

@@ -1,7 +1,7 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu_export::{require_finite, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_finite, Model, ModelError, ModelInfo, Variable, Variables};
 
 /// Rows of this model's variable table.
 type V = Variable<SecondOrder>;
@@ -30,6 +30,21 @@ fn forcing(t: f64) -> f64 {
     (-3.0 * t).exp()
 }
 
+impl Variables for SecondOrder {
+    fn variables() -> Vec<Variable<Self>> {
+        vec![
+            V::parameter("a2", "Coefficient of q''", |m| m.a2, |m, v| m.a2 = v),
+            V::parameter("a1", "Coefficient of q'", |m| m.a1, |m, v| m.a1 = v),
+            V::parameter("a0", "Coefficient of q", |m| m.a0, |m, v| m.a0 = v),
+            V::parameter("q0", "Initial value q(0)", |m| m.q0, |m, v| m.q0 = v),
+            V::parameter("q_dot0", "Initial rate q'(0)", |m| m.q_dot0, |m, v| m.q_dot0 = v),
+            V::state("q", "Response q(t)", 0),
+            V::state("q_dot", "Rate q'(t)", 1),
+            V::output("u", "Input u(t) = exp(-3t)", |m| m.u),
+        ]
+    }
+}
+
 impl Model for SecondOrder {
     const N_STATES: usize = 2;
 
@@ -42,19 +57,6 @@ impl Model for SecondOrder {
             output_interval: 0.01,
             documentation: include_str!("../derivation.md"),
         }
-    }
-
-    fn variables() -> Vec<Variable<Self>> {
-        vec![
-            V::parameter("a2", "Coefficient of q''", |m| m.a2, |m, v| m.a2 = v),
-            V::parameter("a1", "Coefficient of q'", |m| m.a1, |m, v| m.a1 = v),
-            V::parameter("a0", "Coefficient of q", |m| m.a0, |m, v| m.a0 = v),
-            V::parameter("q0", "Initial value q(0)", |m| m.q0, |m, v| m.q0 = v),
-            V::parameter("q_dot0", "Initial rate q'(0)", |m| m.q_dot0, |m, v| m.q_dot0 = v),
-            V::state("q", "Response q(t)", 0),
-            V::state("q_dot", "Rate q'(t)", 1),
-            V::output("u", "Input u(t) = exp(-3t)", |m| m.u),
-        ]
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {

@@ -1,7 +1,7 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu_export::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable, Variables};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -305,21 +305,7 @@ impl Trebuchet {
     }
 }
 
-impl Model for Trebuchet {
-    const N_STATES: usize = 10;
-    const N_EVENT_INDICATORS: usize = 3;
-
-    fn info() -> ModelInfo {
-        ModelInfo {
-            identifier: "trebuchet",
-            description: "ME326 Ex. 6: walking arm trebuchet - falling, impact, swinging and flying until the projectile lands",
-            stop_time: 10.0,
-            tolerance: 1e-6,
-            output_interval: 1e-3,
-            documentation: include_str!("../derivation.md"),
-        }
-    }
-
+impl Variables for Trebuchet {
     fn variables() -> Vec<Variable<Self>> {
         vec![
             V::parameter("r_AC", "Length of link 1, AC", |s| s.r_ac, |s, v| s.r_ac = v).unit("m").display("in"),
@@ -379,6 +365,22 @@ impl Model for Trebuchet {
             .unit("1"),
             V::boolean_output("misfire", "True: B reached the ground before release", |s| s.misfire),
         ]
+    }
+}
+
+impl Model for Trebuchet {
+    const N_STATES: usize = 10;
+    const N_EVENT_INDICATORS: usize = 3;
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            identifier: "trebuchet",
+            description: "ME326 Ex. 6: walking arm trebuchet - falling, impact, swinging and flying until the projectile lands",
+            stop_time: 10.0,
+            tolerance: 1e-6,
+            output_interval: 1e-3,
+            documentation: include_str!("../derivation.md"),
+        }
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {

@@ -79,6 +79,8 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
             BaseType::Real => d::VariableType::Real(d::RealVariable {
                 unit: row.unit.map(str::to_owned),
                 display_unit: row.display_unit.map(str::to_owned),
+                min: row.range.min(),
+                max: row.range.max(),
                 start: match start {
                     Some(Start::Real(v)) => Some(v),
                     _ => None,
@@ -86,6 +88,9 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
                 ..Default::default()
             }),
             BaseType::Integer => d::VariableType::Integer(d::IntegerVariable {
+                // Integer ranges have integer bounds (one_of, or min/max written as integers).
+                min: row.range.min().map(|v| v as i32),
+                max: row.range.max().map(|v| v as i32),
                 start: match start {
                     Some(Start::Integer(v)) => Some(v),
                     _ => None,

@@ -2,24 +2,48 @@
 #![deny(unsafe_code)]
 
 use fmu_export::units::{INCH, LBF};
-use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable, Variables};
-
-/// Rows of this model's variable table.
-type V = Variable<MassSpringDamper>;
+use fmu_export::{Model, ModelError, ModelInfo, StateVector, Variables};
 use serde::{Deserialize, Serialize};
 
 /// `m x'' + b x' + k x = F(t)`, F an input.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+#[variables(states = State)]
 pub struct MassSpringDamper {
+    /// Mass (2 lbf.s2/in)
+    #[parameter(unit = "kg", display = "lbf.s2/in", positive)]
     pub m: f64,
+    /// Damping coefficient (1 lbf.s/in)
+    #[parameter(unit = "N.s/m", display = "lbf.s/in", non_negative)]
     pub b: f64,
+    /// Spring stiffness (10 lbf/in)
+    #[parameter(unit = "N/m", display = "lbf/in", non_negative)]
     pub k: f64,
+    /// Initial displacement
+    #[parameter(unit = "m", display = "in", finite)]
     pub x0: f64,
+    /// Initial velocity
+    #[parameter(unit = "m/s", display = "in/s", finite)]
     pub v0: f64,
-    /// Input force (N), held over each communication step.
+    /// Applied force F(t)
+    #[input(name = "F", unit = "N", display = "lbf")]
     pub force: f64,
+    /// Acceleration
+    #[output(unit = "m/s2", display = "in/s2")]
     pub a: f64,
+    /// Force through spring and damper, k x + b v
+    #[output(name = "F_total", unit = "N", display = "lbf")]
     pub f_total: f64,
+}
+
+/// The state vector.
+#[derive(StateVector)]
+pub struct State {
+    /// Displacement
+    #[state(unit = "m", display = "in")]
+    pub x: f64,
+    /// Velocity
+    #[state(unit = "m/s", display = "in/s")]
+    pub v: f64,
 }
 
 impl Default for MassSpringDamper {
@@ -36,25 +60,8 @@ impl MassSpringDamper {
     }
 }
 
-impl Variables for MassSpringDamper {
-    fn variables() -> Vec<Variable<Self>> {
-        vec![
-            V::parameter("m", "Mass (2 lbf.s2/in)", |s| s.m, |s, v| s.m = v).unit("kg").display("lbf.s2/in"),
-            V::parameter("b", "Damping coefficient (1 lbf.s/in)", |s| s.b, |s, v| s.b = v).unit("N.s/m").display("lbf.s/in"),
-            V::parameter("k", "Spring stiffness (10 lbf/in)", |s| s.k, |s, v| s.k = v).unit("N/m").display("lbf/in"),
-            V::parameter("x0", "Initial displacement", |s| s.x0, |s, v| s.x0 = v).unit("m").display("in"),
-            V::parameter("v0", "Initial velocity", |s| s.v0, |s, v| s.v0 = v).unit("m/s").display("in/s"),
-            V::input("F", "Applied force F(t)", |s| s.force, |s, v| s.force = v).unit("N").display("lbf"),
-            V::state("x", "Displacement", 0).unit("m").display("in"),
-            V::state("v", "Velocity", 1).unit("m/s").display("in/s"),
-            V::output("a", "Acceleration", |s| s.a).unit("m/s2").display("in/s2"),
-            V::output("F_total", "Force through spring and damper, k x + b v", |s| s.f_total).unit("N").display("lbf"),
-        ]
-    }
-}
-
 impl Model for MassSpringDamper {
-    const N_STATES: usize = 2;
+    const N_STATES: usize = State::LEN;
 
     fn info() -> ModelInfo {
         ModelInfo {
@@ -68,25 +75,21 @@ impl Model for MassSpringDamper {
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        require_positive("m", self.m)?;
-        require_non_negative("b", self.b)?;
-        require_non_negative("k", self.k)?;
-        require_finite("x0", self.x0)?;
-        require_finite("v0", self.v0)?;
-        x[0] = self.x0;
-        x[1] = self.v0;
+        State { x: self.x0, v: self.v0 }.store(x);
         Ok(())
     }
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
-        dx[0] = x[1];
-        dx[1] = self.acceleration(x[0], x[1]);
+        let s = State::load(x);
+        State { x: s.v, v: self.acceleration(s.x, s.v) }.store(dx);
     }
 
+    /// The App. B output equation y = C x + D u.
     fn outputs(&mut self, _t: f64, x: &[f64]) {
-        self.a = self.acceleration(x[0], x[1]);
-        self.f_total = self.k * x[0] + self.b * x[1];
+        let s = State::load(x);
+        self.a = self.acceleration(s.x, s.v);
+        self.f_total = self.k * s.x + self.b * s.v;
     }
 }
 

@@ -1,22 +1,40 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu_export::{require_finite, Model, ModelError, ModelInfo, Variable, Variables};
-
-/// Rows of this model's variable table.
-type V = Variable<SecondOrder>;
+use fmu_export::{Model, ModelError, ModelInfo, StateVector, Variables};
 use serde::{Deserialize, Serialize};
 
 /// Ex. 1: `a2 q'' + a1 q' + a0 q = exp(-3t)`.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+#[variables(states = State)]
 pub struct SecondOrder {
+    /// Coefficient of q''
+    #[parameter(finite)]
     pub a2: f64,
+    /// Coefficient of q'
+    #[parameter(finite)]
     pub a1: f64,
+    /// Coefficient of q
+    #[parameter(finite)]
     pub a0: f64,
+    /// Initial value q(0)
+    #[parameter(finite)]
     pub q0: f64,
+    /// Initial rate q'(0)
+    #[parameter(finite)]
     pub q_dot0: f64,
-    /// The input u = exp(-3t) at the current time (an output).
+    /// Input u(t) = exp(-3t)
+    #[output]
     pub u: f64,
+}
+
+/// The state vector.
+#[derive(StateVector)]
+pub struct State {
+    /// Response q(t)
+    pub q: f64,
+    /// Rate q'(t)
+    pub q_dot: f64,
 }
 
 impl Default for SecondOrder {
@@ -30,23 +48,8 @@ fn forcing(t: f64) -> f64 {
     (-3.0 * t).exp()
 }
 
-impl Variables for SecondOrder {
-    fn variables() -> Vec<Variable<Self>> {
-        vec![
-            V::parameter("a2", "Coefficient of q''", |m| m.a2, |m, v| m.a2 = v),
-            V::parameter("a1", "Coefficient of q'", |m| m.a1, |m, v| m.a1 = v),
-            V::parameter("a0", "Coefficient of q", |m| m.a0, |m, v| m.a0 = v),
-            V::parameter("q0", "Initial value q(0)", |m| m.q0, |m, v| m.q0 = v),
-            V::parameter("q_dot0", "Initial rate q'(0)", |m| m.q_dot0, |m, v| m.q_dot0 = v),
-            V::state("q", "Response q(t)", 0),
-            V::state("q_dot", "Rate q'(t)", 1),
-            V::output("u", "Input u(t) = exp(-3t)", |m| m.u),
-        ]
-    }
-}
-
 impl Model for SecondOrder {
-    const N_STATES: usize = 2;
+    const N_STATES: usize = State::LEN;
 
     fn info() -> ModelInfo {
         ModelInfo {
@@ -60,21 +63,18 @@ impl Model for SecondOrder {
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        for (name, v) in [("a2", self.a2), ("a1", self.a1), ("a0", self.a0), ("q0", self.q0), ("q_dot0", self.q_dot0)] {
-            require_finite(name, v)?;
-        }
         if self.a2 == 0.0 {
             return Err(ModelError("parameter a2 = 0 makes the equation first order: a2 must not be zero".into()));
         }
-        x[0] = self.q0;
-        x[1] = self.q_dot0;
+        State { q: self.q0, q_dot: self.q_dot0 }.store(x);
         Ok(())
     }
 
+    /// q' = q_dot, q'' = (u - a1 q' - a0 q) / a2.
     #[inline]
     fn derivatives(&self, t: f64, x: &[f64], dx: &mut [f64]) {
-        dx[0] = x[1];
-        dx[1] = (forcing(t) - self.a1 * x[1] - self.a0 * x[0]) / self.a2;
+        let State { q, q_dot } = State::load(x);
+        State { q: q_dot, q_dot: (forcing(t) - self.a1 * q_dot - self.a0 * q) / self.a2 }.store(dx);
     }
 
     fn outputs(&mut self, t: f64, _x: &[f64]) {

@@ -2,7 +2,7 @@
 //! crate) and its variable table, generated from the same source as the binary and the XML.
 
 use crate::model::{Causality, Model, Variability};
-use crate::table::Table;
+use crate::table::{ranges, Table};
 
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
@@ -38,7 +38,7 @@ pub fn index_html<M: Model>() -> String {
 
     let model = M::default();
     let mut rows = String::new();
-    for (vr, row) in Table::<M>::new().rows.iter().enumerate() {
+    for (vr, (row, range)) in Table::<M>::new().rows.iter().zip(ranges::<M>()).enumerate() {
         let start = row.start(&model).map(|s| s.to_string()).unwrap_or_default();
         rows.push_str(&format!(
             "<tr><td><code>{}</code></td><td>{vr}</td><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
@@ -49,7 +49,7 @@ pub fn index_html<M: Model>() -> String {
             escape(row.unit.unwrap_or("")),
             escape(row.display_unit.unwrap_or("")),
             escape(&start),
-            escape(&row.range.to_string()),
+            escape(&range.to_string()),
             escape(row.description),
         ));
     }

@@ -365,6 +365,21 @@ pub trait Variables: Sized {
     fn variables() -> Vec<Variable<Self>>;
 }
 
+/// Checks every range `M` declares against `model`'s current values, in table order (the
+/// toolkit does so before [`Model::initial_state`]).
+pub fn check_ranges<M: Variables>(model: &M) -> Result<(), ModelError> {
+    for v in M::variables().iter().filter(|v| v.range != Range::Any) {
+        let value = match &v.access {
+            Access::Real { get, .. } => get(model),
+            Access::Integer { get, .. } => get(model) as f64,
+            _ => continue,
+        };
+        let kind = if v.causality == Causality::Input { "input" } else { "parameter" };
+        v.range.check(kind, v.name, value)?;
+    }
+    Ok(())
+}
+
 /// One state's row and where it goes in the table: right after the variable named `after`,
 /// or (`None`) with the other states before the first output.
 pub struct StateVariable<M> {

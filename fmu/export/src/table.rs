@@ -6,7 +6,7 @@ use std::any::TypeId;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
-use crate::model::{Access, BaseType, Causality, Initial, Model, ModelError, Range, Variability, Variable};
+use crate::model::{Access, BaseType, Causality, Initial, Model, Range, Variability, Variable};
 use solvers::controls::{Control, CONTROLS};
 
 /// Where a row's value lives.
@@ -24,8 +24,6 @@ pub struct Row<M> {
     pub initial: Option<Initial>,
     pub unit: Option<&'static str>,
     pub display_unit: Option<&'static str>,
-    /// The values the model accepts (solver controls check theirs when set).
-    pub range: Range,
     pub base_type: BaseType,
     pub slot: Slot<M>,
 }
@@ -40,7 +38,6 @@ impl<M> Row<M> {
             initial: v.initial,
             unit: v.unit,
             display_unit: v.display_unit,
-            range: v.range,
             base_type: v.base_type(),
             slot: Slot::Model(v.access),
         }
@@ -60,7 +57,6 @@ impl<M> Row<M> {
             initial,
             unit: c.unit(),
             display_unit: None,
-            range: Range::Any,
             base_type: if c.is_integer() { BaseType::Integer } else { BaseType::Real },
             slot: Slot::Control(c),
         }
@@ -99,7 +95,7 @@ impl<M: Model> Table<M> {
     /// authoring mistakes, caught by each model's tests and by `runner build`.
     pub fn problems(&self) -> Vec<String> {
         let mut problems = Vec::new();
-        for (i, row) in self.rows.iter().enumerate() {
+        for (i, (row, range)) in self.rows.iter().zip(ranges::<M>()).enumerate() {
             if self.rows[..i].iter().any(|r| r.name == row.name) {
                 problems.push(format!("variable name '{}' is used twice", row.name));
             }
@@ -125,13 +121,13 @@ impl<M: Model> Table<M> {
             if row.base_type != BaseType::Real && (row.unit.is_some() || row.display_unit.is_some()) {
                 problems.push(format!("variable '{}' is not Real but declares a unit", row.name));
             }
-            if row.range != Range::Any && !row.is_settable() {
+            if range != Range::Any && !row.is_settable() {
                 problems.push(format!("variable '{}' declares a range but the importer cannot set it", row.name));
             }
-            let real_range = matches!(row.range, Range::Finite | Range::Positive | Range::NonNegative);
+            let real_range = matches!(range, Range::Finite | Range::Positive | Range::NonNegative);
             if (real_range && row.base_type != BaseType::Real)
-                || (matches!(row.range, Range::OneOf(_)) && row.base_type != BaseType::Integer)
-                || (row.range != Range::Any && row.base_type == BaseType::Boolean)
+                || (matches!(range, Range::OneOf(_)) && row.base_type != BaseType::Integer)
+                || (range != Range::Any && row.base_type == BaseType::Boolean)
             {
                 problems.push(format!("variable '{}' declares a range its type {:?} cannot have", row.name, row.base_type));
             }
@@ -145,20 +141,13 @@ impl<M: Model> Table<M> {
     }
 }
 
-impl<M> Table<M> {
-    /// Checks every declared range against the model's current values, in table order.
-    pub fn check_ranges(&self, model: &M) -> Result<(), ModelError> {
-        for row in self.rows.iter().filter(|r| r.range != Range::Any) {
-            let value = match &row.slot {
-                Slot::Model(Access::Real { get, .. }) => get(model),
-                Slot::Model(Access::Integer { get, .. }) => get(model) as f64,
-                _ => continue,
-            };
-            let kind = if row.causality == Causality::Input { "input" } else { "parameter" };
-            row.range.check(kind, row.name, value)?;
-        }
-        Ok(())
-    }
+/// The declared range of each row of `Table<M>` (the solver controls check their values when
+/// set, so theirs is `Any`). Not kept in the table, whose layout the stepping path reads: only
+/// initialization, the XML and the documentation need them.
+pub fn ranges<M: Model>() -> Vec<Range> {
+    let mut ranges: Vec<Range> = M::variables().iter().map(|v| v.range).collect();
+    ranges.resize(ranges.len() + CONTROLS.len(), Range::Any);
+    ranges
 }
 
 impl<M: Model> Default for Table<M> {

@@ -221,8 +221,7 @@ impl<M: Model> Core<M> {
             let mut x = vec![0.0; M::N_STATES];
             // The declared ranges first, then what only the model can check.
             let model = &mut self.state.model;
-            self.table
-                .check_ranges(model)
+            crate::model::check_ranges(model)
                 .and_then(|()| model.initial_state(&mut x))
                 .map_err(|e| Failure::error(format!("the parameters were refused: {e}")))?;
             if let Some(i) = x.iter().position(|v| !v.is_finite()) {

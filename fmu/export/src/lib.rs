@@ -7,6 +7,7 @@
 //! [`fmi2`] puts the FMI 2.0 state machine and all `fmi2*` C functions over it and writes
 //! `modelDescription.xml`; [`documentation`] renders the page from the same table.
 
+pub mod catalogue;
 pub mod core;
 pub mod documentation;
 pub mod fmi2;

@@ -175,4 +175,10 @@ mod tests {
         let mut h = Harness::<MassSpringDamper>::new();
         assert!(h.set("m", f64::NAN).unwrap_err().contains("m = NaN"));
     }
+
+    /// MODELS.md's entry for this model is the one its variable table gives.
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<MassSpringDamper>(env!("CARGO_MANIFEST_DIR"));
+    }
 }

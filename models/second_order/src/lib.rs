@@ -159,4 +159,10 @@ mod tests {
         let err = h.initialize(None).unwrap_err();
         assert!(err.contains("a2"), "{err}");
     }
+
+    /// MODELS.md's entry for this model is the one its variable table gives.
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<SecondOrder>(env!("CARGO_MANIFEST_DIR"));
+    }
 }

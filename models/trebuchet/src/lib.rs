@@ -883,4 +883,10 @@ mod tests {
             assert!(err.contains(name), "{err}");
         }
     }
+
+    /// MODELS.md's entry for this model is the one its variable table gives.
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<Trebuchet>(env!("CARGO_MANIFEST_DIR"));
+    }
 }

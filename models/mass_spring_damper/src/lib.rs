@@ -99,18 +99,54 @@ fmu_export::export_fmu!(MassSpringDamper);
 mod tests {
     use super::*;
     use fmu_export::harness::Harness;
+    use runner_engine::metrics::Formula;
 
-    /// The underdamped closed form of derivation.md for a constant force `f0`.
+    /// The underdamped free vibration of experiment.toml's `[compare.reference]` (derivation.md),
+    /// the closed form `runner compare` and tests/fmpy evaluate too, at `t` from (x0, v0).
+    fn free(p: &MassSpringDamper, x0: f64, v0: f64, t: f64) -> (f64, f64) {
+        let experiment: toml::Table = include_str!("../experiment.toml").parse().expect("experiment.toml is TOML");
+        let value = |output: &str| {
+            let formula = Formula::parse(experiment["compare"]["reference"][output].as_str().expect("a formula")).expect("valid");
+            let values: Vec<f64> = formula
+                .names
+                .iter()
+                .map(|name| match name.as_str() {
+                    "t" => t,
+                    "m" => p.m,
+                    "b" => p.b,
+                    "k" => p.k,
+                    "x0" => x0,
+                    "v0" => v0,
+                    other => panic!("the reference reads {other}, which this test does not give"),
+                })
+                .collect();
+            formula.evaluate(&values)
+        };
+        (value("x"), value("v"))
+    }
+
+    /// The response to a constant force `f0` from p's x0, v0: the free vibration about the
+    /// shifted equilibrium f0/k (x - f0/k obeys the unforced equation).
     fn exact(p: &MassSpringDamper, f0: f64, t: f64) -> (f64, f64) {
-        let wn = (p.k / p.m).sqrt();
-        let zeta = p.b / (2.0 * (p.k * p.m).sqrt());
-        let wd = wn * (1.0 - zeta * zeta).sqrt();
-        let a = p.x0 - f0 / p.k;
-        let bb = (p.v0 + zeta * wn * a) / wd;
-        let (e, c, s) = ((-zeta * wn * t).exp(), (wd * t).cos(), (wd * t).sin());
-        let x = f0 / p.k + e * (a * c + bb * s);
-        let v = e * ((-zeta * wn) * (a * c + bb * s) + wd * (-a * s + bb * c));
-        (x, v)
+        let (x, v) = free(p, p.x0 - f0 / p.k, p.v0, t);
+        (f0 / p.k + x, v)
+    }
+
+    /// The reference itself, independent of the solver: it starts at (x0, v0), v is dx/dt,
+    /// and m x'' + b x' + k x = 0 holds, x'' by a central difference of v (h = 1e-5: truncation
+    /// ~1e-10 of |a| <= 0.2 m/s², rounding ~1e-11; bound 1e-7 N on forces of ~50 N).
+    #[test]
+    fn the_reference_solves_the_free_vibration() {
+        let p = MassSpringDamper::default();
+        let (x0, v0) = (0.0254, -0.1);
+        assert_eq!(free(&p, x0, v0, 0.0), (x0, v0));
+        let h = 1e-5;
+        for t in [0.3, 1.0, 2.5, 7.0] {
+            let ((x, v), (xp, vp), (xm, vm)) = (free(&p, x0, v0, t), free(&p, x0, v0, t + h), free(&p, x0, v0, t - h));
+            assert!(((xp - xm) / (2.0 * h) - v).abs() < 1e-8, "t = {t}: v is not dx/dt");
+            let residual = p.m * (vp - vm) / (2.0 * h) + p.b * v + p.k * x;
+            assert!(residual.abs() < 1e-7, "t = {t}: residual {residual:e} N");
+        }
     }
 
     /// The prelab's values in SI: the ratios k/m and b/m do not depend on the unit factors.

@@ -88,11 +88,21 @@ fmu_export::export_fmu!(SecondOrder);
 mod tests {
     use super::*;
     use fmu_export::harness::Harness;
+    use runner_engine::metrics::Formula;
 
-    /// The closed form derived in derivation.md (default parameters only).
+    /// A closed form of experiment.toml's `[compare.reference]` (derived in derivation.md, for
+    /// the default parameters): the one `runner compare` and tests/fmpy evaluate too.
+    fn reference(output: &str) -> Formula {
+        let experiment: toml::Table = include_str!("../experiment.toml").parse().expect("experiment.toml is TOML");
+        let text = experiment["compare"]["reference"][output].as_str().expect("a formula");
+        let formula = Formula::parse(text).expect("a valid formula");
+        assert_eq!(formula.names, ["t"], "{output} = {text} should depend on t alone");
+        formula
+    }
+
+    /// (q, q') of the closed form at `t`.
     fn exact(t: f64) -> (f64, f64) {
-        let (e2, e3) = ((-2.0 * t).exp(), (-3.0 * t).exp());
-        (7.5 * e2 - 5.5 * e3 - 0.5 * t * e3, -15.0 * e2 + 16.0 * e3 + 1.5 * t * e3)
+        (reference("q").evaluate(&[t]), reference("q_dot").evaluate(&[t]))
     }
 
     fn max_error(h: &mut Harness<SecondOrder>, dt: f64) -> f64 {
@@ -144,12 +154,33 @@ mod tests {
         assert!((ratio - 2.0).abs() < 0.1, "errors {errs:?}, ratio {ratio}");
     }
 
+    /// The output u against experiment.toml's u = exp(-3*t) (and the formula against the
+    /// handbook's value at t = 0.5), to rounding.
     #[test]
     fn outputs_the_input_signal() {
         let mut h = Harness::<SecondOrder>::new();
         h.initialize(None).unwrap();
         h.step(0.5).unwrap();
-        assert!((h.get("u").unwrap() - (-1.5f64).exp()).abs() < 1e-15);
+        let u = reference("u").evaluate(&[0.5]);
+        assert!((u - (-1.5f64).exp()).abs() < 1e-16);
+        assert!((h.get("u").unwrap() - u).abs() < 1e-15);
+    }
+
+    /// The closed form satisfies the initial conditions q(0) = 2, q'(0) = 1 and the equation
+    /// 2 q'' + 10 q' + 12 q = exp(-3t), q'' by a central difference of q' (h = 1e-5: truncation
+    /// ~1e-10, rounding ~1e-11): a check of the reference itself, independent of the solver.
+    #[test]
+    fn the_reference_solves_the_initial_value_problem() {
+        let p = SecondOrder::default();
+        assert_eq!(exact(0.0), (p.q0, p.q_dot0));
+        let h = 1e-5;
+        for t in [0.1, 0.5, 1.0, 2.0, 5.0] {
+            let (q, q_dot) = exact(t);
+            let q_ddot = (exact(t + h).1 - exact(t - h).1) / (2.0 * h);
+            let residual = p.a2 * q_ddot + p.a1 * q_dot + p.a0 * q - forcing(t);
+            assert!(residual.abs() < 1e-8, "t = {t}: residual {residual:e}");
+            assert!(((exact(t + h).0 - exact(t - h).0) / (2.0 * h) - q_dot).abs() < 1e-8, "t = {t}: q' is not dq/dt");
+        }
     }
 
     #[test]

@@ -273,7 +273,16 @@ fn variables(input: &DeriveInput) -> Result<Tokens> {
     let mut body = Vec::new();
     let mut states_placed = false;
     let mut names: Vec<(String, Span)> = Vec::new();
-    for field in named_fields(input, "Variables")? {
+    let fields = named_fields(input, "Variables")?;
+    let layout: Vec<String> = fields
+        .iter()
+        .map(|f| {
+            let ty = &f.ty;
+            format!("{}: {}", f.ident.as_ref().expect("named"), quote!(#ty).to_string().replace(' ', ""))
+        })
+        .collect();
+    let layout = layout.join("; ");
+    for field in fields {
         let Some(spec) = variable_spec(field)? else { continue };
         let name = spec.name.as_ref().map(LitStr::value).unwrap_or_else(|| field.ident.as_ref().expect("named").to_string());
         if names.iter().any(|(n, _)| *n == name) {
@@ -305,6 +314,8 @@ fn variables(input: &DeriveInput) -> Result<Tokens> {
     };
     Ok(quote! {
         impl #impl_generics ::fmu_export::Variables for #ident #ty_generics #where_clause {
+            const LAYOUT: &'static str = #layout;
+
             fn variables() -> ::std::vec::Vec<::fmu_export::Variable<Self>> {
                 let mut rows: ::std::vec::Vec<::fmu_export::Variable<Self>> = ::std::vec::Vec::new();
                 #(#body)*

@@ -361,6 +361,10 @@ pub fn require_non_negative(name: &str, value: f64) -> Result<(), ModelError> {
 /// changes only at events), `when = expr` (the row exists only where `expr` holds), and on
 /// the struct `bound = "P: Trait"` for generic models.
 pub trait Variables: Sized {
+    /// Every field of the model struct with its type, in declaration order (the derive writes
+    /// it): part of the tag of serialized FMU states, which hold the struct.
+    const LAYOUT: &'static str = "";
+
     /// The rows, in value-reference order (solver controls are appended by the toolkit).
     fn variables() -> Vec<Variable<Self>>;
 }

@@ -183,7 +183,7 @@ fn fingerprint<M: Model>() -> String {
     s
 }
 
-/// The model's GUID and its 64-bit hash, computed once per model and process: the fingerprint
+/// The model's GUID and its FMU-state tag, computed once per model and process: the fingerprint
 /// formats the whole table (about 30 us), and a sweep instantiates, checking the GUID, once
 /// per point.
 fn identity<M: Model>() -> &'static (String, u64) {
@@ -196,11 +196,18 @@ fn identity<M: Model>() -> &'static (String, u64) {
         let b = fnv1a(0x6c62_272e_07bb_0142, text.as_bytes());
         let guid =
             format!("{{{:08x}-{:04x}-{:04x}-{:04x}-{:012x}}}", a >> 32, (a >> 16) & 0xffff, a & 0xffff, b >> 48, b & 0xffff_ffff_ffff);
-        Box::leak(Box::new((guid, a)))
+        // FMU states hold the model struct itself, so their tag also covers its fields: a
+        // state saved by a build whose struct differs (a field added or moved) is refused
+        // rather than misread. The GUID, which importers see, depends on the interface alone.
+        let tag = fnv1a(a, M::LAYOUT.as_bytes());
+        Box::leak(Box::new((guid, tag)))
     })
 }
 
-/// A 64-bit hash of the model's interface, used to tag FMU states.
+/// A 64-bit hash of the model's interface and of its struct's fields ([`Variables::LAYOUT`]),
+/// used to tag FMU states.
+///
+/// [`Variables::LAYOUT`]: crate::model::Variables::LAYOUT
 pub fn guid_hash<M: Model>() -> u64 {
     identity::<M>().1
 }

@@ -184,6 +184,13 @@ fn the_rows_are_the_fields_in_order_with_the_states_placed() {
     assert!(problems.is_empty(), "{problems:?}");
 }
 
+/// The struct's layout, every field in order (variables or not), for the FMU-state tag.
+#[test]
+fn the_layout_lists_every_field_in_order() {
+    assert!(Toy::<With>::LAYOUT.starts_with("flavour: PhantomData<fn()->F>; mass: f64; k: f64;"), "{}", Toy::<With>::LAYOUT);
+    assert!(Toy::<With>::LAYOUT.ends_with("holds: bool; scratch: f64"), "{}", Toy::<With>::LAYOUT);
+}
+
 /// The state vector's index constants, length and load/store round trip.
 #[test]
 fn the_state_vector_loads_and_stores_by_name() {
@@ -266,4 +273,48 @@ fn a_state_placed_after_an_unknown_name_is_refused() {
     let rows = vec![fmu_export::Variable::<()>::output("a", "a", |_| 0.0)];
     let states = vec![fmu_export::StateVariable { variable: fmu_export::Variable::state("x", "x", 0), after: Some("nothing") }];
     fmu_export::model::place_states(rows, 1, states);
+}
+
+/// A state that does not move.
+#[derive(StateVector)]
+pub struct Still {
+    /// Position
+    pub x: f64,
+}
+
+/// One model as two builds: the same table, but the second build's struct has one more field.
+macro_rules! one_parameter_model {
+    ($name:ident { $($extra:ident: $ty:ty),* }) => {
+        #[derive(Debug, Clone, Default, Serialize, Deserialize, Variables)]
+        #[variables(states = Still)]
+        pub struct $name {
+            /// A parameter
+            #[parameter]
+            pub p: f64,
+            $(pub $extra: $ty,)*
+        }
+        impl Model for $name {
+            const N_STATES: usize = Still::LEN;
+            fn info() -> ModelInfo {
+                ModelInfo { identifier: "builds", description: "", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
+            }
+            fn initial_state(&mut self, _x: &mut [f64]) -> Result<(), ModelError> {
+                Ok(())
+            }
+            fn derivatives(&self, _t: f64, _x: &[f64], dx: &mut [f64]) {
+                dx.fill(0.0);
+            }
+        }
+    };
+}
+one_parameter_model!(FirstBuild {});
+one_parameter_model!(SecondBuild { cache: f64 });
+
+/// Importers see the same GUID (the interface is the same), but an FMU state of the first
+/// build is tagged apart from the second's: its bytes would not fit the second's struct.
+#[test]
+fn a_changed_struct_changes_the_fmu_state_tag_but_not_the_guid() {
+    use fmu_export::table::{guid, guid_hash};
+    assert_eq!(guid::<FirstBuild>(), guid::<SecondBuild>());
+    assert_ne!(guid_hash::<FirstBuild>(), guid_hash::<SecondBuild>());
 }

@@ -303,6 +303,8 @@ fn variables(input: &DeriveInput) -> Result<Tokens> {
     if !states_placed {
         body.push(quote!(let states_at = rows.len();));
     }
+    // Room for every field's row at once (the table is built per instance and per check).
+    let capacity = names.len();
     let finish = match states {
         Some(states) => {
             quote!(::fmu_export::model::place_states(rows, states_at, <#states as ::fmu_export::StateVector>::variables::<Self>()))
@@ -317,7 +319,7 @@ fn variables(input: &DeriveInput) -> Result<Tokens> {
             const LAYOUT: &'static str = #layout;
 
             fn variables() -> ::std::vec::Vec<::fmu_export::Variable<Self>> {
-                let mut rows: ::std::vec::Vec<::fmu_export::Variable<Self>> = ::std::vec::Vec::new();
+                let mut rows: ::std::vec::Vec<::fmu_export::Variable<Self>> = ::std::vec::Vec::with_capacity(#capacity);
                 #(#body)*
                 #finish
             }

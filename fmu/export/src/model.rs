@@ -415,7 +415,8 @@ pub fn place_states<M>(rows: Vec<Variable<M>>, states_at: usize, states: Vec<Sta
             );
         }
     }
-    let (mut placed, mut out) = (states.into_iter().map(Some).collect::<Vec<_>>(), Vec::new());
+    let mut out = Vec::with_capacity(rows.len() + states.len());
+    let mut placed: Vec<Option<StateVariable<M>>> = states.into_iter().map(Some).collect();
     let mut take = |out: &mut Vec<Variable<M>>, after: Option<&str>| {
         for slot in placed.iter_mut() {
             if slot.as_ref().is_some_and(|s| s.after == after) {

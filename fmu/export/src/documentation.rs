@@ -2,7 +2,7 @@
 //! crate) and its variable table, generated from the same source as the binary and the XML.
 
 use crate::model::{Causality, Model, Variability};
-use crate::table::Table;
+use crate::table::{ranges, Table};
 
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
@@ -38,10 +38,10 @@ pub fn index_html<M: Model>() -> String {
 
     let model = M::default();
     let mut rows = String::new();
-    for (vr, row) in Table::<M>::new().rows.iter().enumerate() {
+    for (vr, (row, range)) in Table::<M>::new().rows.iter().zip(ranges::<M>()).enumerate() {
         let start = row.start(&model).map(|s| s.to_string()).unwrap_or_default();
         rows.push_str(&format!(
-            "<tr><td><code>{}</code></td><td>{vr}</td><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            "<tr><td><code>{}</code></td><td>{vr}</td><td>{}</td><td>{}</td><td>{:?}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
             escape(row.name),
             causality(row.causality),
             variability(row.variability),
@@ -49,6 +49,7 @@ pub fn index_html<M: Model>() -> String {
             escape(row.unit.unwrap_or("")),
             escape(row.display_unit.unwrap_or("")),
             escape(&start),
+            escape(&range.to_string()),
             escape(row.description),
         ));
     }
@@ -73,7 +74,7 @@ pre {{ padding: 0.5em; overflow-x: auto; }}
 <h2>Variables</h2>
 <p>All values are SI; display units are the handbook's. Value references number the variables in this order.</p>
 <table>
-<tr><th>name</th><th>vr</th><th>causality</th><th>variability</th><th>type</th><th>unit</th><th>display unit</th><th>start</th><th>description</th></tr>
+<tr><th>name</th><th>vr</th><th>causality</th><th>variability</th><th>type</th><th>unit</th><th>display unit</th><th>start</th><th>range</th><th>description</th></tr>
 {rows}</table>
 <h2>Simulation</h2>
 <p>Default experiment: stop time {stop} s, relative tolerance {tol}, output interval {dt} s.

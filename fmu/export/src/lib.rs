@@ -1,11 +1,13 @@
 //! The export toolkit: turns a model (equations and variables declared once) into an FMU.
 //!
-//! A model crate implements [`Model`] (equations plus a declarative variable table) and calls
+//! A model crate declares its variables on its struct's fields (`#[derive(Variables)]`, and
+//! `#[derive(StateVector)]` for named states), implements [`Model`] (the equations) and calls
 //! [`export_fmu!`]. The toolkit's model [`core`] owns time, the solver ([`solvers`]), events,
 //! the variable rules and FMU-state capture, independently of the FMI version; the front end
 //! [`fmi2`] puts the FMI 2.0 state machine and all `fmi2*` C functions over it and writes
 //! `modelDescription.xml`; [`documentation`] renders the page from the same table.
 
+pub mod catalogue;
 pub mod core;
 pub mod documentation;
 pub mod fmi2;
@@ -16,9 +18,13 @@ pub mod phase_cosine;
 pub mod table;
 pub mod units;
 
+// The derive macros' generated code names this crate `::fmu_export`, also from inside it.
+extern crate self as fmu_export;
+
+pub use fmu_derive::{StateVector, Variables};
 pub use model::{
-    require_finite, require_non_negative, require_positive, Causality, EventOutcome, Initial, Model, ModelError, ModelInfo, Variability,
-    Variable,
+    require_finite, require_non_negative, require_positive, Causality, EventOutcome, Initial, Model, ModelError, ModelInfo, Range,
+    StateVariable, StateVector, Variability, Variable, Variables,
 };
 pub use phase_cosine::PhaseCosine;
 pub use solvers;

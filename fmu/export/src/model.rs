@@ -1,5 +1,7 @@
 //! What a model author writes: the equations (the [`Model`] trait) and a declarative
-//! table of variables ([`Variable`]). Everything FMI-specific is derived from these two.
+//! table of variables ([`Variable`]), usually declared on the struct's fields with
+//! `#[derive(Variables)]` and a named state vector with `#[derive(StateVector)]`.
+//! Everything FMI-specific is derived from these.
 
 use serde::{de::DeserializeOwned, Serialize};
 
@@ -99,6 +101,8 @@ pub struct Variable<M> {
     pub unit: Option<&'static str>,
     /// Display unit known to [`crate::units`] (`"deg"`, `"lbf/in"`, ...).
     pub display_unit: Option<&'static str>,
+    /// The values a parameter or input accepts (checked by the toolkit, see [`Range`]).
+    pub range: Range,
     pub access: Access<M>,
 }
 
@@ -110,7 +114,7 @@ impl<M> Clone for Variable<M> {
 
 impl<M> Variable<M> {
     fn new(name: &'static str, description: &'static str, causality: Causality, variability: Variability, access: Access<M>) -> Self {
-        Variable { name, description, causality, variability, initial: None, unit: None, display_unit: None, access }
+        Variable { name, description, causality, variability, initial: None, unit: None, display_unit: None, range: Range::Any, access }
     }
 
     /// A real parameter (`causality="parameter"`, `variability="fixed"`, `initial="exact"`).
@@ -178,6 +182,12 @@ impl<M> Variable<M> {
         self
     }
 
+    /// Declares the values a parameter or input accepts.
+    pub fn range(mut self, range: Range) -> Self {
+        self.range = range;
+        self
+    }
+
     /// Overrides the `initial` attribute.
     pub fn initial(mut self, initial: Initial) -> Self {
         self.initial = Some(initial);
@@ -239,31 +249,191 @@ pub enum EventOutcome {
     Stop { reason: String },
 }
 
+/// The values a parameter or input accepts. The toolkit checks every declared range when
+/// initialization ends, before [`Model::initial_state`], with the messages of the
+/// `require_*` helpers, and writes the bounds as `min`/`max` into modelDescription.xml where
+/// FMI can say them (`min="0"` for both `Positive` and `NonNegative`: FMI bounds are
+/// inclusive). Non-finite Reals are refused when they are set, whatever the range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Range {
+    /// Every value.
+    Any,
+    /// Any finite number.
+    Finite,
+    /// Finite and greater than zero.
+    Positive,
+    /// Finite and zero or greater.
+    NonNegative,
+    /// Finite and within the bounds given (inclusive).
+    Bounds { min: Option<f64>, max: Option<f64> },
+    /// One of these integers.
+    OneOf(&'static [i32]),
+}
+
+impl Range {
+    /// The lower bound modelDescription.xml declares.
+    pub fn min(&self) -> Option<f64> {
+        match self {
+            Range::Positive | Range::NonNegative => Some(0.0),
+            Range::Bounds { min, .. } => *min,
+            Range::OneOf(values) => values.iter().min().map(|&v| v as f64),
+            Range::Any | Range::Finite => None,
+        }
+    }
+
+    /// The upper bound modelDescription.xml declares.
+    pub fn max(&self) -> Option<f64> {
+        match self {
+            Range::Bounds { max, .. } => *max,
+            Range::OneOf(values) => values.iter().max().map(|&v| v as f64),
+            _ => None,
+        }
+    }
+
+    /// Checks `value` of the variable `name` (a `kind`: "parameter" or "input").
+    pub fn check(&self, kind: &str, name: &str, value: f64) -> Result<(), ModelError> {
+        let refuse = |rule: &str| Err(ModelError(format!("{kind} {name} = {value} must be {rule}")));
+        let within = |min: Option<f64>, max: Option<f64>| min.is_none_or(|m| value >= m) && max.is_none_or(|m| value <= m);
+        match *self {
+            Range::Any => Ok(()),
+            Range::Finite if !value.is_finite() => refuse("a finite number"),
+            Range::Positive if !(value.is_finite() && value > 0.0) => refuse("a finite number greater than zero"),
+            Range::NonNegative if !(value.is_finite() && value >= 0.0) => refuse("a finite number, zero or greater"),
+            Range::Bounds { min, max } if !(value.is_finite() && within(min, max)) => match (min, max) {
+                (Some(min), Some(max)) => refuse(&format!("a finite number from {min} to {max}")),
+                (Some(min), None) => refuse(&format!("a finite number, {min} or greater")),
+                (None, Some(max)) => refuse(&format!("a finite number, {max} or less")),
+                (None, None) => refuse("a finite number"),
+            },
+            Range::OneOf(values) if !values.iter().any(|&v| v as f64 == value) => refuse(&self.to_string()),
+            _ => Ok(()),
+        }
+    }
+}
+
+impl std::fmt::Display for Range {
+    /// The range as the documentation and the catalogue show it (`> 0`, `from 1 to 2`, ...).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Range::Any => Ok(()),
+            Range::Finite => f.write_str("finite"),
+            Range::Positive => f.write_str("> 0"),
+            Range::NonNegative => f.write_str(">= 0"),
+            Range::Bounds { min: Some(min), max: Some(max) } => write!(f, "from {min} to {max}"),
+            Range::Bounds { min: Some(min), max: None } => write!(f, ">= {min}"),
+            Range::Bounds { min: None, max: Some(max) } => write!(f, "<= {max}"),
+            Range::Bounds { min: None, max: None } => f.write_str("finite"),
+            // Signed, as the handbook writes the assembly choice: "+1 or -1".
+            Range::OneOf(values) => {
+                let listed: Vec<String> = values.iter().map(|v| if *v > 0 { format!("+{v}") } else { v.to_string() }).collect();
+                match listed.split_last() {
+                    Some((last, [])) => f.write_str(last),
+                    Some((last, rest)) => write!(f, "{} or {last}", rest.join(", ")),
+                    None => f.write_str("one of no values"),
+                }
+            }
+        }
+    }
+}
+
 /// Checks that a real parameter is finite and strictly positive, naming it otherwise.
 pub fn require_positive(name: &str, value: f64) -> Result<(), ModelError> {
-    if value.is_finite() && value > 0.0 {
-        Ok(())
-    } else {
-        Err(ModelError(format!("parameter {name} = {value} must be a finite number greater than zero")))
-    }
+    Range::Positive.check("parameter", name, value)
 }
 
 /// Checks that a real parameter is finite (any sign), naming it otherwise.
 pub fn require_finite(name: &str, value: f64) -> Result<(), ModelError> {
-    if value.is_finite() {
-        Ok(())
-    } else {
-        Err(ModelError(format!("parameter {name} = {value} must be a finite number")))
-    }
+    Range::Finite.check("parameter", name, value)
 }
 
 /// Checks that a real parameter is finite and not negative, naming it otherwise.
 pub fn require_non_negative(name: &str, value: f64) -> Result<(), ModelError> {
-    if value.is_finite() && value >= 0.0 {
-        Ok(())
-    } else {
-        Err(ModelError(format!("parameter {name} = {value} must be a finite number, zero or greater")))
+    Range::NonNegative.check("parameter", name, value)
+}
+
+/// A model's variable table, usually generated by `#[derive(Variables)]` from the struct's
+/// fields: each field marked `#[parameter(...)]`, `#[input(...)]` or `#[output(...)]` is one
+/// row, in field order, its doc comment the description; the rows of the state vector
+/// (`#[variables(states = S)]`, `S` a `#[derive(StateVector)]` struct) come before the first
+/// output, or after the row a state names with `after`. Keys: `name = "M"` (the FMI name;
+/// default the field's), `unit`, `display`, a range (`positive`, `non_negative`, `finite`,
+/// `min = a`, `max = b`, `one_of(1, -1)`, see [`Range`]), `discrete` (a Real output that
+/// changes only at events), `when = expr` (the row exists only where `expr` holds), and on
+/// the struct `bound = "P: Trait"` for generic models.
+pub trait Variables: Sized {
+    /// Every field of the model struct with its type, in declaration order (the derive writes
+    /// it): part of the tag of serialized FMU states, which hold the struct.
+    const LAYOUT: &'static str = "";
+
+    /// The rows, in value-reference order (solver controls are appended by the toolkit).
+    fn variables() -> Vec<Variable<Self>>;
+}
+
+/// Checks every range `M` declares against `model`'s current values, in table order (the
+/// toolkit does so before [`Model::initial_state`]).
+pub fn check_ranges<M: Variables>(model: &M) -> Result<(), ModelError> {
+    for v in M::variables().iter().filter(|v| v.range != Range::Any) {
+        let value = match &v.access {
+            Access::Real { get, .. } => get(model),
+            Access::Integer { get, .. } => get(model) as f64,
+            _ => continue,
+        };
+        let kind = if v.causality == Causality::Input { "input" } else { "parameter" };
+        v.range.check(kind, v.name, value)?;
     }
+    Ok(())
+}
+
+/// One state's row and where it goes in the table: right after the variable named `after`,
+/// or (`None`) with the other states before the first output.
+pub struct StateVariable<M> {
+    pub variable: Variable<M>,
+    pub after: Option<&'static str>,
+}
+
+/// Named components of the state vector, from `#[derive(StateVector)]` on a struct of `f64`
+/// fields (each one state, in order, its doc comment the description; `#[state(unit, display,
+/// name, after)]`). The derive also gives the struct index constants (`State::Z_S`), `LEN`,
+/// and `load(x)`/`store(x)` between the struct and the solver's slice.
+pub trait StateVector {
+    /// Number of states.
+    const LEN: usize;
+    /// The state rows of the table of model `M`.
+    fn variables<M>() -> Vec<StateVariable<M>>;
+}
+
+/// The table of a model with states: `rows` (parameters, inputs, outputs) with the states
+/// placed before row `states_at` or after the row they name. Panics on an `after` that names
+/// no row: an authoring mistake that every model's table test and `runner build` meet.
+pub fn place_states<M>(rows: Vec<Variable<M>>, states_at: usize, states: Vec<StateVariable<M>>) -> Vec<Variable<M>> {
+    for s in &states {
+        if let Some(after) = s.after {
+            assert!(
+                rows.iter().any(|r| r.name == after),
+                "state '{}' is placed after '{after}', which is no variable of the model",
+                s.variable.name
+            );
+        }
+    }
+    let mut out = Vec::with_capacity(rows.len() + states.len());
+    let mut placed: Vec<Option<StateVariable<M>>> = states.into_iter().map(Some).collect();
+    let mut take = |out: &mut Vec<Variable<M>>, after: Option<&str>| {
+        for slot in placed.iter_mut() {
+            if slot.as_ref().is_some_and(|s| s.after == after) {
+                out.push(slot.take().expect("checked").variable);
+            }
+        }
+    };
+    for (i, row) in rows.into_iter().enumerate() {
+        if i == states_at {
+            take(&mut out, None);
+        }
+        let name = row.name;
+        out.push(row);
+        take(&mut out, Some(name));
+    }
+    take(&mut out, None);
+    out
 }
 
 /// The equations of one lab system.
@@ -271,7 +441,7 @@ pub fn require_non_negative(name: &str, value: f64) -> Result<(), ModelError> {
 /// The toolkit owns time, the state vector, the solver and the FMI state machine; the model
 /// owns its parameters, inputs, discrete mode and computed outputs (its struct fields), and
 /// supplies the right-hand side. `Default` gives the start values of the variable table.
-pub trait Model: Default + Clone + Send + Serialize + DeserializeOwned + 'static {
+pub trait Model: Variables + Default + Clone + Send + Serialize + DeserializeOwned + 'static {
     /// Number of continuous states (fixed for the model; unused states may have zero rate).
     const N_STATES: usize;
     /// Number of event indicators watched for sign changes.
@@ -280,11 +450,10 @@ pub trait Model: Default + Clone + Send + Serialize + DeserializeOwned + 'static
     /// Identifier, description, default experiment and documentation.
     fn info() -> ModelInfo;
 
-    /// The declarative variable table (solver controls are appended by the toolkit).
-    fn variables() -> Vec<Variable<Self>>;
-
-    /// Checks the parameters and fills the initial state `x` (called when initialization
-    /// ends, and for initial unknowns read during initialization). The toolkit calls it again
+    /// Checks what the declared ranges cannot (conditions across parameters, such as a linkage
+    /// that must assemble; the toolkit has checked every [`Range`] before) and fills the
+    /// initial state `x` (called when initialization ends, and for initial unknowns read
+    /// during initialization). The toolkit calls it again
     /// after any parameter change and before the solver starts, so it is also the place to
     /// derive constants the right-hand side needs from the parameters (see quarter_car).
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError>;

@@ -6,7 +6,7 @@ use std::any::TypeId;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
-use crate::model::{Access, BaseType, Causality, Initial, Model, Variability, Variable};
+use crate::model::{Access, BaseType, Causality, Initial, Model, Range, Variability, Variable};
 use solvers::controls::{Control, CONTROLS};
 
 /// Where a row's value lives.
@@ -95,7 +95,7 @@ impl<M: Model> Table<M> {
     /// authoring mistakes, caught by each model's tests and by `runner build`.
     pub fn problems(&self) -> Vec<String> {
         let mut problems = Vec::new();
-        for (i, row) in self.rows.iter().enumerate() {
+        for (i, (row, range)) in self.rows.iter().zip(ranges::<M>()).enumerate() {
             if self.rows[..i].iter().any(|r| r.name == row.name) {
                 problems.push(format!("variable name '{}' is used twice", row.name));
             }
@@ -121,6 +121,16 @@ impl<M: Model> Table<M> {
             if row.base_type != BaseType::Real && (row.unit.is_some() || row.display_unit.is_some()) {
                 problems.push(format!("variable '{}' is not Real but declares a unit", row.name));
             }
+            if range != Range::Any && !row.is_settable() {
+                problems.push(format!("variable '{}' declares a range but the importer cannot set it", row.name));
+            }
+            let real_range = matches!(range, Range::Finite | Range::Positive | Range::NonNegative);
+            if (real_range && row.base_type != BaseType::Real)
+                || (matches!(range, Range::OneOf(_)) && row.base_type != BaseType::Integer)
+                || (range != Range::Any && row.base_type == BaseType::Boolean)
+            {
+                problems.push(format!("variable '{}' declares a range its type {:?} cannot have", row.name, row.base_type));
+            }
         }
         for k in 0..M::N_STATES {
             if !self.rows.iter().any(|r| matches!(r.slot, Slot::Model(Access::State(j)) if j == k)) {
@@ -129,6 +139,15 @@ impl<M: Model> Table<M> {
         }
         problems
     }
+}
+
+/// The declared range of each row of `Table<M>` (the solver controls check their values when
+/// set, so theirs is `Any`). Not kept in the table, whose layout the stepping path reads: only
+/// initialization, the XML and the documentation need them.
+pub fn ranges<M: Model>() -> Vec<Range> {
+    let mut ranges: Vec<Range> = M::variables().iter().map(|v| v.range).collect();
+    ranges.resize(ranges.len() + CONTROLS.len(), Range::Any);
+    ranges
 }
 
 impl<M: Model> Default for Table<M> {
@@ -164,7 +183,7 @@ fn fingerprint<M: Model>() -> String {
     s
 }
 
-/// The model's GUID and its 64-bit hash, computed once per model and process: the fingerprint
+/// The model's GUID and its FMU-state tag, computed once per model and process: the fingerprint
 /// formats the whole table (about 30 us), and a sweep instantiates, checking the GUID, once
 /// per point.
 fn identity<M: Model>() -> &'static (String, u64) {
@@ -177,11 +196,18 @@ fn identity<M: Model>() -> &'static (String, u64) {
         let b = fnv1a(0x6c62_272e_07bb_0142, text.as_bytes());
         let guid =
             format!("{{{:08x}-{:04x}-{:04x}-{:04x}-{:012x}}}", a >> 32, (a >> 16) & 0xffff, a & 0xffff, b >> 48, b & 0xffff_ffff_ffff);
-        Box::leak(Box::new((guid, a)))
+        // FMU states hold the model struct itself, so their tag also covers its fields: a
+        // state saved by a build whose struct differs (a field added or moved) is refused
+        // rather than misread. The GUID, which importers see, depends on the interface alone.
+        let tag = fnv1a(a, M::LAYOUT.as_bytes());
+        Box::leak(Box::new((guid, tag)))
     })
 }
 
-/// A 64-bit hash of the model's interface, used to tag FMU states.
+/// A 64-bit hash of the model's interface and of its struct's fields ([`Variables::LAYOUT`]),
+/// used to tag FMU states.
+///
+/// [`Variables::LAYOUT`]: crate::model::Variables::LAYOUT
 pub fn guid_hash<M: Model>() -> u64 {
     identity::<M>().1
 }

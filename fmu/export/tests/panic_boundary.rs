@@ -5,12 +5,19 @@ use std::ffi::{c_char, c_int, c_void, CStr};
 use std::sync::Mutex;
 
 use fmu_export::fmi2::ffi::{self, CallbackFunctions, LoggerFn};
-use fmu_export::{Model, ModelError, ModelInfo, Variable};
+use fmu_export::{Model, ModelError, ModelInfo, Variable, Variables};
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 struct Exploding {
     fuse: f64,
+}
+
+// Written by hand (no derive): a table is any `Variables` implementation.
+impl Variables for Exploding {
+    fn variables() -> Vec<Variable<Self>> {
+        vec![Variable::<Exploding>::parameter("fuse", "time of the panic", |m| m.fuse, |m, v| m.fuse = v), Variable::state("x", "x", 0)]
+    }
 }
 
 impl Model for Exploding {
@@ -24,9 +31,6 @@ impl Model for Exploding {
             output_interval: 0.1,
             documentation: "",
         }
-    }
-    fn variables() -> Vec<Variable<Self>> {
-        vec![Variable::<Exploding>::parameter("fuse", "time of the panic", |m| m.fuse, |m, v| m.fuse = v), Variable::state("x", "x", 0)]
     }
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
         x[0] = 1.0;

@@ -1,55 +1,87 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu_export::{require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{EventOutcome, Model, ModelError, ModelInfo, StateVector, Variables};
 use serde::{Deserialize, Serialize};
 
-/// Rows of this model's variable table.
-type V = Variable<Bumper>;
-
 /// Ex. 3: a mass pushes a massless spring-damper plate until the contact force vanishes,
-/// then coasts while the plate relaxes. State vector [x (plate), x_mass, v_mass].
-#[derive(Debug, Clone, Serialize, Deserialize)]
+/// then coasts while the plate relaxes.
+#[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+#[variables(states = State)]
 pub struct Bumper {
+    /// Mass of the moving body
+    #[parameter(name = "M", unit = "kg", positive)]
     pub mass: f64,
+    /// Bumper spring stiffness
+    #[parameter(name = "K", unit = "N/m", positive)]
     pub k: f64,
+    /// Bumper damping coefficient
+    // B > 0: after release the massless plate's law B x' + K x = 0 needs a damper.
+    #[parameter(name = "B", unit = "N.s/m", positive)]
     pub b: f64,
+    /// Speed of the mass at the collision (toward the bumper)
+    // V0 > 0: the mass must be moving toward the bumper for a collision to happen.
+    #[parameter(name = "V0", unit = "m/s", positive)]
     pub v0: f64,
-    /// True: the mass is fastened to the plate and never separates.
+    /// True: the mass stays fastened to the plate (no release)
+    #[parameter]
     pub attached: bool,
-    /// The regime: true while the mass pushes on the plate.
-    pub in_contact: bool,
-    /// Time of separation (s), -1 until it happens.
-    pub t_release: f64,
+    /// Plate velocity
+    #[output(unit = "m/s")]
     pub v: f64,
+    /// Plate acceleration
+    #[output(unit = "m/s2")]
     pub a: f64,
+    /// Contact force between plate and mass, K x + B v (0 after release)
+    #[output(name = "F_contact", unit = "N")]
     pub f_contact: f64,
+    /// True while the mass touches the plate
+    #[output]
+    pub in_contact: bool,
+    /// Time the mass left the plate (-1 until it has)
+    #[output(unit = "s", discrete)]
+    pub t_release: f64,
+}
+
+/// The state vector: the plate's displacement, then the mass's (listed with the plate's
+/// velocity and acceleration, then the mass's, in the table).
+#[derive(StateVector)]
+pub struct State {
+    /// Plate displacement (compression of the bumper)
+    #[state(unit = "m")]
+    pub x: f64,
+    /// Mass displacement
+    #[state(unit = "m", after = "a")]
+    pub x_mass: f64,
+    /// Mass velocity
+    #[state(unit = "m/s", after = "a")]
+    pub v_mass: f64,
 }
 
 impl Default for Bumper {
     fn default() -> Self {
         let (mass, k, b, v0) = (1000.0, 9850.0, 12500.0, 1.0);
         // Outputs at the collision: the plate moves at V0 and the damper alone pushes back.
-        Bumper { mass, k, b, v0, attached: false, in_contact: true, t_release: -1.0, v: v0, a: -b * v0 / mass, f_contact: b * v0 }
+        Bumper { mass, k, b, v0, attached: false, v: v0, a: -b * v0 / mass, f_contact: b * v0, in_contact: true, t_release: -1.0 }
     }
 }
 
 impl Bumper {
     /// Plate velocity and acceleration in the current regime.
     #[inline]
-    fn plate_motion(&self, x: &[f64]) -> (f64, f64) {
+    fn plate_motion(&self, s: &State) -> (f64, f64) {
         if self.in_contact {
-            (x[2], -(self.k * x[0] + self.b * x[2]) / self.mass)
+            (s.v_mass, -(self.k * s.x + self.b * s.v_mass) / self.mass)
         } else {
             // The massless plate obeys B x' + K x = 0: x' = -(K/B) x, x'' = (K/B)^2 x.
             let rate = self.k / self.b;
-            (-rate * x[0], rate * rate * x[0])
+            (-rate * s.x, rate * rate * s.x)
         }
     }
 }
 
 impl Model for Bumper {
-    const N_STATES: usize = 3;
+    const N_STATES: usize = State::LEN;
     const N_EVENT_INDICATORS: usize = 1;
 
     fn info() -> ModelInfo {
@@ -63,61 +95,31 @@ impl Model for Bumper {
         }
     }
 
-    fn variables() -> Vec<Variable<Self>> {
-        vec![
-            V::parameter("M", "Mass of the moving body", |s| s.mass, |s, v| s.mass = v).unit("kg"),
-            V::parameter("K", "Bumper spring stiffness", |s| s.k, |s, v| s.k = v).unit("N/m"),
-            V::parameter("B", "Bumper damping coefficient", |s| s.b, |s, v| s.b = v).unit("N.s/m"),
-            V::parameter("V0", "Speed of the mass at the collision (toward the bumper)", |s| s.v0, |s, v| s.v0 = v).unit("m/s"),
-            V::boolean_parameter(
-                "attached",
-                "True: the mass stays fastened to the plate (no release)",
-                |s| s.attached,
-                |s, v| s.attached = v,
-            ),
-            V::state("x", "Plate displacement (compression of the bumper)", 0).unit("m"),
-            V::output("v", "Plate velocity", |s| s.v).unit("m/s"),
-            V::output("a", "Plate acceleration", |s| s.a).unit("m/s2"),
-            V::state("x_mass", "Mass displacement", 1).unit("m"),
-            V::state("v_mass", "Mass velocity", 2).unit("m/s"),
-            V::output("F_contact", "Contact force between plate and mass, K x + B v (0 after release)", |s| s.f_contact).unit("N"),
-            V::boolean_output("in_contact", "True while the mass touches the plate", |s| s.in_contact),
-            V::discrete_output("t_release", "Time the mass left the plate (-1 until it has)", |s| s.t_release).unit("s"),
-        ]
-    }
-
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        require_positive("M", self.mass)?;
-        require_positive("K", self.k)?;
-        // B > 0: after release the massless plate's law B x' + K x = 0 needs a damper.
-        require_positive("B", self.b)?;
-        // V0 > 0: the mass must be moving toward the bumper for a collision to happen.
-        require_positive("V0", self.v0)?;
         self.in_contact = true;
         self.t_release = -1.0;
-        x[0] = 0.0;
-        x[1] = 0.0;
-        x[2] = self.v0;
+        State { x: 0.0, x_mass: 0.0, v_mass: self.v0 }.store(x);
         Ok(())
     }
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
-        let (v, a) = self.plate_motion(x);
-        dx[0] = v;
-        dx[1] = x[2];
+        let s = State::load(x);
+        let (v, a) = self.plate_motion(&s);
         // In contact the mass shares the plate's acceleration; separated it coasts.
-        dx[2] = if self.in_contact { a } else { 0.0 };
+        State { x: v, x_mass: s.v_mass, v_mass: if self.in_contact { a } else { 0.0 } }.store(dx);
     }
 
     fn outputs(&mut self, _t: f64, x: &[f64]) {
-        (self.v, self.a) = self.plate_motion(x);
-        self.f_contact = if self.in_contact { self.k * x[0] + self.b * self.v } else { 0.0 };
+        let s = State::load(x);
+        (self.v, self.a) = self.plate_motion(&s);
+        self.f_contact = if self.in_contact { self.k * s.x + self.b * self.v } else { 0.0 };
     }
 
     fn event_indicators(&self, _t: f64, x: &[f64], z: &mut [f64]) {
+        let s = State::load(x);
         // The contact force; once separated (or fastened) nothing can switch, so a constant.
-        z[0] = if self.in_contact && !self.attached { self.k * x[0] + self.b * x[2] } else { 1.0 };
+        z[0] = if self.in_contact && !self.attached { self.k * s.x + self.b * s.v_mass } else { 1.0 };
     }
 
     fn on_event(&mut self, t: f64, _x: &mut [f64], fired: &[bool]) -> Result<EventOutcome, ModelError> {
@@ -317,5 +319,11 @@ mod tests {
             let err = h.initialize(None).unwrap_err();
             assert!(err.contains(&format!("parameter {name}")), "{err}");
         }
+    }
+
+    /// MODELS.md's entry for this model is the one its variable table gives.
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<Bumper>(env!("CARGO_MANIFEST_DIR"));
     }
 }

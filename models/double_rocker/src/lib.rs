@@ -203,4 +203,10 @@ mod tests {
         let problems = fmu_export::table::Table::<FourBar>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
     }
+
+    /// MODELS.md's entry for this model is the one its variable table gives.
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<FourBar>(env!("CARGO_MANIFEST_DIR"));
+    }
 }

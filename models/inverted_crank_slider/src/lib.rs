@@ -1,12 +1,9 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu_export::{require_finite, require_non_negative, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{EventOutcome, Model, ModelError, ModelInfo, StateVector, Variables};
 use nalgebra::{Matrix2, Matrix6, Matrix6x2, Vector2, Vector6};
 use serde::{Deserialize, Serialize};
-
-/// Rows of this model's variable table.
-type V = Variable<InvertedCrankSlider>;
 
 /// Revolutions per minute in rad/s.
 const RPM: f64 = std::f64::consts::PI / 30.0;
@@ -14,24 +11,83 @@ const RPM: f64 = std::f64::consts::PI / 30.0;
 const NEWTON_ITERS: usize = 20;
 
 /// App. E: crank AB (pivot A, length r2, angle theta2) drives link BD (length L3) through a
-/// collar pivoted at C. Loop r1 + r2 = r3 (r1 = C->A along +x, r3 = C->B). State vector
-/// [theta2, r3, theta3, r3', theta3'].
-#[derive(Debug, Clone, Serialize, Deserialize)]
+/// collar pivoted at C. Loop r1 + r2 = r3 (r1 = C->A along +x, r3 = C->B).
+#[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+#[variables(states = State)]
 pub struct InvertedCrankSlider {
+    /// Ground distance from the collar pivot C to the crank pivot A
+    #[parameter(unit = "m", display = "mm", positive)]
     pub r1: f64,
+    /// Crank length AB
+    #[parameter(unit = "m", display = "mm", positive)]
     pub r2: f64,
+    /// Length of link BD (slides through the collar at C)
+    #[parameter(name = "L3", unit = "m", display = "mm", positive)]
     pub l3: f64,
+    /// Crank angular velocity theta2' (counter-clockwise positive; the default turns
+    /// clockwise as in Fig. E.1)
+    #[parameter(unit = "rad/s", display = "rpm", finite)]
     pub omega: f64,
+    /// Initial crank angle theta2 (counter-clockwise from +x)
+    #[parameter(unit = "rad", display = "deg", finite)]
     pub theta2_0: f64,
+    /// Mass of the crank AB (centre of mass at its middle)
+    #[parameter(unit = "kg", non_negative)]
     pub m2: f64,
+    /// Mass of link BD (centre of mass at its middle)
+    #[parameter(unit = "kg", non_negative)]
     pub m3: f64,
+    /// Moment of inertia of link BD about its centre of mass
+    #[parameter(name = "I3", unit = "kg.m2", non_negative)]
     pub i3: f64,
-    // Outputs.
+    /// Sliding acceleration r3''
+    #[output(unit = "m/s2")]
     pub r3_ddot: f64,
+    /// Angular acceleration of link BD
+    #[output(unit = "rad/s2")]
     pub theta3_ddot: f64,
-    /// y = [F_Ax, F_Ay, F_Bx, F_By, F_C, T] (E.24).
-    pub y: [f64; 6],
+    // The kinetics' unknowns y = [F_Ax, F_Ay, F_Bx, F_By, F_C, T] (E.24):
+    /// x force of the ground on the crank at A
+    #[output(name = "F_Ax", unit = "N")]
+    pub f_ax: f64,
+    /// y force of the ground on the crank at A
+    #[output(name = "F_Ay", unit = "N")]
+    pub f_ay: f64,
+    /// x force of link BD on the crank at B
+    #[output(name = "F_Bx", unit = "N")]
+    pub f_bx: f64,
+    /// y force of link BD on the crank at B
+    #[output(name = "F_By", unit = "N")]
+    pub f_by: f64,
+    /// Collar force on link BD, along (-sin theta3, cos theta3)
+    #[output(name = "F_C", unit = "N")]
+    pub f_c: f64,
+    /// Input torque on the crank (counter-clockwise positive)
+    #[output(name = "T", unit = "N.m")]
+    pub torque: f64,
+    /// Vector-loop gap |e| (E.16)
+    #[output(unit = "m")]
     pub loop_residual: f64,
+}
+
+/// The state vector: the crank angle, the loop's unknowns x = [r3, theta3] and their rates.
+#[derive(StateVector)]
+pub struct State {
+    /// Crank angle
+    #[state(unit = "rad", display = "deg")]
+    pub theta2: f64,
+    /// Distance from the collar pivot C to B
+    #[state(unit = "m")]
+    pub r3: f64,
+    /// Angle of C->B (of link BD)
+    #[state(unit = "rad", display = "deg")]
+    pub theta3: f64,
+    /// Sliding velocity r3'
+    #[state(unit = "m/s")]
+    pub r3_dot: f64,
+    /// Angular velocity of link BD
+    #[state(unit = "rad/s")]
+    pub theta3_dot: f64,
 }
 
 impl Default for InvertedCrankSlider {
@@ -50,10 +106,15 @@ impl Default for InvertedCrankSlider {
             i3: m3 * l3 * l3 / 12.0,
             r3_ddot: 0.0,
             theta3_ddot: 0.0,
-            y: [0.0; 6],
+            f_ax: 0.0,
+            f_ay: 0.0,
+            f_bx: 0.0,
+            f_by: 0.0,
+            f_c: 0.0,
+            torque: 0.0,
             loop_residual: 0.0,
         };
-        let mut x = [0.0; 5];
+        let mut x = [0.0; State::LEN];
         if m.assemble(&mut x).is_ok() {
             m.outputs(0.0, &x);
         }
@@ -79,10 +140,10 @@ impl InvertedCrankSlider {
     }
 
     /// b1 of E.12.
-    fn b_acceleration(&self, x: &[f64]) -> Vector2<f64> {
-        let (s2, c2) = x[0].sin_cos();
-        let (s3, c3) = x[2].sin_cos();
-        let (r3, r3d, w3, w2) = (x[1], x[3], x[4], self.omega);
+    fn b_acceleration(&self, s: &State) -> Vector2<f64> {
+        let (s2, c2) = s.theta2.sin_cos();
+        let (s3, c3) = s.theta3.sin_cos();
+        let (r3, r3d, w3, w2) = (s.r3, s.r3_dot, s.theta3_dot, self.omega);
         Vector2::new(
             -self.r2 * c2 * w2 * w2 + 2.0 * s3 * r3d * w3 + r3 * c3 * w3 * w3,
             -self.r2 * s2 * w2 * w2 - 2.0 * c3 * r3d * w3 + r3 * s3 * w3 * w3,
@@ -90,16 +151,16 @@ impl InvertedCrankSlider {
     }
 
     /// x'' = A^-1 b (A is regular: det A = r3 >= r1 - r2 > 0).
-    fn accelerations(&self, x: &[f64]) -> Vector2<f64> {
-        Self::a_matrix(x[1], x[2]).lu().solve(&self.b_acceleration(x)).unwrap_or_else(Vector2::zeros)
+    fn accelerations(&self, s: &State) -> Vector2<f64> {
+        Self::a_matrix(s.r3, s.theta3).lu().solve(&self.b_acceleration(s)).unwrap_or_else(Vector2::zeros)
     }
 
-    /// The kinetics, E.17 to E.24: y = A22^-1 (b2 - A21 x'').
-    pub fn forces(&self, x: &[f64], acc: &Vector2<f64>) -> Vector6<f64> {
-        let (s2, c2) = x[0].sin_cos();
-        let (s3, c3) = x[2].sin_cos();
+    /// The kinetics, E.17 to E.24: y = A22^-1 (b2 - A21 x''), y = [F_Ax, F_Ay, F_Bx, F_By, F_C, T].
+    pub fn forces(&self, s: &State, acc: &Vector2<f64>) -> Vector6<f64> {
+        let (s2, c2) = s.theta2.sin_cos();
+        let (s3, c3) = s.theta3.sin_cos();
         let (r2, l3, m2, m3) = (self.r2, self.l3, self.m2, self.m3);
-        let (r3, r3d, w3, w2) = (x[1], x[3], x[4], self.omega);
+        let (r3, r3d, w3, w2) = (s.r3, s.r3_dot, s.theta3_dot, self.omega);
         let g = r3 - 0.5 * l3;
         let a21 = Matrix6x2::new(
             0.0,
@@ -145,13 +206,13 @@ impl InvertedCrankSlider {
             .lu()
             .solve(&self.b_velocity(self.theta2_0))
             .ok_or_else(|| ModelError("A is singular at theta2_0".into()))?;
-        x.copy_from_slice(&[self.theta2_0, r3, th3, v[0], v[1]]);
+        State { theta2: self.theta2_0, r3, theta3: th3, r3_dot: v[0], theta3_dot: v[1] }.store(x);
         Ok(())
     }
 }
 
 impl Model for InvertedCrankSlider {
-    const N_STATES: usize = 5;
+    const N_STATES: usize = State::LEN;
 
     fn info() -> ModelInfo {
         ModelInfo {
@@ -166,53 +227,7 @@ impl Model for InvertedCrankSlider {
         }
     }
 
-    fn variables() -> Vec<Variable<Self>> {
-        vec![
-            V::parameter("r1", "Ground distance from the collar pivot C to the crank pivot A", |s| s.r1, |s, v| s.r1 = v)
-                .unit("m")
-                .display("mm"),
-            V::parameter("r2", "Crank length AB", |s| s.r2, |s, v| s.r2 = v).unit("m").display("mm"),
-            V::parameter("L3", "Length of link BD (slides through the collar at C)", |s| s.l3, |s, v| s.l3 = v).unit("m").display("mm"),
-            V::parameter(
-                "omega",
-                "Crank angular velocity theta2' (counter-clockwise positive; the default turns clockwise as in Fig. E.1)",
-                |s| s.omega,
-                |s, v| s.omega = v,
-            )
-            .unit("rad/s")
-            .display("rpm"),
-            V::parameter("theta2_0", "Initial crank angle theta2 (counter-clockwise from +x)", |s| s.theta2_0, |s, v| s.theta2_0 = v)
-                .unit("rad")
-                .display("deg"),
-            V::parameter("m2", "Mass of the crank AB (centre of mass at its middle)", |s| s.m2, |s, v| s.m2 = v).unit("kg"),
-            V::parameter("m3", "Mass of link BD (centre of mass at its middle)", |s| s.m3, |s, v| s.m3 = v).unit("kg"),
-            V::parameter("I3", "Moment of inertia of link BD about its centre of mass", |s| s.i3, |s, v| s.i3 = v).unit("kg.m2"),
-            V::state("theta2", "Crank angle", 0).unit("rad").display("deg"),
-            V::state("r3", "Distance from the collar pivot C to B", 1).unit("m"),
-            V::state("theta3", "Angle of C->B (of link BD)", 2).unit("rad").display("deg"),
-            V::state("r3_dot", "Sliding velocity r3'", 3).unit("m/s"),
-            V::state("theta3_dot", "Angular velocity of link BD", 4).unit("rad/s"),
-            V::output("r3_ddot", "Sliding acceleration r3''", |s| s.r3_ddot).unit("m/s2"),
-            V::output("theta3_ddot", "Angular acceleration of link BD", |s| s.theta3_ddot).unit("rad/s2"),
-            V::output("F_Ax", "x force of the ground on the crank at A", |s| s.y[0]).unit("N"),
-            V::output("F_Ay", "y force of the ground on the crank at A", |s| s.y[1]).unit("N"),
-            V::output("F_Bx", "x force of link BD on the crank at B", |s| s.y[2]).unit("N"),
-            V::output("F_By", "y force of link BD on the crank at B", |s| s.y[3]).unit("N"),
-            V::output("F_C", "Collar force on link BD, along (-sin theta3, cos theta3)", |s| s.y[4]).unit("N"),
-            V::output("T", "Input torque on the crank (counter-clockwise positive)", |s| s.y[5]).unit("N.m"),
-            V::output("loop_residual", "Vector-loop gap |e| (E.16)", |s| s.loop_residual).unit("m"),
-        ]
-    }
-
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        require_positive("r1", self.r1)?;
-        require_positive("r2", self.r2)?;
-        require_positive("L3", self.l3)?;
-        require_finite("omega", self.omega)?;
-        require_finite("theta2_0", self.theta2_0)?;
-        require_non_negative("m2", self.m2)?;
-        require_non_negative("m3", self.m3)?;
-        require_non_negative("I3", self.i3)?;
         if self.r2 >= self.r1 {
             return Err(ModelError(format!(
                 "parameters r2 = {} m and r1 = {} m: the crank must be shorter than the ground distance (r2 < r1), otherwise B passes through the collar pivot C (r3 = 0, A singular)",
@@ -241,21 +256,21 @@ impl Model for InvertedCrankSlider {
         self.assemble(x)
     }
 
+    /// The crank turns at omega; the unknowns' accelerations from A x'' = b (E.12).
     fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
-        let acc = self.accelerations(x);
-        dx[0] = self.omega;
-        dx[1] = x[3];
-        dx[2] = x[4];
-        dx[3] = acc[0];
-        dx[4] = acc[1];
+        let s = State::load(x);
+        let acc = self.accelerations(&s);
+        State { theta2: self.omega, r3: s.r3_dot, theta3: s.theta3_dot, r3_dot: acc[0], theta3_dot: acc[1] }.store(dx);
     }
 
     fn outputs(&mut self, _t: f64, x: &[f64]) {
-        let acc = self.accelerations(x);
+        let s = State::load(x);
+        let acc = self.accelerations(&s);
         self.r3_ddot = acc[0];
         self.theta3_ddot = acc[1];
-        self.y = self.forces(x, &acc).into();
-        self.loop_residual = self.gap(x[0], x[1], x[2]).norm();
+        let y: [f64; 6] = self.forces(&s, &acc).into();
+        [self.f_ax, self.f_ay, self.f_bx, self.f_by, self.f_c, self.torque] = y;
+        self.loop_residual = self.gap(s.theta2, s.r3, s.theta3).norm();
     }
 
     /// Projects (r3, theta3) back onto the loop closure by Newton's method (Jacobian A), then
@@ -263,9 +278,10 @@ impl Model for InvertedCrankSlider {
     /// r3 > 0 (only after a step far too large for the solver), the step fails saying so,
     /// rather than continuing on garbage or on the mirror solution r3 < 0.
     fn communication_point(&mut self, _t: f64, x: &mut [f64]) -> Result<EventOutcome, ModelError> {
-        let mut q = Vector2::new(x[1], x[2]);
+        let State { theta2, r3, theta3, .. } = State::load(x);
+        let mut q = Vector2::new(r3, theta3);
         for _ in 0..NEWTON_ITERS {
-            let e = self.gap(x[0], q[0], q[1]);
+            let e = self.gap(theta2, q[0], q[1]);
             if e.norm() <= 1e-16 * (self.r1 + self.r2) {
                 break;
             }
@@ -275,24 +291,21 @@ impl Model for InvertedCrankSlider {
                 None => break,
             }
         }
-        let closed = q[0] > 0.0 && self.gap(x[0], q[0], q[1]).norm() <= 1e-12 * (self.r1 + self.r2);
+        let closed = q[0] > 0.0 && self.gap(theta2, q[0], q[1]).norm() <= 1e-12 * (self.r1 + self.r2);
         let v = Self::a_matrix(q[0], q[1])
             .lu()
-            .solve(&self.b_velocity(x[0]))
+            .solve(&self.b_velocity(theta2))
             .filter(|v| closed && v.iter().all(|c| c.is_finite()))
             .ok_or_else(|| {
                 ModelError(format!(
                     "the vector loop could not be closed at theta2 = {:.4} deg (Newton's method from r3 = {} m, theta3 = {} rad): \
                  the state drifted too far in one step; reduce fixed_step or the tolerance",
-                    x[0].to_degrees(),
-                    x[1],
-                    x[2]
+                    theta2.to_degrees(),
+                    r3,
+                    theta3
                 ))
             })?;
-        x[1] = q[0];
-        x[2] = q[1];
-        x[3] = v[0];
-        x[4] = v[1];
+        State { theta2, r3: q[0], theta3: q[1], r3_dot: v[0], theta3_dot: v[1] }.store(x);
         Ok(EventOutcome::Continue)
     }
 }
@@ -532,5 +545,11 @@ mod tests {
     fn variable_table_is_well_formed() {
         let problems = fmu_export::table::Table::<InvertedCrankSlider>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
+    }
+
+    /// MODELS.md's entry for this model is the one its variable table gives.
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<InvertedCrankSlider>(env!("CARGO_MANIFEST_DIR"));
     }
 }

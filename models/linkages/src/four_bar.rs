@@ -1,14 +1,11 @@
 //! The four-bar OABC of Ex. 5A #3 and #4 (crank-rocker, double rocker).
 
-use fmu_export::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{EventOutcome, Model, ModelError, ModelInfo, StateVector, Variables};
 use nalgebra::{Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 use std::marker::PhantomData;
 
 use crate::FourBarPreset;
-
-/// Rows of this model's variable table.
-type V<P> = Variable<FourBar<P>>;
 
 /// The run stops when |det A| / (l_AB l_BC) = |sin(theta4 - theta3)| falls below this.
 pub const SINGULAR: f64 = 1e-3;
@@ -17,33 +14,91 @@ const NEWTON_ITERS: usize = 20;
 
 /// Four-bar OABC: input link OA (angle theta), coupler AB (angle theta3 of A->B), output
 /// link CB (angle theta4 of C->B), ground O->C of length l_CO at angle theta_CO.
-/// Loop r2 + r3 = r1 + r4. State vector [theta, theta3, theta4, theta3', theta4'].
-#[derive(Debug, Clone, Serialize, Deserialize)]
+/// Loop r2 + r3 = r1 + r4.
+#[derive(Debug, Clone, Serialize, Deserialize, Variables)]
 #[serde(bound = "")]
+#[variables(states = State)]
 pub struct FourBar<P> {
     /// Which FMU this is (defaults and identity); no data.
     #[serde(skip)]
     pub preset: PhantomData<fn() -> P>,
+    /// Input link length OA
+    #[parameter(name = "l_OA", unit = "m", display = "mm", positive)]
     pub l_oa: f64,
+    /// Coupler length AB
+    #[parameter(name = "l_AB", unit = "m", display = "mm", positive)]
     pub l_ab: f64,
+    /// Output link length BC
+    #[parameter(name = "l_BC", unit = "m", display = "mm", positive)]
     pub l_bc: f64,
+    /// Ground length OC
+    #[parameter(name = "l_CO", unit = "m", display = "mm", positive)]
     pub l_co: f64,
+    /// Direction of the ground pivot C seen from O
+    #[parameter(name = "theta_CO", unit = "rad", display = "deg", finite)]
     pub theta_co: f64,
+    /// Initial input angle (counter-clockwise from +x)
+    #[parameter(unit = "rad", display = "deg", finite)]
     pub theta0: f64,
+    /// Input angular velocity (counter-clockwise, constant)
+    #[parameter(unit = "rad/s", display = "rpm", finite)]
     pub omega: f64,
+    /// Assembly: +1 puts B to the left of the directed line A->C, -1 to the right
+    #[parameter(one_of(1, -1))]
     pub branch: i32,
-    // Outputs.
+    /// Angular acceleration of the coupler
+    #[output(unit = "rad/s2")]
     pub theta3_ddot: f64,
+    /// Angular acceleration of the output link
+    #[output(unit = "rad/s2")]
     pub theta4_ddot: f64,
+    /// x of the joint A
+    #[output(name = "A_x", unit = "m")]
     pub a_x: f64,
+    /// y of the joint A
+    #[output(name = "A_y", unit = "m")]
     pub a_y: f64,
+    /// x of the joint B
+    #[output(name = "B_x", unit = "m")]
     pub b_x: f64,
+    /// y of the joint B
+    #[output(name = "B_y", unit = "m")]
     pub b_y: f64,
+    /// x velocity of A
+    #[output(name = "v_A_x", unit = "m/s")]
     pub v_a_x: f64,
+    /// y velocity of A
+    #[output(name = "v_A_y", unit = "m/s")]
     pub v_a_y: f64,
+    /// x velocity of B
+    #[output(name = "v_B_x", unit = "m/s")]
     pub v_b_x: f64,
+    /// y velocity of B
+    #[output(name = "v_B_y", unit = "m/s")]
     pub v_b_y: f64,
+    /// Vector-loop gap |e| (E.16)
+    #[output(unit = "m")]
     pub loop_residual: f64,
+}
+
+/// The state vector: the input angle, the loop's unknowns x = [theta3, theta4] and their rates.
+#[derive(StateVector)]
+pub struct State {
+    /// Input angle theta2 of O->A
+    #[state(unit = "rad", display = "deg")]
+    pub theta: f64,
+    /// Angle of the coupler A->B
+    #[state(unit = "rad", display = "deg")]
+    pub theta3: f64,
+    /// Angle of the output link C->B
+    #[state(unit = "rad", display = "deg")]
+    pub theta4: f64,
+    /// Angular velocity of the coupler
+    #[state(unit = "rad/s")]
+    pub theta3_dot: f64,
+    /// Angular velocity of the output link
+    #[state(unit = "rad/s")]
+    pub theta4_dot: f64,
 }
 
 impl<P: FourBarPreset> Default for FourBar<P> {
@@ -72,7 +127,7 @@ impl<P: FourBarPreset> Default for FourBar<P> {
             loop_residual: 0.0,
         };
         // Start values of the outputs: the assembled initial configuration.
-        let mut x = [0.0; 5];
+        let mut x = [0.0; State::LEN];
         if m.assemble(&mut x).is_ok() {
             m.outputs(0.0, &x);
         }
@@ -109,9 +164,9 @@ impl<P: FourBarPreset> FourBar<P> {
     }
 
     /// x'' = A^-1 b; a singular A (only past the stop at a limit position) gives zeros, not NaN.
-    fn accelerations(&self, x: &[f64]) -> Vector2<f64> {
-        let b = self.b_acceleration(x[0], x[1], x[2], x[3], x[4]);
-        self.a_matrix(x[1], x[2]).lu().solve(&b).filter(|v| v.iter().all(|c| c.is_finite())).unwrap_or_else(Vector2::zeros)
+    fn accelerations(&self, s: &State) -> Vector2<f64> {
+        let b = self.b_acceleration(s.theta, s.theta3, s.theta4, s.theta3_dot, s.theta4_dot);
+        self.a_matrix(s.theta3, s.theta4).lu().solve(&b).filter(|v| v.iter().all(|c| c.is_finite())).unwrap_or_else(Vector2::zeros)
     }
 
     fn velocities(&self, theta: f64, th3: f64, th4: f64) -> Option<Vector2<f64>> {
@@ -169,7 +224,7 @@ impl<P: FourBarPreset> FourBar<P> {
             )));
         }
         let v = self.velocities(theta, th3, th4).ok_or_else(|| ModelError("A is singular at theta0".into()))?;
-        x.copy_from_slice(&[theta, th3, th4, v[0], v[1]]);
+        State { theta, theta3: th3, theta4: th4, theta3_dot: v[0], theta4_dot: v[1] }.store(x);
         Ok(())
     }
 
@@ -179,9 +234,10 @@ impl<P: FourBarPreset> FourBar<P> {
     /// converge on this branch with at least `min_margin` from the singularity.
     fn project(&self, x: &mut [f64], min_margin: f64) -> bool {
         let scale = self.l_oa + self.l_ab + self.l_bc + self.l_co;
-        let mut q = Vector2::new(x[1], x[2]);
+        let State { theta, theta3, theta4, .. } = State::load(x);
+        let mut q = Vector2::new(theta3, theta4);
         for _ in 0..NEWTON_ITERS {
-            let e = self.gap(x[0], q[0], q[1]);
+            let e = self.gap(theta, q[0], q[1]);
             if e.norm() <= 1e-15 * scale {
                 break;
             }
@@ -191,117 +247,68 @@ impl<P: FourBarPreset> FourBar<P> {
                 None => break,
             }
         }
-        let closed = self.singularity_margin(q[0], q[1]) >= min_margin && self.gap(x[0], q[0], q[1]).norm() < 1e-12 * scale;
+        let closed = self.singularity_margin(q[0], q[1]) >= min_margin && self.gap(theta, q[0], q[1]).norm() < 1e-12 * scale;
         if !closed {
             return false;
         }
-        let Some(v) = self.velocities(x[0], q[0], q[1]) else {
+        let Some(v) = self.velocities(theta, q[0], q[1]) else {
             return false;
         };
-        x[1] = q[0];
-        x[2] = q[1];
-        x[3] = v[0];
-        x[4] = v[1];
+        State { theta, theta3: q[0], theta4: q[1], theta3_dot: v[0], theta4_dot: v[1] }.store(x);
         true
     }
 }
 
 impl<P: FourBarPreset> Model for FourBar<P> {
-    const N_STATES: usize = 5;
+    const N_STATES: usize = State::LEN;
     const N_EVENT_INDICATORS: usize = 1;
 
     fn info() -> ModelInfo {
         P::info()
     }
 
-    fn variables() -> Vec<Variable<Self>> {
-        vec![
-            V::<P>::parameter("l_OA", "Input link length OA", |s| s.l_oa, |s, v| s.l_oa = v).unit("m").display("mm"),
-            V::<P>::parameter("l_AB", "Coupler length AB", |s| s.l_ab, |s, v| s.l_ab = v).unit("m").display("mm"),
-            V::<P>::parameter("l_BC", "Output link length BC", |s| s.l_bc, |s, v| s.l_bc = v).unit("m").display("mm"),
-            V::<P>::parameter("l_CO", "Ground length OC", |s| s.l_co, |s, v| s.l_co = v).unit("m").display("mm"),
-            V::<P>::parameter("theta_CO", "Direction of the ground pivot C seen from O", |s| s.theta_co, |s, v| s.theta_co = v)
-                .unit("rad")
-                .display("deg"),
-            V::<P>::parameter("theta0", "Initial input angle (counter-clockwise from +x)", |s| s.theta0, |s, v| s.theta0 = v)
-                .unit("rad")
-                .display("deg"),
-            V::<P>::parameter("omega", "Input angular velocity (counter-clockwise, constant)", |s| s.omega, |s, v| s.omega = v)
-                .unit("rad/s")
-                .display("rpm"),
-            V::<P>::integer_parameter(
-                "branch",
-                "Assembly: +1 puts B to the left of the directed line A->C, -1 to the right",
-                |s| s.branch,
-                |s, v| s.branch = v,
-            ),
-            V::<P>::state("theta", "Input angle theta2 of O->A", 0).unit("rad").display("deg"),
-            V::<P>::state("theta3", "Angle of the coupler A->B", 1).unit("rad").display("deg"),
-            V::<P>::state("theta4", "Angle of the output link C->B", 2).unit("rad").display("deg"),
-            V::<P>::state("theta3_dot", "Angular velocity of the coupler", 3).unit("rad/s"),
-            V::<P>::state("theta4_dot", "Angular velocity of the output link", 4).unit("rad/s"),
-            V::<P>::output("theta3_ddot", "Angular acceleration of the coupler", |s| s.theta3_ddot).unit("rad/s2"),
-            V::<P>::output("theta4_ddot", "Angular acceleration of the output link", |s| s.theta4_ddot).unit("rad/s2"),
-            V::<P>::output("A_x", "x of the joint A", |s| s.a_x).unit("m"),
-            V::<P>::output("A_y", "y of the joint A", |s| s.a_y).unit("m"),
-            V::<P>::output("B_x", "x of the joint B", |s| s.b_x).unit("m"),
-            V::<P>::output("B_y", "y of the joint B", |s| s.b_y).unit("m"),
-            V::<P>::output("v_A_x", "x velocity of A", |s| s.v_a_x).unit("m/s"),
-            V::<P>::output("v_A_y", "y velocity of A", |s| s.v_a_y).unit("m/s"),
-            V::<P>::output("v_B_x", "x velocity of B", |s| s.v_b_x).unit("m/s"),
-            V::<P>::output("v_B_y", "y velocity of B", |s| s.v_b_y).unit("m/s"),
-            V::<P>::output("loop_residual", "Vector-loop gap |e| (E.16)", |s| s.loop_residual).unit("m"),
-        ]
-    }
-
+    /// The assembly for theta0 (the lengths and the branch are checked by their ranges).
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        require_positive("l_OA", self.l_oa)?;
-        require_positive("l_AB", self.l_ab)?;
-        require_positive("l_BC", self.l_bc)?;
-        require_positive("l_CO", self.l_co)?;
-        require_finite("theta_CO", self.theta_co)?;
-        require_finite("theta0", self.theta0)?;
-        require_finite("omega", self.omega)?;
-        crate::check_branch(self.branch)?;
         self.assemble(x)
     }
 
+    /// The input turns at omega; the unknowns' accelerations from A x'' = b.
     fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
-        let acc = self.accelerations(x);
-        dx[0] = self.omega;
-        dx[1] = x[3];
-        dx[2] = x[4];
-        dx[3] = acc[0];
-        dx[4] = acc[1];
+        let s = State::load(x);
+        let acc = self.accelerations(&s);
+        State { theta: self.omega, theta3: s.theta3_dot, theta4: s.theta4_dot, theta3_dot: acc[0], theta4_dot: acc[1] }.store(dx);
     }
 
     fn outputs(&mut self, _t: f64, x: &[f64]) {
-        let acc = self.accelerations(x);
+        let s = State::load(x);
+        let acc = self.accelerations(&s);
         self.theta3_ddot = acc[0];
         self.theta4_ddot = acc[1];
-        (self.a_x, self.a_y, self.v_a_x, self.v_a_y) = crate::crank_point(self.l_oa, x[0], self.omega);
-        let (s4, c4) = x[2].sin_cos();
+        (self.a_x, self.a_y, self.v_a_x, self.v_a_y) = crate::crank_point(self.l_oa, s.theta, self.omega);
+        let (s4, c4) = s.theta4.sin_cos();
         let pc = self.c();
         self.b_x = pc[0] + self.l_bc * c4;
         self.b_y = pc[1] + self.l_bc * s4;
-        self.v_b_x = -self.l_bc * x[4] * s4;
-        self.v_b_y = self.l_bc * x[4] * c4;
-        self.loop_residual = self.gap(x[0], x[1], x[2]).norm();
+        self.v_b_x = -self.l_bc * s.theta4_dot * s4;
+        self.v_b_y = self.l_bc * s.theta4_dot * c4;
+        self.loop_residual = self.gap(s.theta, s.theta3, s.theta4).norm();
     }
 
     fn event_indicators(&self, _t: f64, x: &[f64], z: &mut [f64]) {
-        z[0] = self.singularity_margin(x[1], x[2]) - SINGULAR;
+        let s = State::load(x);
+        z[0] = self.singularity_margin(s.theta3, s.theta4) - SINGULAR;
     }
 
     fn on_event(&mut self, _t: f64, x: &mut [f64], fired: &[bool]) -> Result<EventOutcome, ModelError> {
-        if fired[0] && self.singularity_margin(x[1], x[2]) <= 2.0 * SINGULAR {
+        let s = State::load(x);
+        if fired[0] && self.singularity_margin(s.theta3, s.theta4) <= 2.0 * SINGULAR {
             // Close the loop at the stop too (matters for the fixed-step solvers, whose last
             // step may have drifted); if that fails on this branch the state is left as is.
             self.project(x, 0.0);
             return Ok(EventOutcome::Stop {
                 reason: format!(
                     "limit position at theta = {:.4} deg: the coupler AB and the link BC are collinear (A singular), the input link cannot turn further",
-                    x[0].to_degrees()
+                    s.theta.to_degrees()
                 ),
             });
         }
@@ -317,7 +324,7 @@ impl<P: FourBarPreset> Model for FourBar<P> {
         Ok(EventOutcome::Stop {
             reason: format!(
                 "the loop can no longer be closed on this branch at theta = {:.4} deg: a limit position, or a step too large for the solver (with euler or rk4, reduce fixed_step)",
-                x[0].to_degrees()
+                State::load(x).theta.to_degrees()
             ),
         })
     }

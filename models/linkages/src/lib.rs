@@ -10,16 +10,7 @@ pub mod slider_crank;
 pub use four_bar::FourBar;
 pub use slider_crank::SliderCrank;
 
-use fmu_export::{ModelError, ModelInfo};
-
-/// Refuses any assembly choice but +1 and -1.
-pub fn check_branch(branch: i32) -> Result<(), ModelError> {
-    if branch == 1 || branch == -1 {
-        Ok(())
-    } else {
-        Err(ModelError(format!("parameter branch = {branch} must be +1 or -1")))
-    }
-}
+use fmu_export::ModelInfo;
 
 /// Position and velocity of the crank pin A of an input link of length `l_oa` at angle
 /// `theta` turning at `omega`: (A_x, A_y, v_A_x, v_A_y).

@@ -1,14 +1,11 @@
 //! The slider-crank of Ex. 5A #1 and #2 (slider on the x-axis, or offset to y = y_OC).
 
-use fmu_export::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{EventOutcome, Model, ModelError, ModelInfo, StateVector, Variables};
 use nalgebra::{Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 use std::marker::PhantomData;
 
 use crate::SliderCrankPreset;
-
-/// Rows of this model's variable table.
-type V<P> = Variable<SliderCrank<P>>;
 
 /// The run stops when |det A| / l_AB = |cos theta3| falls below this (a limit position).
 pub const SINGULAR: f64 = 1e-3;
@@ -16,33 +13,87 @@ pub const SINGULAR: f64 = 1e-3;
 const NEWTON_ITERS: usize = 20;
 
 /// Mechanisms #1 and #2: crank OA (input, angle theta) and connecting rod AB; the slider B moves
-/// on the line y = y_OC. Loop r2 + r3 = r1 + r4, unknowns r1 (= x of B)
-/// and theta3 (angle of A->B). State vector [theta, r1, theta3, r1', theta3'].
-#[derive(Debug, Clone, Serialize, Deserialize)]
+/// on the line y = y_OC. Loop r2 + r3 = r1 + r4, unknowns r1 (= x of B) and theta3 (angle of
+/// A->B).
+#[derive(Debug, Clone, Serialize, Deserialize, Variables)]
 #[serde(bound = "")]
+#[variables(states = State, bound = "P: SliderCrankPreset")]
 pub struct SliderCrank<P> {
     /// Which FMU this is (defaults and identity); no data.
     #[serde(skip)]
     pub preset: PhantomData<fn() -> P>,
+    /// Crank length OA
+    #[parameter(name = "l_OA", unit = "m", display = "mm", positive)]
     pub l_oa: f64,
+    /// Connecting rod length AB
+    #[parameter(name = "l_AB", unit = "m", display = "mm", positive)]
     pub l_ab: f64,
-    /// Height of the slider's line above O.
+    /// Height of the slider's line above O (collar height)
+    // The centred crank-slider has no slider offset to set (MODELS.md).
+    #[parameter(name = "y_OC", unit = "m", display = "mm", finite, when = P::HAS_OFFSET)]
     pub y_oc: f64,
+    /// Initial crank angle (counter-clockwise from +x)
+    #[parameter(unit = "rad", display = "deg", finite)]
     pub theta0: f64,
+    /// Crank angular velocity (counter-clockwise, constant)
+    #[parameter(unit = "rad/s", display = "rpm", finite)]
     pub omega: f64,
+    /// Assembly: +1 puts B at larger x than A, -1 at smaller x
+    #[parameter(one_of(1, -1))]
     pub branch: i32,
-    // Outputs.
+    /// Slider acceleration
+    #[output(unit = "m/s2")]
     pub r1_ddot: f64,
+    /// Angular acceleration of the connecting rod
+    #[output(unit = "rad/s2")]
     pub theta3_ddot: f64,
+    /// x of the crank pin A
+    #[output(name = "A_x", unit = "m")]
     pub a_x: f64,
+    /// y of the crank pin A
+    #[output(name = "A_y", unit = "m")]
     pub a_y: f64,
+    /// x of the slider pin B
+    #[output(name = "B_x", unit = "m")]
     pub b_x: f64,
+    /// y of the slider pin B
+    #[output(name = "B_y", unit = "m")]
     pub b_y: f64,
+    /// x velocity of A
+    #[output(name = "v_A_x", unit = "m/s")]
     pub v_a_x: f64,
+    /// y velocity of A
+    #[output(name = "v_A_y", unit = "m/s")]
     pub v_a_y: f64,
+    /// x velocity of B
+    #[output(name = "v_B_x", unit = "m/s")]
     pub v_b_x: f64,
+    /// y velocity of B
+    #[output(name = "v_B_y", unit = "m/s")]
     pub v_b_y: f64,
+    /// Vector-loop gap |e| (E.16)
+    #[output(unit = "m")]
     pub loop_residual: f64,
+}
+
+/// The state vector: the crank angle, the loop's unknowns x = [r1, theta3] and their rates.
+#[derive(StateVector)]
+pub struct State {
+    /// Crank angle theta2
+    #[state(unit = "rad", display = "deg")]
+    pub theta: f64,
+    /// Slider position: x of B (vector r1 along +x, r4 = y_OC up)
+    #[state(unit = "m")]
+    pub r1: f64,
+    /// Angle of the connecting rod A->B
+    #[state(unit = "rad", display = "deg")]
+    pub theta3: f64,
+    /// Slider velocity
+    #[state(unit = "m/s")]
+    pub r1_dot: f64,
+    /// Angular velocity of the connecting rod
+    #[state(unit = "rad/s")]
+    pub theta3_dot: f64,
 }
 
 impl<P: SliderCrankPreset> Default for SliderCrank<P> {
@@ -69,7 +120,7 @@ impl<P: SliderCrankPreset> Default for SliderCrank<P> {
             loop_residual: 0.0,
         };
         // Start values of the outputs: the assembled initial configuration.
-        let mut x = [0.0; 5];
+        let mut x = [0.0; State::LEN];
         if m.assemble(&mut x).is_ok() {
             m.outputs(0.0, &x);
         }
@@ -101,9 +152,9 @@ impl<P: SliderCrankPreset> SliderCrank<P> {
     }
 
     /// x'' = A^-1 b; a singular A (only past the stop at a limit position) gives zeros, not NaN.
-    fn accelerations(&self, x: &[f64]) -> Vector2<f64> {
-        let b = self.b_acceleration(x[0], x[2], x[4]);
-        self.a_matrix(x[2]).lu().solve(&b).filter(|v| v.iter().all(|c| c.is_finite())).unwrap_or_else(Vector2::zeros)
+    fn accelerations(&self, s: &State) -> Vector2<f64> {
+        let b = self.b_acceleration(s.theta, s.theta3, s.theta3_dot);
+        self.a_matrix(s.theta3).lu().solve(&b).filter(|v| v.iter().all(|c| c.is_finite())).unwrap_or_else(Vector2::zeros)
     }
 
     /// Velocities consistent with the positions: A x' = b.
@@ -144,7 +195,7 @@ impl<P: SliderCrankPreset> SliderCrank<P> {
             )));
         }
         let v = self.velocities(theta, th3).ok_or_else(|| ModelError("A is singular at theta0".into()))?;
-        x.copy_from_slice(&[theta, ax + dx, th3, v[0], v[1]]);
+        State { theta, r1: ax + dx, theta3: th3, r1_dot: v[0], theta3_dot: v[1] }.store(x);
         Ok(())
     }
 
@@ -154,9 +205,10 @@ impl<P: SliderCrankPreset> SliderCrank<P> {
     /// converge on this branch with at least `min_margin` from the singularity.
     fn project(&self, x: &mut [f64], min_margin: f64) -> bool {
         let scale = self.l_oa + self.l_ab + self.y_oc.abs();
-        let mut q = Vector2::new(x[1], x[2]);
+        let State { theta, r1, theta3, .. } = State::load(x);
+        let mut q = Vector2::new(r1, theta3);
         for _ in 0..NEWTON_ITERS {
-            let e = self.gap(x[0], q[0], q[1]);
+            let e = self.gap(theta, q[0], q[1]);
             if e.norm() <= 1e-15 * scale {
                 break;
             }
@@ -166,118 +218,65 @@ impl<P: SliderCrankPreset> SliderCrank<P> {
                 None => break,
             }
         }
-        let closed = self.singularity_margin(q[1]) >= min_margin && self.gap(x[0], q[0], q[1]).norm() < 1e-12 * scale;
+        let closed = self.singularity_margin(q[1]) >= min_margin && self.gap(theta, q[0], q[1]).norm() < 1e-12 * scale;
         if !closed {
             return false;
         }
-        let Some(v) = self.velocities(x[0], q[1]) else {
+        let Some(v) = self.velocities(theta, q[1]) else {
             return false;
         };
-        x[1] = q[0];
-        x[2] = q[1];
-        x[3] = v[0];
-        x[4] = v[1];
+        State { theta, r1: q[0], theta3: q[1], r1_dot: v[0], theta3_dot: v[1] }.store(x);
         true
     }
 }
 
 impl<P: SliderCrankPreset> Model for SliderCrank<P> {
-    const N_STATES: usize = 5;
+    const N_STATES: usize = State::LEN;
     const N_EVENT_INDICATORS: usize = 1;
 
     fn info() -> ModelInfo {
         P::info()
     }
 
-    fn variables() -> Vec<Variable<Self>> {
-        let mut rows = vec![
-            V::<P>::parameter("l_OA", "Crank length OA", |s| s.l_oa, |s, v| s.l_oa = v).unit("m").display("mm"),
-            V::<P>::parameter("l_AB", "Connecting rod length AB", |s| s.l_ab, |s, v| s.l_ab = v).unit("m").display("mm"),
-            V::<P>::parameter("theta0", "Initial crank angle (counter-clockwise from +x)", |s| s.theta0, |s, v| s.theta0 = v)
-                .unit("rad")
-                .display("deg"),
-            V::<P>::parameter("omega", "Crank angular velocity (counter-clockwise, constant)", |s| s.omega, |s, v| s.omega = v)
-                .unit("rad/s")
-                .display("rpm"),
-            V::<P>::integer_parameter(
-                "branch",
-                "Assembly: +1 puts B at larger x than A, -1 at smaller x",
-                |s| s.branch,
-                |s, v| s.branch = v,
-            ),
-            V::<P>::state("theta", "Crank angle theta2", 0).unit("rad").display("deg"),
-            V::<P>::state("r1", "Slider position: x of B (vector r1 along +x, r4 = y_OC up)", 1).unit("m"),
-            V::<P>::state("theta3", "Angle of the connecting rod A->B", 2).unit("rad").display("deg"),
-            V::<P>::state("r1_dot", "Slider velocity", 3).unit("m/s"),
-            V::<P>::state("theta3_dot", "Angular velocity of the connecting rod", 4).unit("rad/s"),
-            V::<P>::output("r1_ddot", "Slider acceleration", |s| s.r1_ddot).unit("m/s2"),
-            V::<P>::output("theta3_ddot", "Angular acceleration of the connecting rod", |s| s.theta3_ddot).unit("rad/s2"),
-            V::<P>::output("A_x", "x of the crank pin A", |s| s.a_x).unit("m"),
-            V::<P>::output("A_y", "y of the crank pin A", |s| s.a_y).unit("m"),
-            V::<P>::output("B_x", "x of the slider pin B", |s| s.b_x).unit("m"),
-            V::<P>::output("B_y", "y of the slider pin B", |s| s.b_y).unit("m"),
-            V::<P>::output("v_A_x", "x velocity of A", |s| s.v_a_x).unit("m/s"),
-            V::<P>::output("v_A_y", "y velocity of A", |s| s.v_a_y).unit("m/s"),
-            V::<P>::output("v_B_x", "x velocity of B", |s| s.v_b_x).unit("m/s"),
-            V::<P>::output("v_B_y", "y velocity of B", |s| s.v_b_y).unit("m/s"),
-            V::<P>::output("loop_residual", "Vector-loop gap |e| (E.16)", |s| s.loop_residual).unit("m"),
-        ];
-        // The centred crank-slider has no slider offset to set (MODELS.md).
-        if P::HAS_OFFSET {
-            rows.insert(
-                2,
-                V::<P>::parameter("y_OC", "Height of the slider's line above O (collar height)", |s| s.y_oc, |s, v| s.y_oc = v)
-                    .unit("m")
-                    .display("mm"),
-            );
-        }
-        rows
-    }
-
+    /// The assembly for theta0 (the lengths and the branch are checked by their ranges).
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        require_positive("l_OA", self.l_oa)?;
-        require_positive("l_AB", self.l_ab)?;
-        require_finite("y_OC", self.y_oc)?;
-        require_finite("theta0", self.theta0)?;
-        require_finite("omega", self.omega)?;
-        crate::check_branch(self.branch)?;
         self.assemble(x)
     }
 
+    /// The crank turns at omega; the unknowns' accelerations from A x'' = b.
     fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
-        let acc = self.accelerations(x);
-        dx[0] = self.omega;
-        dx[1] = x[3];
-        dx[2] = x[4];
-        dx[3] = acc[0];
-        dx[4] = acc[1];
+        let s = State::load(x);
+        let acc = self.accelerations(&s);
+        State { theta: self.omega, r1: s.r1_dot, theta3: s.theta3_dot, r1_dot: acc[0], theta3_dot: acc[1] }.store(dx);
     }
 
     fn outputs(&mut self, _t: f64, x: &[f64]) {
-        let acc = self.accelerations(x);
+        let s = State::load(x);
+        let acc = self.accelerations(&s);
         self.r1_ddot = acc[0];
         self.theta3_ddot = acc[1];
-        (self.a_x, self.a_y, self.v_a_x, self.v_a_y) = crate::crank_point(self.l_oa, x[0], self.omega);
-        self.b_x = x[1];
+        (self.a_x, self.a_y, self.v_a_x, self.v_a_y) = crate::crank_point(self.l_oa, s.theta, self.omega);
+        self.b_x = s.r1;
         self.b_y = self.y_oc;
-        self.v_b_x = x[3];
+        self.v_b_x = s.r1_dot;
         self.v_b_y = 0.0;
-        self.loop_residual = self.gap(x[0], x[1], x[2]).norm();
+        self.loop_residual = self.gap(s.theta, s.r1, s.theta3).norm();
     }
 
     fn event_indicators(&self, _t: f64, x: &[f64], z: &mut [f64]) {
-        z[0] = self.singularity_margin(x[2]) - SINGULAR;
+        z[0] = self.singularity_margin(State::load(x).theta3) - SINGULAR;
     }
 
     fn on_event(&mut self, _t: f64, x: &mut [f64], fired: &[bool]) -> Result<EventOutcome, ModelError> {
-        if fired[0] && self.singularity_margin(x[2]) <= 2.0 * SINGULAR {
+        let s = State::load(x);
+        if fired[0] && self.singularity_margin(s.theta3) <= 2.0 * SINGULAR {
             // Close the loop at the stop too (matters for the fixed-step solvers, whose last
             // step may have drifted); if that fails on this branch the state is left as is.
             self.project(x, 0.0);
             return Ok(EventOutcome::Stop {
                 reason: format!(
                     "limit position at theta = {:.4} deg: the connecting rod AB is perpendicular to the slider line (A singular), the crank cannot turn further",
-                    x[0].to_degrees()
+                    s.theta.to_degrees()
                 ),
             });
         }
@@ -293,7 +292,7 @@ impl<P: SliderCrankPreset> Model for SliderCrank<P> {
         Ok(EventOutcome::Stop {
             reason: format!(
                 "the loop can no longer be closed on this branch at theta = {:.4} deg: a limit position, or a step too large for the solver (with euler or rk4, reduce fixed_step)",
-                x[0].to_degrees()
+                State::load(x).theta.to_degrees()
             ),
         })
     }

@@ -2,24 +2,48 @@
 #![deny(unsafe_code)]
 
 use fmu_export::units::{INCH, LBF};
-use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable};
-
-/// Rows of this model's variable table.
-type V = Variable<MassSpringDamper>;
+use fmu_export::{Model, ModelError, ModelInfo, StateVector, Variables};
 use serde::{Deserialize, Serialize};
 
 /// `m x'' + b x' + k x = F(t)`, F an input.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+#[variables(states = State)]
 pub struct MassSpringDamper {
+    /// Mass (2 lbf.s2/in)
+    #[parameter(unit = "kg", display = "lbf.s2/in", positive)]
     pub m: f64,
+    /// Damping coefficient (1 lbf.s/in)
+    #[parameter(unit = "N.s/m", display = "lbf.s/in", non_negative)]
     pub b: f64,
+    /// Spring stiffness (10 lbf/in)
+    #[parameter(unit = "N/m", display = "lbf/in", non_negative)]
     pub k: f64,
+    /// Initial displacement
+    #[parameter(unit = "m", display = "in", finite)]
     pub x0: f64,
+    /// Initial velocity
+    #[parameter(unit = "m/s", display = "in/s", finite)]
     pub v0: f64,
-    /// Input force (N), held over each communication step.
+    /// Applied force F(t)
+    #[input(name = "F", unit = "N", display = "lbf")]
     pub force: f64,
+    /// Acceleration
+    #[output(unit = "m/s2", display = "in/s2")]
     pub a: f64,
+    /// Force through spring and damper, k x + b v
+    #[output(name = "F_total", unit = "N", display = "lbf")]
     pub f_total: f64,
+}
+
+/// The state vector.
+#[derive(StateVector)]
+pub struct State {
+    /// Displacement
+    #[state(unit = "m", display = "in")]
+    pub x: f64,
+    /// Velocity
+    #[state(unit = "m/s", display = "in/s")]
+    pub v: f64,
 }
 
 impl Default for MassSpringDamper {
@@ -37,7 +61,7 @@ impl MassSpringDamper {
 }
 
 impl Model for MassSpringDamper {
-    const N_STATES: usize = 2;
+    const N_STATES: usize = State::LEN;
 
     fn info() -> ModelInfo {
         ModelInfo {
@@ -50,41 +74,22 @@ impl Model for MassSpringDamper {
         }
     }
 
-    fn variables() -> Vec<Variable<Self>> {
-        vec![
-            V::parameter("m", "Mass (2 lbf.s2/in)", |s| s.m, |s, v| s.m = v).unit("kg").display("lbf.s2/in"),
-            V::parameter("b", "Damping coefficient (1 lbf.s/in)", |s| s.b, |s, v| s.b = v).unit("N.s/m").display("lbf.s/in"),
-            V::parameter("k", "Spring stiffness (10 lbf/in)", |s| s.k, |s, v| s.k = v).unit("N/m").display("lbf/in"),
-            V::parameter("x0", "Initial displacement", |s| s.x0, |s, v| s.x0 = v).unit("m").display("in"),
-            V::parameter("v0", "Initial velocity", |s| s.v0, |s, v| s.v0 = v).unit("m/s").display("in/s"),
-            V::input("F", "Applied force F(t)", |s| s.force, |s, v| s.force = v).unit("N").display("lbf"),
-            V::state("x", "Displacement", 0).unit("m").display("in"),
-            V::state("v", "Velocity", 1).unit("m/s").display("in/s"),
-            V::output("a", "Acceleration", |s| s.a).unit("m/s2").display("in/s2"),
-            V::output("F_total", "Force through spring and damper, k x + b v", |s| s.f_total).unit("N").display("lbf"),
-        ]
-    }
-
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        require_positive("m", self.m)?;
-        require_non_negative("b", self.b)?;
-        require_non_negative("k", self.k)?;
-        require_finite("x0", self.x0)?;
-        require_finite("v0", self.v0)?;
-        x[0] = self.x0;
-        x[1] = self.v0;
+        State { x: self.x0, v: self.v0 }.store(x);
         Ok(())
     }
 
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
-        dx[0] = x[1];
-        dx[1] = self.acceleration(x[0], x[1]);
+        let s = State::load(x);
+        State { x: s.v, v: self.acceleration(s.x, s.v) }.store(dx);
     }
 
+    /// The App. B output equation y = C x + D u.
     fn outputs(&mut self, _t: f64, x: &[f64]) {
-        self.a = self.acceleration(x[0], x[1]);
-        self.f_total = self.k * x[0] + self.b * x[1];
+        let s = State::load(x);
+        self.a = self.acceleration(s.x, s.v);
+        self.f_total = self.k * s.x + self.b * s.v;
     }
 }
 
@@ -94,18 +99,54 @@ fmu_export::export_fmu!(MassSpringDamper);
 mod tests {
     use super::*;
     use fmu_export::harness::Harness;
+    use runner_engine::metrics::Formula;
 
-    /// The underdamped closed form of derivation.md for a constant force `f0`.
+    /// The underdamped free vibration of experiment.toml's `[compare.reference]` (derivation.md),
+    /// the closed form `runner compare` and tests/fmpy evaluate too, at `t` from (x0, v0).
+    fn free(p: &MassSpringDamper, x0: f64, v0: f64, t: f64) -> (f64, f64) {
+        let experiment: toml::Table = include_str!("../experiment.toml").parse().expect("experiment.toml is TOML");
+        let value = |output: &str| {
+            let formula = Formula::parse(experiment["compare"]["reference"][output].as_str().expect("a formula")).expect("valid");
+            let values: Vec<f64> = formula
+                .names
+                .iter()
+                .map(|name| match name.as_str() {
+                    "t" => t,
+                    "m" => p.m,
+                    "b" => p.b,
+                    "k" => p.k,
+                    "x0" => x0,
+                    "v0" => v0,
+                    other => panic!("the reference reads {other}, which this test does not give"),
+                })
+                .collect();
+            formula.evaluate(&values)
+        };
+        (value("x"), value("v"))
+    }
+
+    /// The response to a constant force `f0` from p's x0, v0: the free vibration about the
+    /// shifted equilibrium f0/k (x - f0/k obeys the unforced equation).
     fn exact(p: &MassSpringDamper, f0: f64, t: f64) -> (f64, f64) {
-        let wn = (p.k / p.m).sqrt();
-        let zeta = p.b / (2.0 * (p.k * p.m).sqrt());
-        let wd = wn * (1.0 - zeta * zeta).sqrt();
-        let a = p.x0 - f0 / p.k;
-        let bb = (p.v0 + zeta * wn * a) / wd;
-        let (e, c, s) = ((-zeta * wn * t).exp(), (wd * t).cos(), (wd * t).sin());
-        let x = f0 / p.k + e * (a * c + bb * s);
-        let v = e * ((-zeta * wn) * (a * c + bb * s) + wd * (-a * s + bb * c));
-        (x, v)
+        let (x, v) = free(p, p.x0 - f0 / p.k, p.v0, t);
+        (f0 / p.k + x, v)
+    }
+
+    /// The reference itself, independent of the solver: it starts at (x0, v0), v is dx/dt,
+    /// and m x'' + b x' + k x = 0 holds, x'' by a central difference of v (h = 1e-5: truncation
+    /// ~1e-10 of |a| <= 0.2 m/s², rounding ~1e-11; bound 1e-7 N on forces of ~50 N).
+    #[test]
+    fn the_reference_solves_the_free_vibration() {
+        let p = MassSpringDamper::default();
+        let (x0, v0) = (0.0254, -0.1);
+        assert_eq!(free(&p, x0, v0, 0.0), (x0, v0));
+        let h = 1e-5;
+        for t in [0.3, 1.0, 2.5, 7.0] {
+            let ((x, v), (xp, vp), (xm, vm)) = (free(&p, x0, v0, t), free(&p, x0, v0, t + h), free(&p, x0, v0, t - h));
+            assert!(((xp - xm) / (2.0 * h) - v).abs() < 1e-8, "t = {t}: v is not dx/dt");
+            let residual = p.m * (vp - vm) / (2.0 * h) + p.b * v + p.k * x;
+            assert!(residual.abs() < 1e-7, "t = {t}: residual {residual:e} N");
+        }
     }
 
     /// The prelab's values in SI: the ratios k/m and b/m do not depend on the unit factors.
@@ -169,5 +210,11 @@ mod tests {
         }
         let mut h = Harness::<MassSpringDamper>::new();
         assert!(h.set("m", f64::NAN).unwrap_err().contains("m = NaN"));
+    }
+
+    /// MODELS.md's entry for this model is the one its variable table gives.
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<MassSpringDamper>(env!("CARGO_MANIFEST_DIR"));
     }
 }

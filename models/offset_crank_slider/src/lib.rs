@@ -223,4 +223,10 @@ mod tests {
         let problems = fmu_export::table::Table::<OffsetCrankSlider>::new().problems();
         assert!(problems.is_empty(), "{problems:?}");
     }
+
+    /// MODELS.md's entry for this model is the one its variable table gives.
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<OffsetCrankSlider>(env!("CARGO_MANIFEST_DIR"));
+    }
 }

@@ -2,24 +2,46 @@
 #![deny(unsafe_code)]
 
 use fmu_export::units::DEGREE;
-use fmu_export::{require_finite, require_non_negative, require_positive, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{Model, ModelError, ModelInfo, StateVector, Variables};
 use serde::{Deserialize, Serialize};
 
-/// Rows of this model's variable table.
-type V = Variable<Pendulum>;
-
 /// Ex. 2: `m L² theta'' = -m g L sin(theta) - c theta'`, theta from the downward vertical.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+#[variables(states = State)]
 pub struct Pendulum {
+    /// Rod length, pivot to bob
+    #[parameter(name = "L", unit = "m", positive)]
     pub l: f64,
+    /// Bob mass (point mass)
+    #[parameter(unit = "kg", positive)]
     pub m: f64,
+    /// Gravitational acceleration
+    // g > 0: without gravity there is no pendulum (and no restoring torque).
+    #[parameter(unit = "m/s2", positive)]
     pub g: f64,
+    /// Initial angle from the downward vertical, counter-clockwise
+    #[parameter(unit = "rad", display = "deg", finite)]
     pub theta0: f64,
+    /// Initial angular velocity
+    #[parameter(unit = "rad/s", display = "deg/s", finite)]
     pub omega0: f64,
-    /// Viscous friction torque coefficient at the pivot (N·m·s/rad).
+    /// Viscous friction torque coefficient at the pivot
+    #[parameter(unit = "N.m.s/rad", non_negative)]
     pub c: f64,
-    /// Kinetic plus potential energy, zero hanging at rest (J).
+    /// Kinetic plus potential energy, zero hanging at rest
+    #[output(unit = "J")]
     pub energy: f64,
+}
+
+/// The state vector.
+#[derive(StateVector)]
+pub struct State {
+    /// Angle from the downward vertical, counter-clockwise
+    #[state(unit = "rad", display = "deg")]
+    pub theta: f64,
+    /// Angular velocity theta'
+    #[state(unit = "rad/s", display = "deg/s")]
+    pub omega: f64,
 }
 
 impl Default for Pendulum {
@@ -39,7 +61,7 @@ impl Pendulum {
 }
 
 impl Model for Pendulum {
-    const N_STATES: usize = 2;
+    const N_STATES: usize = State::LEN;
 
     fn info() -> ModelInfo {
         ModelInfo {
@@ -52,43 +74,21 @@ impl Model for Pendulum {
         }
     }
 
-    fn variables() -> Vec<Variable<Self>> {
-        vec![
-            V::parameter("L", "Rod length, pivot to bob", |s| s.l, |s, v| s.l = v).unit("m"),
-            V::parameter("m", "Bob mass (point mass)", |s| s.m, |s, v| s.m = v).unit("kg"),
-            V::parameter("g", "Gravitational acceleration", |s| s.g, |s, v| s.g = v).unit("m/s2"),
-            V::parameter("theta0", "Initial angle from the downward vertical, counter-clockwise", |s| s.theta0, |s, v| s.theta0 = v)
-                .unit("rad")
-                .display("deg"),
-            V::parameter("omega0", "Initial angular velocity", |s| s.omega0, |s, v| s.omega0 = v).unit("rad/s").display("deg/s"),
-            V::parameter("c", "Viscous friction torque coefficient at the pivot", |s| s.c, |s, v| s.c = v).unit("N.m.s/rad"),
-            V::state("theta", "Angle from the downward vertical, counter-clockwise", 0).unit("rad").display("deg"),
-            V::state("omega", "Angular velocity theta'", 1).unit("rad/s").display("deg/s"),
-            V::output("energy", "Kinetic plus potential energy, zero hanging at rest", |s| s.energy).unit("J"),
-        ]
-    }
-
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        require_positive("L", self.l)?;
-        require_positive("m", self.m)?;
-        // g > 0: without gravity there is no pendulum (and no restoring torque).
-        require_positive("g", self.g)?;
-        require_non_negative("c", self.c)?;
-        require_finite("theta0", self.theta0)?;
-        require_finite("omega0", self.omega0)?;
-        x[0] = self.theta0;
-        x[1] = self.omega0;
+        State { theta: self.theta0, omega: self.omega0 }.store(x);
         Ok(())
     }
 
+    /// theta' = omega, omega' = -(g/L) sin(theta) - c omega / (m L²).
     #[inline]
     fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
-        dx[0] = x[1];
-        dx[1] = -(self.g / self.l) * x[0].sin() - self.c * x[1] / (self.m * self.l * self.l);
+        let State { theta, omega } = State::load(x);
+        State { theta: omega, omega: -(self.g / self.l) * theta.sin() - self.c * omega / (self.m * self.l * self.l) }.store(dx);
     }
 
     fn outputs(&mut self, _t: f64, x: &[f64]) {
-        self.energy = self.energy_at(x[0], x[1]);
+        let State { theta, omega } = State::load(x);
+        self.energy = self.energy_at(theta, omega);
     }
 }
 
@@ -259,5 +259,11 @@ mod tests {
             let err = h.initialize(None).unwrap_err();
             assert!(err.contains(&format!("parameter {name}")), "{err}");
         }
+    }
+
+    /// MODELS.md's entry for this model is the one its variable table gives.
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<Pendulum>(env!("CARGO_MANIFEST_DIR"));
     }
 }

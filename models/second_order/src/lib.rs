@@ -1,22 +1,40 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu_export::{require_finite, Model, ModelError, ModelInfo, Variable};
-
-/// Rows of this model's variable table.
-type V = Variable<SecondOrder>;
+use fmu_export::{Model, ModelError, ModelInfo, StateVector, Variables};
 use serde::{Deserialize, Serialize};
 
 /// Ex. 1: `a2 q'' + a1 q' + a0 q = exp(-3t)`.
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+#[variables(states = State)]
 pub struct SecondOrder {
+    /// Coefficient of q''
+    #[parameter(finite)]
     pub a2: f64,
+    /// Coefficient of q'
+    #[parameter(finite)]
     pub a1: f64,
+    /// Coefficient of q
+    #[parameter(finite)]
     pub a0: f64,
+    /// Initial value q(0)
+    #[parameter(finite)]
     pub q0: f64,
+    /// Initial rate q'(0)
+    #[parameter(finite)]
     pub q_dot0: f64,
-    /// The input u = exp(-3t) at the current time (an output).
+    /// Input u(t) = exp(-3t)
+    #[output]
     pub u: f64,
+}
+
+/// The state vector.
+#[derive(StateVector)]
+pub struct State {
+    /// Response q(t)
+    pub q: f64,
+    /// Rate q'(t)
+    pub q_dot: f64,
 }
 
 impl Default for SecondOrder {
@@ -31,7 +49,7 @@ fn forcing(t: f64) -> f64 {
 }
 
 impl Model for SecondOrder {
-    const N_STATES: usize = 2;
+    const N_STATES: usize = State::LEN;
 
     fn info() -> ModelInfo {
         ModelInfo {
@@ -44,35 +62,19 @@ impl Model for SecondOrder {
         }
     }
 
-    fn variables() -> Vec<Variable<Self>> {
-        vec![
-            V::parameter("a2", "Coefficient of q''", |m| m.a2, |m, v| m.a2 = v),
-            V::parameter("a1", "Coefficient of q'", |m| m.a1, |m, v| m.a1 = v),
-            V::parameter("a0", "Coefficient of q", |m| m.a0, |m, v| m.a0 = v),
-            V::parameter("q0", "Initial value q(0)", |m| m.q0, |m, v| m.q0 = v),
-            V::parameter("q_dot0", "Initial rate q'(0)", |m| m.q_dot0, |m, v| m.q_dot0 = v),
-            V::state("q", "Response q(t)", 0),
-            V::state("q_dot", "Rate q'(t)", 1),
-            V::output("u", "Input u(t) = exp(-3t)", |m| m.u),
-        ]
-    }
-
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        for (name, v) in [("a2", self.a2), ("a1", self.a1), ("a0", self.a0), ("q0", self.q0), ("q_dot0", self.q_dot0)] {
-            require_finite(name, v)?;
-        }
         if self.a2 == 0.0 {
             return Err(ModelError("parameter a2 = 0 makes the equation first order: a2 must not be zero".into()));
         }
-        x[0] = self.q0;
-        x[1] = self.q_dot0;
+        State { q: self.q0, q_dot: self.q_dot0 }.store(x);
         Ok(())
     }
 
+    /// q' = q_dot, q'' = (u - a1 q' - a0 q) / a2.
     #[inline]
     fn derivatives(&self, t: f64, x: &[f64], dx: &mut [f64]) {
-        dx[0] = x[1];
-        dx[1] = (forcing(t) - self.a1 * x[1] - self.a0 * x[0]) / self.a2;
+        let State { q, q_dot } = State::load(x);
+        State { q: q_dot, q_dot: (forcing(t) - self.a1 * q_dot - self.a0 * q) / self.a2 }.store(dx);
     }
 
     fn outputs(&mut self, t: f64, _x: &[f64]) {
@@ -86,11 +88,21 @@ fmu_export::export_fmu!(SecondOrder);
 mod tests {
     use super::*;
     use fmu_export::harness::Harness;
+    use runner_engine::metrics::Formula;
 
-    /// The closed form derived in derivation.md (default parameters only).
+    /// A closed form of experiment.toml's `[compare.reference]` (derived in derivation.md, for
+    /// the default parameters): the one `runner compare` and tests/fmpy evaluate too.
+    fn reference(output: &str) -> Formula {
+        let experiment: toml::Table = include_str!("../experiment.toml").parse().expect("experiment.toml is TOML");
+        let text = experiment["compare"]["reference"][output].as_str().expect("a formula");
+        let formula = Formula::parse(text).expect("a valid formula");
+        assert_eq!(formula.names, ["t"], "{output} = {text} should depend on t alone");
+        formula
+    }
+
+    /// (q, q') of the closed form at `t`.
     fn exact(t: f64) -> (f64, f64) {
-        let (e2, e3) = ((-2.0 * t).exp(), (-3.0 * t).exp());
-        (7.5 * e2 - 5.5 * e3 - 0.5 * t * e3, -15.0 * e2 + 16.0 * e3 + 1.5 * t * e3)
+        (reference("q").evaluate(&[t]), reference("q_dot").evaluate(&[t]))
     }
 
     fn max_error(h: &mut Harness<SecondOrder>, dt: f64) -> f64 {
@@ -142,12 +154,33 @@ mod tests {
         assert!((ratio - 2.0).abs() < 0.1, "errors {errs:?}, ratio {ratio}");
     }
 
+    /// The output u against experiment.toml's u = exp(-3*t) (and the formula against the
+    /// handbook's value at t = 0.5), to rounding.
     #[test]
     fn outputs_the_input_signal() {
         let mut h = Harness::<SecondOrder>::new();
         h.initialize(None).unwrap();
         h.step(0.5).unwrap();
-        assert!((h.get("u").unwrap() - (-1.5f64).exp()).abs() < 1e-15);
+        let u = reference("u").evaluate(&[0.5]);
+        assert!((u - (-1.5f64).exp()).abs() < 1e-16);
+        assert!((h.get("u").unwrap() - u).abs() < 1e-15);
+    }
+
+    /// The closed form satisfies the initial conditions q(0) = 2, q'(0) = 1 and the equation
+    /// 2 q'' + 10 q' + 12 q = exp(-3t), q'' by a central difference of q' (h = 1e-5: truncation
+    /// ~1e-10, rounding ~1e-11): a check of the reference itself, independent of the solver.
+    #[test]
+    fn the_reference_solves_the_initial_value_problem() {
+        let p = SecondOrder::default();
+        assert_eq!(exact(0.0), (p.q0, p.q_dot0));
+        let h = 1e-5;
+        for t in [0.1, 0.5, 1.0, 2.0, 5.0] {
+            let (q, q_dot) = exact(t);
+            let q_ddot = (exact(t + h).1 - exact(t - h).1) / (2.0 * h);
+            let residual = p.a2 * q_ddot + p.a1 * q_dot + p.a0 * q - forcing(t);
+            assert!(residual.abs() < 1e-8, "t = {t}: residual {residual:e}");
+            assert!(((exact(t + h).0 - exact(t - h).0) / (2.0 * h) - q_dot).abs() < 1e-8, "t = {t}: q' is not dq/dt");
+        }
     }
 
     #[test]
@@ -156,5 +189,11 @@ mod tests {
         h.set("a2", 0.0).unwrap();
         let err = h.initialize(None).unwrap_err();
         assert!(err.contains("a2"), "{err}");
+    }
+
+    /// MODELS.md's entry for this model is the one its variable table gives.
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<SecondOrder>(env!("CARGO_MANIFEST_DIR"));
     }
 }

@@ -1,12 +1,9 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu_export::{require_finite, require_positive, EventOutcome, Model, ModelError, ModelInfo, Variable};
+use fmu_export::{EventOutcome, Model, ModelError, ModelInfo, StateVector, Variables};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
-
-/// Rows of this model's variable table.
-type V = Variable<Trebuchet>;
 
 use fmu_export::units::{DEGREE as DEG, FOOT, INCH, LBF, OZF};
 
@@ -79,38 +76,147 @@ pub struct Frame {
     pub w: [f64; 3],
 }
 
-/// Ex. 6: the walking arm trebuchet. State vector (10, all regimes):
-/// [theta1, theta2, theta3, omega1, omega2, omega3, x_p, y_p, vx_p, vy_p].
-#[derive(Debug, Clone, Serialize, Deserialize)]
+/// Ex. 6: the walking arm trebuchet.
+#[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+#[variables(states = State)]
 pub struct Trebuchet {
+    /// Length of link 1, AC
+    #[parameter(name = "r_AC", unit = "m", display = "in", positive)]
     pub r_ac: f64,
+    /// Length BC of link 2 (counterweight B to pin C)
+    #[parameter(name = "r_BC", unit = "m", display = "in", positive)]
     pub r_bc: f64,
+    /// Length CD of link 2 (pin C to tip D)
+    #[parameter(name = "r_CD", unit = "m", display = "in", positive)]
     pub r_cd: f64,
+    /// Length of the cord DE (link 3)
+    #[parameter(name = "r_DE", unit = "m", display = "in", positive)]
     pub r_de: f64,
+    /// Weight per unit length of the rods AC and BD
+    #[parameter(unit = "N/m", display = "lbf/ft", positive)]
     pub rho: f64,
+    /// Weight of the counterweight at B
+    #[parameter(name = "w_B", unit = "N", display = "lbf", positive)]
     pub w_b: f64,
+    /// Weight of the projectile at E
+    #[parameter(unit = "N", display = "ozf", positive)]
     pub w_3: f64,
+    /// Gravitational acceleration
+    #[parameter(unit = "m/s2", positive)]
     pub g: f64,
+    /// Initial angle of A->C from +x
+    #[parameter(unit = "rad", display = "deg", finite)]
     pub theta1_0: f64,
+    /// Initial angle of B->D from +x
+    #[parameter(unit = "rad", display = "deg", finite)]
     pub theta2_0: f64,
+    /// Initial angle of D->E from +x
+    #[parameter(unit = "rad", display = "deg", finite)]
     pub theta3_0: f64,
+    /// Release when theta3 - theta2 exceeds this
+    #[parameter(unit = "rad", display = "deg", finite)]
     pub release_angle: f64,
-    /// The regime (1 falling, 3 swinging, 4 flying; 2 is the instantaneous impact).
+    /// 1 falling, 2 impact (instantaneous), 3 swinging, 4 flying
+    #[output]
     pub regime: i32,
+    /// x of A
+    #[output(name = "A_x", unit = "m")]
+    pub a_x: f64,
+    /// y of A
+    #[output(name = "A_y", unit = "m")]
+    pub a_y: f64,
+    /// x of B (counterweight)
+    #[output(name = "B_x", unit = "m")]
+    pub b_x: f64,
+    /// y of B (counterweight)
+    #[output(name = "B_y", unit = "m")]
+    pub b_y: f64,
+    /// x of C (pin between links 1 and 2)
+    #[output(name = "C_x", unit = "m")]
+    pub c_x: f64,
+    /// y of C (pin between links 1 and 2)
+    #[output(name = "C_y", unit = "m")]
+    pub c_y: f64,
+    /// x of D (tip of link 2)
+    #[output(name = "D_x", unit = "m")]
+    pub d_x: f64,
+    /// y of D (tip of link 2)
+    #[output(name = "D_y", unit = "m")]
+    pub d_y: f64,
+    /// x of E (projectile)
+    #[output(name = "E_x", unit = "m")]
+    pub e_x: f64,
+    /// y of E (projectile)
+    #[output(name = "E_y", unit = "m")]
+    pub e_y: f64,
+    /// Speed of the projectile
+    #[output(unit = "m/s")]
+    pub projectile_speed: f64,
+    /// Total mechanical energy, datum y = 0 (after release: links frozen at their release
+    /// energy + projectile)
+    #[output(unit = "J")]
+    pub energy: f64,
+    /// Time A hit the ground (regime 2), -1 until then
+    #[output(unit = "s", discrete)]
+    pub t_impact: f64,
+    /// Time of release, -1 until then
+    #[output(unit = "s", discrete)]
+    pub t_release: f64,
+    /// Landing x of the projectile, 0 until it has landed
+    #[output(unit = "m", discrete)]
+    pub range: f64,
+    /// All initial potential energy (datum y = 0) given to the projectile at 45 deg: v^2/g
+    #[output(unit = "m", discrete)]
+    pub range_ideal: f64,
+    /// Projectile kinetic energy at release / initial potential energy (datum y = 0); 0
+    /// before release
+    #[output(unit = "1", discrete)]
+    pub efficiency: f64,
+    /// True: B reached the ground before release
+    #[output]
+    pub misfire: bool,
     /// x of A once it is the fixed pivot (regimes 3 and 4).
     pub pivot_x: f64,
-    pub misfire: bool,
-    pub t_impact: f64,
-    pub t_release: f64,
-    pub range: f64,
     /// Energy of links 1 and 2 at release (they are frozen afterwards), J.
     pub e_links_release: f64,
-    pub efficiency: f64,
+    /// The initial potential energy (datum y = 0), J.
     pub pe0: f64,
-    pub range_ideal: f64,
-    pub pos: [f64; 10],
-    pub projectile_speed: f64,
-    pub energy: f64,
+}
+
+/// The state vector (10 components, all regimes). The equations take it by ranges: the
+/// angles x[0..3], their rates x[3..6], the free projectile x[6..10].
+#[derive(StateVector)]
+pub struct State {
+    /// Angle of A->C from +x (frozen after release)
+    #[state(unit = "rad", display = "deg")]
+    pub theta1: f64,
+    /// Angle of B->D from +x (frozen after release)
+    #[state(unit = "rad", display = "deg")]
+    pub theta2: f64,
+    /// Angle of D->E from +x (frozen after release)
+    #[state(unit = "rad", display = "deg")]
+    pub theta3: f64,
+    /// Rate of theta1 (regime 1: the common rate about D)
+    #[state(unit = "rad/s")]
+    pub omega1: f64,
+    /// Rate of theta2 (regime 1: the common rate about D)
+    #[state(unit = "rad/s")]
+    pub omega2: f64,
+    /// Rate of theta3 (regime 1: the common rate about D)
+    #[state(unit = "rad/s")]
+    pub omega3: f64,
+    /// Projectile x in flight (0 before release)
+    #[state(unit = "m")]
+    pub x_p: f64,
+    /// Projectile y in flight (0 before release)
+    #[state(unit = "m")]
+    pub y_p: f64,
+    /// Projectile x velocity in flight (0 before release)
+    #[state(unit = "m/s")]
+    pub vx_p: f64,
+    /// Projectile y velocity in flight (0 before release)
+    #[state(unit = "m/s")]
+    pub vy_p: f64,
 }
 
 impl Default for Trebuchet {
@@ -129,20 +235,29 @@ impl Default for Trebuchet {
             theta3_0: 10.0 * DEG,
             release_angle: 140.0 * DEG,
             regime: FALLING,
-            pivot_x: 0.0,
-            misfire: false,
+            a_x: 0.0,
+            a_y: 0.0,
+            b_x: 0.0,
+            b_y: 0.0,
+            c_x: 0.0,
+            c_y: 0.0,
+            d_x: 0.0,
+            d_y: 0.0,
+            e_x: 0.0,
+            e_y: 0.0,
+            projectile_speed: 0.0,
+            energy: 0.0,
             t_impact: -1.0,
             t_release: -1.0,
             range: 0.0,
-            e_links_release: 0.0,
-            efficiency: 0.0,
-            pe0: 0.0,
             range_ideal: 0.0,
-            pos: [0.0; 10],
-            projectile_speed: 0.0,
-            energy: 0.0,
+            efficiency: 0.0,
+            misfire: false,
+            pivot_x: 0.0,
+            e_links_release: 0.0,
+            pe0: 0.0,
         };
-        let mut x = [0.0; 10];
+        let mut x = [0.0; State::LEN];
         m.initial_state(&mut x).expect("the defaults are valid");
         m.outputs(0.0, &x);
         m
@@ -306,7 +421,7 @@ impl Trebuchet {
 }
 
 impl Model for Trebuchet {
-    const N_STATES: usize = 10;
+    const N_STATES: usize = State::LEN;
     const N_EVENT_INDICATORS: usize = 3;
 
     fn info() -> ModelInfo {
@@ -320,85 +435,7 @@ impl Model for Trebuchet {
         }
     }
 
-    fn variables() -> Vec<Variable<Self>> {
-        vec![
-            V::parameter("r_AC", "Length of link 1, AC", |s| s.r_ac, |s, v| s.r_ac = v).unit("m").display("in"),
-            V::parameter("r_BC", "Length BC of link 2 (counterweight B to pin C)", |s| s.r_bc, |s, v| s.r_bc = v).unit("m").display("in"),
-            V::parameter("r_CD", "Length CD of link 2 (pin C to tip D)", |s| s.r_cd, |s, v| s.r_cd = v).unit("m").display("in"),
-            V::parameter("r_DE", "Length of the cord DE (link 3)", |s| s.r_de, |s, v| s.r_de = v).unit("m").display("in"),
-            V::parameter("rho", "Weight per unit length of the rods AC and BD", |s| s.rho, |s, v| s.rho = v).unit("N/m").display("lbf/ft"),
-            V::parameter("w_B", "Weight of the counterweight at B", |s| s.w_b, |s, v| s.w_b = v).unit("N").display("lbf"),
-            V::parameter("w_3", "Weight of the projectile at E", |s| s.w_3, |s, v| s.w_3 = v).unit("N").display("ozf"),
-            V::parameter("g", "Gravitational acceleration", |s| s.g, |s, v| s.g = v).unit("m/s2"),
-            V::parameter("theta1_0", "Initial angle of A->C from +x", |s| s.theta1_0, |s, v| s.theta1_0 = v).unit("rad").display("deg"),
-            V::parameter("theta2_0", "Initial angle of B->D from +x", |s| s.theta2_0, |s, v| s.theta2_0 = v).unit("rad").display("deg"),
-            V::parameter("theta3_0", "Initial angle of D->E from +x", |s| s.theta3_0, |s, v| s.theta3_0 = v).unit("rad").display("deg"),
-            V::parameter("release_angle", "Release when theta3 - theta2 exceeds this", |s| s.release_angle, |s, v| s.release_angle = v)
-                .unit("rad")
-                .display("deg"),
-            V::state("theta1", "Angle of A->C from +x (frozen after release)", 0).unit("rad").display("deg"),
-            V::state("theta2", "Angle of B->D from +x (frozen after release)", 1).unit("rad").display("deg"),
-            V::state("theta3", "Angle of D->E from +x (frozen after release)", 2).unit("rad").display("deg"),
-            V::state("omega1", "Rate of theta1 (regime 1: the common rate about D)", 3).unit("rad/s"),
-            V::state("omega2", "Rate of theta2 (regime 1: the common rate about D)", 4).unit("rad/s"),
-            V::state("omega3", "Rate of theta3 (regime 1: the common rate about D)", 5).unit("rad/s"),
-            V::state("x_p", "Projectile x in flight (0 before release)", 6).unit("m"),
-            V::state("y_p", "Projectile y in flight (0 before release)", 7).unit("m"),
-            V::state("vx_p", "Projectile x velocity in flight (0 before release)", 8).unit("m/s"),
-            V::state("vy_p", "Projectile y velocity in flight (0 before release)", 9).unit("m/s"),
-            V::integer_output("regime", "1 falling, 2 impact (instantaneous), 3 swinging, 4 flying", |s| s.regime),
-            V::output("A_x", "x of A", |s| s.pos[0]).unit("m"),
-            V::output("A_y", "y of A", |s| s.pos[1]).unit("m"),
-            V::output("B_x", "x of B (counterweight)", |s| s.pos[2]).unit("m"),
-            V::output("B_y", "y of B (counterweight)", |s| s.pos[3]).unit("m"),
-            V::output("C_x", "x of C (pin between links 1 and 2)", |s| s.pos[4]).unit("m"),
-            V::output("C_y", "y of C (pin between links 1 and 2)", |s| s.pos[5]).unit("m"),
-            V::output("D_x", "x of D (tip of link 2)", |s| s.pos[6]).unit("m"),
-            V::output("D_y", "y of D (tip of link 2)", |s| s.pos[7]).unit("m"),
-            V::output("E_x", "x of E (projectile)", |s| s.pos[8]).unit("m"),
-            V::output("E_y", "y of E (projectile)", |s| s.pos[9]).unit("m"),
-            V::output("projectile_speed", "Speed of the projectile", |s| s.projectile_speed).unit("m/s"),
-            V::output(
-                "energy",
-                "Total mechanical energy, datum y = 0 (after release: links frozen at their release energy + projectile)",
-                |s| s.energy,
-            )
-            .unit("J"),
-            V::discrete_output("t_impact", "Time A hit the ground (regime 2), -1 until then", |s| s.t_impact).unit("s"),
-            V::discrete_output("t_release", "Time of release, -1 until then", |s| s.t_release).unit("s"),
-            V::discrete_output("range", "Landing x of the projectile, 0 until it has landed", |s| s.range).unit("m"),
-            V::discrete_output("range_ideal", "All initial potential energy (datum y = 0) given to the projectile at 45 deg: v^2/g", |s| {
-                s.range_ideal
-            })
-            .unit("m"),
-            V::discrete_output(
-                "efficiency",
-                "Projectile kinetic energy at release / initial potential energy (datum y = 0); 0 before release",
-                |s| s.efficiency,
-            )
-            .unit("1"),
-            V::boolean_output("misfire", "True: B reached the ground before release", |s| s.misfire),
-        ]
-    }
-
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        for (name, v) in [
-            ("r_AC", self.r_ac),
-            ("r_BC", self.r_bc),
-            ("r_CD", self.r_cd),
-            ("r_DE", self.r_de),
-            ("rho", self.rho),
-            ("w_B", self.w_b),
-            ("w_3", self.w_3),
-            ("g", self.g),
-        ] {
-            require_positive(name, v)?;
-        }
-        for (name, v) in
-            [("theta1_0", self.theta1_0), ("theta2_0", self.theta2_0), ("theta3_0", self.theta3_0), ("release_angle", self.release_angle)]
-        {
-            require_finite(name, v)?;
-        }
         if self.release_angle <= self.theta3_0 - self.theta2_0 {
             return Err(ModelError(format!(
                 "parameter release_angle = {} must exceed theta3_0 - theta2_0 = {} (theta3 - theta2 is constant until the impact)",
@@ -461,7 +498,11 @@ impl Model for Trebuchet {
 
     fn outputs(&mut self, _t: f64, x: &[f64]) {
         let fr = self.frame(self.regime, x);
-        self.pos = [fr.a[0], fr.a[1], fr.b[0], fr.b[1], fr.c[0], fr.c[1], fr.d[0], fr.d[1], fr.e[0], fr.e[1]];
+        [self.a_x, self.a_y] = fr.a;
+        [self.b_x, self.b_y] = fr.b;
+        [self.c_x, self.c_y] = fr.c;
+        [self.d_x, self.d_y] = fr.d;
+        [self.e_x, self.e_y] = fr.e;
         self.projectile_speed = dot(fr.v_e, fr.v_e).sqrt();
         let links = if self.regime == FLYING { self.e_links_release } else { self.links_energy(&fr) };
         self.energy = links + self.projectile_energy(&fr);
@@ -841,5 +882,11 @@ mod tests {
             let err = h.initialize(None).unwrap_err();
             assert!(err.contains(name), "{err}");
         }
+    }
+
+    /// MODELS.md's entry for this model is the one its variable table gives.
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<Trebuchet>(env!("CARGO_MANIFEST_DIR"));
     }
 }

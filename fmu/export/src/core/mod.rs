@@ -219,7 +219,11 @@ impl<M: Model> Core<M> {
     fn ensure_initial_state(&mut self) -> CallResult {
         if !self.state.initial_state_ready {
             let mut x = vec![0.0; M::N_STATES];
-            self.state.model.initial_state(&mut x).map_err(|e| Failure::error(format!("the parameters were refused: {e}")))?;
+            // The declared ranges first, then what only the model can check.
+            let model = &mut self.state.model;
+            crate::model::check_ranges(model)
+                .and_then(|()| model.initial_state(&mut x))
+                .map_err(|e| Failure::error(format!("the parameters were refused: {e}")))?;
             if let Some(i) = x.iter().position(|v| !v.is_finite()) {
                 return Err(Failure::error(format!("the initial state {i} is {}: check the parameters", x[i])));
             }

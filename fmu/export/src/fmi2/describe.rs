@@ -3,7 +3,7 @@
 
 use crate::logging::CATEGORIES;
 use crate::model::{BaseType, Causality, Initial, Model, Variability};
-use crate::table::{guid, Start, Table};
+use crate::table::{guid, ranges, Start, Table};
 use crate::units;
 use fmi_schema::fmi2 as d;
 
@@ -73,12 +73,14 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
         }
     }
 
-    for (vr, row) in table.rows.iter().enumerate() {
+    for (vr, (row, range)) in table.rows.iter().zip(ranges::<M>()).enumerate() {
         let start = row.start(&defaults);
         let var_type = match row.base_type {
             BaseType::Real => d::VariableType::Real(d::RealVariable {
                 unit: row.unit.map(str::to_owned),
                 display_unit: row.display_unit.map(str::to_owned),
+                min: range.min(),
+                max: range.max(),
                 start: match start {
                     Some(Start::Real(v)) => Some(v),
                     _ => None,
@@ -86,6 +88,9 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
                 ..Default::default()
             }),
             BaseType::Integer => d::VariableType::Integer(d::IntegerVariable {
+                // Integer ranges have integer bounds (one_of, or min/max written as integers).
+                min: range.min().map(|v| v as i32),
+                max: range.max().map(|v| v as i32),
                 start: match start {
                     Some(Start::Integer(v)) => Some(v),
                     _ => None,

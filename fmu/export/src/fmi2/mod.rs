@@ -241,7 +241,7 @@ impl<M: Model> Instance<M> {
 mod tests {
     use super::*;
     use crate::harness::Harness;
-    use crate::model::{ModelError, ModelInfo, Variability, Variable};
+    use crate::model::{ModelError, ModelInfo, Variability, Variable, Variables};
     use serde::{Deserialize, Serialize};
 
     /// x' = rate x from x0, with the output `square` = scale x^2, which overflows long before
@@ -262,6 +262,21 @@ mod tests {
         }
     }
 
+    impl Variables for Growth {
+        fn variables() -> Vec<Variable<Self>> {
+            vec![
+                Variable::parameter("rate", "", |m| m.rate, |m, v| m.rate = v),
+                Variable::parameter("x0", "", |m| m.x0, |m, v| m.x0 = v),
+                Variable::parameter("scale", "", |m| m.scale, |m, v| m.scale = v),
+                Variable::integer_parameter("n", "", |m| m.n, |m, v| m.n = v),
+                Variable::boolean_parameter("flag", "", |m| m.flag, |m, v| m.flag = v),
+                Variable::state("x", "", 0),
+                Variable::output("square", "", |m| m.square),
+                Variable::output("one", "", |_| 1.0).variability(Variability::Constant),
+            ]
+        }
+    }
+
     impl Model for Growth {
         const N_STATES: usize = 1;
 
@@ -274,19 +289,6 @@ mod tests {
                 output_interval: 0.1,
                 documentation: "",
             }
-        }
-
-        fn variables() -> Vec<Variable<Self>> {
-            vec![
-                Variable::parameter("rate", "", |m| m.rate, |m, v| m.rate = v),
-                Variable::parameter("x0", "", |m| m.x0, |m, v| m.x0 = v),
-                Variable::parameter("scale", "", |m| m.scale, |m, v| m.scale = v),
-                Variable::integer_parameter("n", "", |m| m.n, |m, v| m.n = v),
-                Variable::boolean_parameter("flag", "", |m| m.flag, |m, v| m.flag = v),
-                Variable::state("x", "", 0),
-                Variable::output("square", "", |m| m.square),
-                Variable::output("one", "", |_| 1.0).variability(Variability::Constant),
-            ]
         }
 
         fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {

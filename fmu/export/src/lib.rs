@@ -13,6 +13,7 @@ pub mod harness;
 pub mod logging;
 pub mod model;
 pub mod phase_cosine;
+pub mod structure;
 pub mod table;
 pub mod units;
 

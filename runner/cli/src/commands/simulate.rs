@@ -7,6 +7,7 @@ use runner_engine::run::{self as sim, Grid};
 use runner_engine::variables;
 
 use crate::experiment::{self, RunDefaults};
+use crate::integration::Integration;
 use crate::report::output;
 use crate::report::plot::{self, Series};
 
@@ -22,6 +23,8 @@ pub struct Options {
     pub plot: Option<PathBuf>,
     /// Turns the FMU's debug logging on.
     pub log: bool,
+    /// The interface, and the runner's integrator for Model Exchange.
+    pub integration: Integration,
 }
 
 /// Runs `runner simulate`.
@@ -30,8 +33,9 @@ pub fn run(options: &Options) -> Result<(), String> {
         output::check_destination(plot)?;
     }
     let target = experiment::resolve(&options.fmu)?;
-    let fmu = Fmu::load(&target.path)?;
-    let grid = Grid::choose(&fmu.description, &[options.run.grid(), target.experiment.simulate.grid()])?;
+    let fmu: Fmu = options.integration.load(&target.path)?;
+    let mut grid = Grid::choose(&fmu.description, &[options.run.grid(), target.experiment.simulate.grid()])?;
+    grid.solver = options.integration.solver()?;
     let mut set_texts = target.experiment.simulate.set.clone();
     set_texts.extend(options.run.set.iter().cloned());
     let assignments = variables::parse_sets(&fmu.description, &set_texts)?;

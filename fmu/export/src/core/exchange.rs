@@ -83,25 +83,47 @@ impl<M: Model> Core<M> {
     /// `fmi2SetTime`.
     #[inline]
     pub fn set_time(&mut self, t: f64) -> CallResult {
+        if self.try_set_time(t) {
+            Ok(())
+        } else {
+            Err(Failure::error(format!("time = {t} must be finite")))
+        }
+    }
+
+    /// [`Core::set_time`] without its message: false (and nothing changed) when `t` is refused.
+    /// The importer calls it before every evaluation, so it is kept to a test and two stores.
+    #[inline(always)]
+    pub fn try_set_time(&mut self, t: f64) -> bool {
         if !t.is_finite() {
-            return Err(Failure::error(format!("time = {t} must be finite")));
+            return false;
         }
         self.state.t = t;
         self.state.outputs_dirty = true;
-        Ok(())
+        true
     }
 
     /// `fmi2SetContinuousStates`: `x` has the model's number of states (the front end checks).
     /// A value that is not finite is refused with `Discard`, the states unchanged.
     #[inline]
     pub fn set_continuous_states(&mut self, x: &[f64]) -> CallResult {
+        if self.try_set_continuous_states(x) {
+            Ok(())
+        } else {
+            Err(self.non_finite_states(x))
+        }
+    }
+
+    /// [`Core::set_continuous_states`] without its message: false (and nothing changed) when a
+    /// value is not finite.
+    #[inline(always)]
+    pub fn try_set_continuous_states(&mut self, x: &[f64]) -> bool {
         let n = M::N_STATES;
         if !x[..n].iter().fold(true, |ok, v| ok & v.is_finite()) {
-            return Err(self.non_finite_states(x));
+            return false;
         }
         self.state.x[..n].copy_from_slice(&x[..n]);
         self.state.outputs_dirty = true;
-        Ok(())
+        true
     }
 
     #[cold]
@@ -125,20 +147,27 @@ impl<M: Model> Core<M> {
     /// which asks the importer for a smaller step; the instance stays usable.
     #[inline]
     pub fn derivatives(&mut self, dx: &mut [f64]) -> CallResult {
-        let n = M::N_STATES;
-        let State { model, t, x, exchange_rhs, .. } = &mut self.state;
-        model.derivatives(*t, x, &mut dx[..n]);
-        *exchange_rhs += 1;
-        if dx[..n].iter().fold(true, |ok, v| ok & v.is_finite()) {
+        if self.derivatives_into(dx) {
             Ok(())
         } else {
             Err(self.non_finite_derivatives(dx))
         }
     }
 
+    /// [`Core::derivatives`] without its message: whether they are all finite.
+    #[inline(always)]
+    pub fn derivatives_into(&mut self, dx: &mut [f64]) -> bool {
+        let n = M::N_STATES;
+        let State { model, t, x, exchange_rhs, .. } = &mut self.state;
+        model.derivatives(*t, &x[..n], &mut dx[..n]);
+        *exchange_rhs += 1;
+        dx[..n].iter().fold(true, |ok, v| ok & v.is_finite())
+    }
+
+    /// The refusal of derivatives `dx` that are not all finite (`Discard`, naming one).
     #[cold]
     #[inline(never)]
-    fn non_finite_derivatives(&self, dx: &[f64]) -> Failure {
+    pub fn non_finite_derivatives(&self, dx: &[f64]) -> Failure {
         let i = dx.iter().position(|v| !v.is_finite()).expect("a derivative is not finite");
         let name = self.table.rows.iter().find(|r| matches!(r.slot, crate::table::Slot::Derivative(k) if k == i)).map_or("?", |r| r.name);
         Failure {

@@ -624,13 +624,54 @@ pub unsafe fn completed_integrator_step<M: Model>(
     })
 }
 
+/// The instance behind `c` when it is one of ours, for the hot paths below.
+#[inline(always)]
+unsafe fn instance_mut<'a, M: Model>(c: *mut c_void) -> Option<&'a mut Instance<M>> {
+    let component = c as *mut Component<M>;
+    if component.is_null() || (*component).magic != COMPONENT_MAGIC {
+        None
+    } else {
+        Some(&mut (*component).instance)
+    }
+}
+
+// fmi2SetTime, fmi2SetContinuousStates and fmi2GetDerivatives come once per evaluation of the
+// derivatives, several times per solver step of the importer: their usual call is done in
+// place and answers fmi2OK directly; anything else takes the general path (out of line, so the
+// usual call does not set up its frame), which checks the call again and explains the refusal.
+// fmi2SetTime and fmi2SetContinuousStates run no model code, so their usual call cannot unwind.
+
 /// `fmi2SetTime`.
+#[inline(always)]
 pub unsafe fn set_time<M: Model>(c: *mut c_void, time: f64) -> c_int {
+    if let Some(inst) = instance_mut::<M>(c) {
+        if inst.try_set_time(time) {
+            return Status::Ok as c_int;
+        }
+    }
+    set_time_in_full::<M>(c, time)
+}
+
+#[cold]
+#[inline(never)]
+unsafe fn set_time_in_full<M: Model>(c: *mut c_void, time: f64) -> c_int {
     with_instance::<M>(c, Call::SetTime, |inst| ok(inst.set_time(time)))
 }
 
 /// `fmi2SetContinuousStates`.
+#[inline(always)]
 pub unsafe fn set_continuous_states<M: Model>(c: *mut c_void, x: *const f64, nx: usize) -> c_int {
+    if let Some(inst) = instance_mut::<M>(c) {
+        if !x.is_null() && inst.try_set_continuous_states(std::slice::from_raw_parts(x, nx)) {
+            return Status::Ok as c_int;
+        }
+    }
+    set_continuous_states_in_full::<M>(c, x, nx)
+}
+
+#[cold]
+#[inline(never)]
+unsafe fn set_continuous_states_in_full<M: Model>(c: *mut c_void, x: *const f64, nx: usize) -> c_int {
     with_instance::<M>(c, Call::SetContinuousStates, |inst| {
         let x = slice(x, nx, Call::SetContinuousStates, "x[]")?;
         ok(inst.set_continuous_states(x))
@@ -638,7 +679,25 @@ pub unsafe fn set_continuous_states<M: Model>(c: *mut c_void, x: *const f64, nx:
 }
 
 /// `fmi2GetDerivatives`.
+#[inline(always)]
 pub unsafe fn get_derivatives<M: Model>(c: *mut c_void, dx: *mut f64, nx: usize) -> c_int {
+    if let Some(inst) = instance_mut::<M>(c) {
+        if !dx.is_null() {
+            let out = std::slice::from_raw_parts_mut(dx, nx);
+            // The model's code runs: inside the unwinding guard.
+            if let Ok(Some(true)) = catch_unwind(AssertUnwindSafe(|| inst.try_get_derivatives(out))) {
+                return Status::Ok as c_int;
+            }
+        }
+    }
+    get_derivatives_in_full::<M>(c, dx, nx)
+}
+
+/// The general path of `fmi2GetDerivatives` (evaluates the derivatives again: a refusal
+/// counts twice in `n_rhs`, the usual call once).
+#[cold]
+#[inline(never)]
+unsafe fn get_derivatives_in_full<M: Model>(c: *mut c_void, dx: *mut f64, nx: usize) -> c_int {
     with_instance::<M>(c, Call::GetDerivatives, |inst| {
         let dx = slice_mut(dx, nx, Call::GetDerivatives, "derivatives[]")?;
         inst.get_derivatives(dx)

@@ -68,11 +68,17 @@ impl<M: Model> Instance<M> {
     /// other interface.
     #[inline]
     pub fn check(&self, call: Call) -> CallResult {
-        if call.is_allowed_in(self.state) && call.interface().is_none_or(|i| i == self.interface) {
+        if self.permits(call) {
             Ok(())
         } else {
             Err(self.illegal(call))
         }
+    }
+
+    /// True when `call` is allowed now (what [`Instance::check`] decides, as a flag).
+    #[inline(always)]
+    pub fn permits(&self, call: Call) -> bool {
+        call.is_allowed_in(self.state) && call.interface().is_none_or(|i| i == self.interface)
     }
 
     // Out of line: every call passes `check`, and its message would otherwise be set up on

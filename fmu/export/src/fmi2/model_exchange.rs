@@ -97,6 +97,27 @@ impl<M: Model> Instance<M> {
         self.core.derivatives(dx).map(|()| Status::Ok)
     }
 
+    /// The usual `fmi2SetTime` (allowed now, a finite time), done: true; false leaves the
+    /// instance unchanged for [`Instance::set_time`] to refuse with its reason. The importer
+    /// calls these three hot paths before and for every evaluation of the derivatives.
+    #[inline(always)]
+    pub fn try_set_time(&mut self, t: f64) -> bool {
+        self.permits(Call::SetTime) && self.core.try_set_time(t)
+    }
+
+    /// The usual `fmi2SetContinuousStates` (allowed now, the model's number of finite values).
+    #[inline(always)]
+    pub fn try_set_continuous_states(&mut self, x: &[f64]) -> bool {
+        self.permits(Call::SetContinuousStates) && x.len() == M::N_STATES && self.core.try_set_continuous_states(x)
+    }
+
+    /// The usual `fmi2GetDerivatives`: `None` when the call is not allowed or `dx` has the
+    /// wrong length (nothing computed), else whether the derivatives are all finite.
+    #[inline(always)]
+    pub fn try_get_derivatives(&mut self, dx: &mut [f64]) -> Option<bool> {
+        (self.permits(Call::GetDerivatives) && dx.len() == M::N_STATES).then(|| self.core.derivatives_into(dx))
+    }
+
     /// `fmi2GetEventIndicators`.
     pub fn get_event_indicators(&mut self, z: &mut [f64]) -> CallResult {
         self.check(Call::GetEventIndicators)?;

@@ -40,7 +40,11 @@ struct Trouble {
 /// A failing call cannot return an error through `OdeSystem`: it records the trouble and
 /// returns NaN, on which the integrator stops (an fmi2Error or fmi2Fatal poisons every later
 /// call, so the FMU is not called again).
-struct System<'s> {
+///
+/// `N` is the number of states when it is one of the small sizes the runner is compiled for
+/// (0 otherwise, and `nx` holds it): the integrator's stage loops then have a constant length,
+/// which the compiler unrolls, as in an FMU's own solver.
+struct System<'s, const N: usize> {
     api: &'s ExchangeApi,
     raw: c::Component,
     component: &'s Component<'s>,
@@ -48,46 +52,42 @@ struct System<'s> {
     nz: usize,
     /// The time last given to fmi2SetTime.
     time_set: Cell<f64>,
-    /// The first fmi2Error or fmi2Fatal, or a non-finite event indicator: no further call.
+    /// Set with the first fmi2Error or fmi2Fatal, or a non-finite event indicator: no further
+    /// call. Apart from `poisoned` so the hot path tests a flag.
+    stopped: Cell<bool>,
     poisoned: RefCell<Option<Trouble>>,
     /// The last fmi2Discard or non-finite derivative (the integrator may retry a smaller step).
     last_discard: RefCell<Option<Trouble>>,
 }
 
-impl System<'_> {
+impl<const N: usize> System<'_, N> {
     /// Sets time and states for an evaluation at (t, x); false once poisoned or on failure.
-    #[inline]
+    #[inline(always)]
     fn place(&self, t: f64, x: &[f64]) -> bool {
-        if self.poisoned.borrow().is_some() {
+        if self.stopped.get() {
             return false;
         }
         if t != self.time_set.get() {
             let status = unsafe { (self.api.set_time)(self.raw, t) };
-            if !self.accept("fmi2SetTime", t, status, false) {
+            if !accepted(status) {
+                self.trouble("fmi2SetTime", t, status, false);
                 return false;
             }
             self.time_set.set(t);
         }
-        if self.nx > 0 {
-            let status = unsafe { (self.api.set_continuous_states)(self.raw, x.as_ptr(), self.nx) };
-            if !self.accept("fmi2SetContinuousStates", t, status, false) {
+        let nx = self.dim();
+        if nx > 0 {
+            let status = unsafe { (self.api.set_continuous_states)(self.raw, x.as_ptr(), nx) };
+            if !accepted(status) {
+                self.trouble("fmi2SetContinuousStates", t, status, false);
                 return false;
             }
         }
         true
     }
 
-    /// True for fmi2OK and fmi2Warning; records anything else (fmi2Discard as a refusal the
-    /// integrator may retry with a smaller step, unless `discard_stops`).
-    #[inline]
-    fn accept(&self, call: &str, t: f64, status: c_int, discard_stops: bool) -> bool {
-        if status == OK || status == WARNING {
-            return true;
-        }
-        self.trouble(call, t, status, discard_stops);
-        false
-    }
-
+    /// Records a status other than fmi2OK and fmi2Warning: fmi2Discard as a refusal the
+    /// integrator may retry with a smaller step, unless `discard_stops`; worse stops the run.
     #[cold]
     #[inline(never)]
     fn trouble(&self, call: &str, t: f64, status: c_int, discard_stops: bool) {
@@ -96,6 +96,7 @@ impl System<'_> {
         if status == DISCARD && !discard_stops {
             *self.last_discard.borrow_mut() = Some(trouble);
         } else {
+            self.stopped.set(true);
             *self.poisoned.borrow_mut() = Some(trouble);
         }
     }
@@ -106,6 +107,7 @@ impl System<'_> {
         let i = values.iter().position(|v| !v.is_finite()).unwrap_or(0);
         let trouble = Trouble { status: OK, message: format!("{call} at t = {t} returned {what}[{i}] = {}", values[i]) };
         if poison {
+            self.stopped.set(true);
             *self.poisoned.borrow_mut() = Some(trouble);
         } else {
             *self.last_discard.borrow_mut() = Some(trouble);
@@ -113,20 +115,34 @@ impl System<'_> {
     }
 }
 
-impl OdeSystem for System<'_> {
+/// fmi2OK or fmi2Warning.
+#[inline(always)]
+fn accepted(status: c_int) -> bool {
+    status == OK || status == WARNING
+}
+
+impl<const N: usize> OdeSystem for System<'_, N> {
+    #[inline(always)]
     fn dim(&self) -> usize {
-        self.nx
+        if N > 0 {
+            N
+        } else {
+            self.nx
+        }
     }
 
+    #[inline(always)]
     fn rhs(&self, t: f64, x: &[f64], dx: &mut [f64]) {
         if !self.place(t, x) {
             dx.fill(f64::NAN);
             return;
         }
-        let status = unsafe { (self.api.get_derivatives)(self.raw, dx.as_mut_ptr(), self.nx) };
-        if !self.accept("fmi2GetDerivatives", t, status, false) {
+        let nx = self.dim();
+        let status = unsafe { (self.api.get_derivatives)(self.raw, dx.as_mut_ptr(), nx) };
+        if !accepted(status) {
+            self.trouble("fmi2GetDerivatives", t, status, false);
             dx.fill(f64::NAN);
-        } else if !dx.iter().fold(true, |ok, v| ok & v.is_finite()) {
+        } else if !dx[..nx].iter().fold(true, |ok, v| ok & v.is_finite()) {
             self.non_finite("fmi2GetDerivatives", t, "derivatives", dx, false);
         }
     }
@@ -143,7 +159,8 @@ impl OdeSystem for System<'_> {
         let status = unsafe { (self.api.get_event_indicators)(self.raw, z.as_mut_ptr(), self.nz) };
         // A missed sign change would pass silently: indicators that cannot be evaluated stop
         // the run, even with fmi2Discard.
-        if !self.accept("fmi2GetEventIndicators", t, status, true) {
+        if !accepted(status) {
+            self.trouble("fmi2GetEventIndicators", t, status, true);
             z.fill(f64::NAN);
         } else if !z.iter().all(|v| v.is_finite()) {
             self.non_finite("fmi2GetEventIndicators", t, "eventIndicators", z, true);
@@ -163,6 +180,33 @@ pub struct ModelExchange<'a> {
     t: f64,
     x: Vec<f64>,
     next_event_time: Option<f64>,
+}
+
+/// The integrator from `t` towards `target` on the FMU as a [`System`] of `N` states (0: any
+/// number); the outcome and what went wrong in the FMU's calls, if anything.
+#[allow(clippy::too_many_arguments)]
+fn integrate<const N: usize>(
+    integrator: &mut Integrator,
+    api: &ExchangeApi,
+    component: &Component<'_>,
+    nz: usize,
+    t: &mut f64,
+    x: &mut [f64],
+    target: f64,
+) -> (Result<Advance, solvers::SolverError>, Option<Trouble>, Option<Trouble>) {
+    let system = System::<N> {
+        api,
+        raw: component.raw,
+        component,
+        nx: x.len(),
+        nz,
+        time_set: Cell::new(f64::NAN),
+        stopped: Cell::new(false),
+        poisoned: RefCell::new(None),
+        last_discard: RefCell::new(None),
+    };
+    let outcome = integrator.advance(&system, t, x, target);
+    (outcome, system.poisoned.into_inner(), system.last_discard.into_inner())
 }
 
 /// A time within rounding of `t` (a time event at a communication point, given by the FMU
@@ -364,20 +408,21 @@ impl<'a> ModelExchange<'a> {
     fn advance(&mut self, target: f64) -> Result<Advance, String> {
         let integrator = self.integrator.as_mut().ok_or_else(|| format!("{}: the run was not initialized", self.component.name))?;
         let t0 = self.t;
-        let (outcome, poisoned, discard) = {
-            let system = System {
-                api: &self.api,
-                raw: self.component.raw,
-                component: &self.component,
-                nx: self.nx,
-                nz: self.nz,
-                time_set: Cell::new(f64::NAN),
-                poisoned: RefCell::new(None),
-                last_discard: RefCell::new(None),
-            };
-            let outcome =
-                if target > self.t { integrator.advance(&system, &mut self.t, &mut self.x, target) } else { Ok(Advance::Reached) };
-            (outcome, system.poisoned.into_inner(), system.last_discard.into_inner())
+        let (outcome, poisoned, discard) = if target > self.t {
+            let (api, component, t, x) = (&self.api, &self.component, &mut self.t, &mut self.x[..]);
+            // The sizes of the lab's models and of most small FMUs get a solver with loops of
+            // constant length; any other size the general one.
+            match self.nx {
+                1 => integrate::<1>(integrator, api, component, self.nz, t, x, target),
+                2 => integrate::<2>(integrator, api, component, self.nz, t, x, target),
+                3 => integrate::<3>(integrator, api, component, self.nz, t, x, target),
+                4 => integrate::<4>(integrator, api, component, self.nz, t, x, target),
+                5 => integrate::<5>(integrator, api, component, self.nz, t, x, target),
+                6 => integrate::<6>(integrator, api, component, self.nz, t, x, target),
+                _ => integrate::<0>(integrator, api, component, self.nz, t, x, target),
+            }
+        } else {
+            (Ok(Advance::Reached), None, None)
         };
         if let Some(trouble) = poisoned {
             if trouble.status == ERROR || trouble.status == FATAL {

@@ -2,9 +2,10 @@
 //!
 //! A model crate implements [`Model`] (equations plus a declarative variable table) and calls
 //! [`export_fmu!`]. The toolkit's model [`core`] owns time, the solver ([`solvers`]), events,
-//! the variable rules and FMU-state capture, independently of the FMI version; the front end
-//! [`fmi2`] puts the FMI 2.0 state machine and all `fmi2*` C functions over it and writes
-//! `modelDescription.xml`; [`documentation`] renders the page from the same table.
+//! the variable rules and FMU-state capture, independently of the FMI version and interface;
+//! the front end [`fmi2`] puts the FMI 2.0 Co-Simulation and Model Exchange state machines and
+//! all 44 `fmi2*` C functions over it and writes `modelDescription.xml` (its ModelStructure
+//! dependencies found by [`structure`]); [`documentation`] renders the page from the same table.
 
 pub mod core;
 pub mod documentation;

@@ -5,8 +5,12 @@ Every way runs the same experiment: one run per road speed, relative tolerance 1
 
   bare     tests/bench/bare_loop: the toolkit's DOPRI5 called directly on quarter_car's
            right-hand side, no FMI layer, no output handling (the limit).
-  runner   `runner sweep` on the FMU, 1 and 2 threads.
-  fmpy     fmpy.simulate_fmu on the same FMU, 1 and 2 worker processes (peers.py).
+  runner   `runner sweep` on the FMU, 1 and 2 threads; and through its Model Exchange
+           interface (`--interface model-exchange`, 1 thread): the runner's DOPRI5 on the
+           FMU's derivatives, the same steps and arithmetic, so the same numbers.
+  fmpy     fmpy.simulate_fmu on the same FMU, 1 and 2 worker processes (peers.py); and its
+           CVODE on the Model Exchange interface, a few speeds (a BDF method: its
+           transmissibility differs by its own error, printed, not held to the others').
   scipy    solve_ivp RK45 on the equations ported to Python (peers.py), a few speeds.
 
 Costs are wall-clock seconds per run, from the whole command (process start included, which
@@ -32,6 +36,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+CVODE = "fmpy CVODE on Model Exchange, 1 process"
 RUNNER = ROOT / "target/release/runner"
 BARE = ROOT / "target/release/bare_loop"
 FMU = ROOT / "target/fmu/quarter_car.fmu"
@@ -63,10 +68,11 @@ def peak_rss_kib(cmd, cwd=None):
     return timed(cmd, cwd)[2].ru_maxrss
 
 
-def runner_sweep(speeds_arg, threads, workdir, cpu=None):
-    """One `runner sweep`: (seconds, {speed: transmissibility}); appends its CPU seconds to `cpu`."""
-    out_csv = Path(workdir) / f"sweep_{threads}.csv"
-    cmd = [RUNNER, "sweep", FMU, "--param", f"speed={speeds_arg}", *EX4, "--threads", str(threads), "--out", out_csv]
+def runner_sweep(speeds_arg, threads, workdir, cpu=None, extra=()):
+    """One `runner sweep` (with `extra` options): (seconds, {speed: transmissibility}); appends
+    its CPU seconds to `cpu`."""
+    out_csv = Path(workdir) / f"sweep_{threads}{'_'.join(extra)}.csv"
+    cmd = [RUNNER, "sweep", FMU, "--param", f"speed={speeds_arg}", *EX4, "--threads", str(threads), *extra, "--out", out_csv]
     wall, _, usage = timed(cmd)
     if cpu is not None:
         cpu.append((wall, usage.ru_utime + usage.ru_stime))
@@ -112,15 +118,18 @@ def main():
     parser.add_argument("--repeats", type=int, default=3, help="interleaved repetitions of every way (the fastest of each kept)")
     parser.add_argument("--fmpy-speeds", type=int, default=10, help="speeds run by fmpy (spread over 1..50 m/s)")
     parser.add_argument("--scipy-speeds", type=int, default=5, help="speeds run by scipy")
+    parser.add_argument("--cvode-speeds", type=int, default=3, help="speeds run by fmpy's CVODE on Model Exchange")
     args = parser.parse_args()
 
     all_speeds = "1:50:0.5"
     pick = lambda n: [SPEEDS[round(i * (len(SPEEDS) - 1) / max(n - 1, 1))] for i in range(n)]
     fmpy_speeds = ",".join(f"{s:g}" for s in pick(args.fmpy_speeds))
     scipy_speeds = ",".join(f"{s:g}" for s in pick(args.scipy_speeds))
+    cvode_speeds = ",".join(f"{s:g}" for s in pick(args.cvode_speeds))
     print(f"machine: {machine()}")
     print(f"Ex. 4 sweep: rtol 1e-9, 10 s, samples every 1 ms; {len(SPEEDS)} speeds 1..50 m/s "
-          f"(fmpy {args.fmpy_speeds}, scipy {args.scipy_speeds} of them); fastest of {args.repeats} interleaved rounds\n", flush=True)
+          f"(fmpy {args.fmpy_speeds}, fmpy CVODE {args.cvode_speeds}, scipy {args.scipy_speeds} of them); "
+          f"fastest of {args.repeats} interleaved rounds\n", flush=True)
 
     rows = []  # (label, runs, seconds per run, transmissibility)
     with tempfile.TemporaryDirectory() as work:
@@ -133,9 +142,9 @@ def main():
                 return sec, (r["runs"], r["transmissibility"])
             return run
 
-        def runner(threads):
+        def runner(threads, extra=()):
             def run():
-                sec, t = runner_sweep(all_speeds, threads, work)
+                sec, t = runner_sweep(all_speeds, threads, work, extra=extra)
                 return sec, (len(t), t)
             return run
 
@@ -144,9 +153,12 @@ def main():
             ("bare DOPRI5 loop (the limit)", tool([BARE, all_speeds], own_clock=False)),
             ("runner sweep, 1 thread", runner(1)),
             ("runner sweep, 2 threads", runner(2)),
+            ("runner sweep, Model Exchange, 1 thread", runner(1, ("--interface", "model-exchange"))),
             ("fmpy simulate_fmu, 1 process", tool([*peer, "fmpy", "--fmu", FMU, "--speeds", fmpy_speeds, "--processes", "1"], own_clock=True)),
             ("fmpy simulate_fmu, 2 processes", tool([*peer, "fmpy", "--fmu", FMU, "--speeds", fmpy_speeds, "--processes", "2"], own_clock=True)),
             ("scipy solve_ivp RK45 (Python port)", tool([*peer, "scipy", "--speeds", scipy_speeds], own_clock=True)),
+            (CVODE, tool([*peer, "fmpy", "--fmu", FMU, "--speeds", cvode_speeds, "--processes", "1", "--fmi-type", "ModelExchange"],
+                         own_clock=True)),
         ]
         best = {}
         for _ in range(args.repeats):
@@ -163,7 +175,7 @@ def main():
         print(f"{'way':<38}{'runs':>6}{'ms per run':>13}{'x runner 1 thread':>20}{'max |rel. diff| of transmissibility':>38}")
         for label, runs, per_run, values in rows:
             print(f"{label:<38}{runs:>6}{per_run * 1e3:>13.3f}{per_run / base:>20.2f}{largest_difference(values, reference):>38.1e}")
-        disagreement = max(largest_difference(values, reference) for *_, values in rows)
+        disagreement = max(largest_difference(values, reference) for label, *_, values in rows if label != CVODE)
 
         # Thread scaling on 1000 points (speed 1..50.95 step 0.05), interleaved like the rest.
         # CPU time tells the program's share from the machine's: when both threads' CPU time
@@ -187,6 +199,7 @@ def main():
     r1 = per["runner sweep, 1 thread"]
     checks = [
         ("runner (1 thread) within 1.3x of the bare loop", r1 / per["bare DOPRI5 loop (the limit)"], "<=", 1.3),
+        ("runner on Model Exchange within 1.5x of its Co-Simulation run", per["runner sweep, Model Exchange, 1 thread"] / r1, "<=", 1.5),
         ("fmpy (1 process) per run / runner (1 thread)", per["fmpy simulate_fmu, 1 process"] / r1, ">=", 20),
         ("scipy RK45 per run / runner (1 thread)", per["scipy solve_ivp RK45 (Python port)"] / r1, ">=", 300),
         ("2 threads against 1 on 1000 points", one / two, ">=", 1.8),

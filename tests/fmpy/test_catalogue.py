@@ -1,7 +1,8 @@
 """MODELS.md, the public variable catalogue: one generated entry per model crate (each model's
 Rust test `catalogue_entry_is_current` checks its entry against its variable table), and each
-entry lists the variables the built FMU declares, in order, up to the solver controls the
-toolkit appends to every FMU alike (described once in MODELS.md)."""
+entry lists the variables the built FMU declares, in order, up to what the toolkit appends to
+every FMU alike (described once in MODELS.md): the solver controls, `time`, and `der(x)` for
+each state x."""
 
 import re
 
@@ -28,6 +29,12 @@ def test_each_entry_lists_the_variables_of_the_built_fmu():
         listed = re.findall(r"(?m)^\| `(\w+)` \|", entries[model])
         declared = [v.name for v in read_model_description(str(fmu_path(model))).modelVariables]
         assert listed and declared[: len(listed)] == listed, model
-        tails.add(tuple(declared[len(listed):]))
-    # What follows the model's own variables is the same in every FMU: the solver controls.
-    assert len(tails) == 1 and "solver" in next(iter(tails)), tails
+        tail = declared[len(listed):]
+        # The state derivatives, named after the states (which the entry lists), come last.
+        derivatives = [name for name in tail if name.startswith("der(")]
+        assert tail[len(tail) - len(derivatives):] == derivatives, model
+        assert all(d[4:-1] in listed for d in derivatives), (model, derivatives)
+        tails.add(tuple(tail[: len(tail) - len(derivatives)]))
+    # What follows the model's own variables is the same in every FMU: the solver controls
+    # and time.
+    assert tails == {("solver", "fixed_step", "abs_tol", "n_steps", "n_rhs", "time")}, tails

@@ -64,11 +64,12 @@ def test_wrong_guid_is_refused_with_a_reason(tmp_path):
     assert "GUID" in s.messages() and s.md.guid in s.messages()
 
 
-def test_model_exchange_is_refused_with_a_reason(tmp_path):
+def test_an_unknown_fmu_type_is_refused_with_a_reason(tmp_path):
+    # fmi2ModelExchange (0) and fmi2CoSimulation (1) both instantiate (test_model_exchange_calls.py).
     s = Slave("second_order", tmp_path)
-    comp = s.fmu.fmi2Instantiate(b"me", 0, s.md.guid.encode(), b"", ctypes.byref(s.callbacks), 0, 0)
+    comp = s.fmu.fmi2Instantiate(b"other", 7, s.md.guid.encode(), b"", ctypes.byref(s.callbacks), 0, 0)
     assert comp is None
-    assert "Co-Simulation" in s.messages()
+    assert "fmuType = 7 is neither fmi2ModelExchange (0) nor fmi2CoSimulation (1)" in s.messages()
 
 
 def test_illegal_call_sequences_are_errors_naming_call_and_state(tmp_path):

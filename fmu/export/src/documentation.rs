@@ -82,6 +82,10 @@ The solver is chosen with <code>solver</code> (0 forward Euler, 1 classical RK4,
 Euler and RK4 use <code>fixed_step</code>; Dormand&ndash;Prince uses the relative tolerance of <code>fmi2SetupExperiment</code> and <code>abs_tol</code>,
 and carries its step size across communication points without ever stepping over one. Inputs are held constant over each communication step.
 <code>n_steps</code> and <code>n_rhs</code> count accepted steps and right-hand-side evaluations.</p>
+<p>The same binary is a Model Exchange FMU: there the importer's solver integrates the states through
+<code>fmi2GetDerivatives</code> (the <code>der(x)</code> variables) and locates the zeros of the event indicators, the FMU's event
+handling runs in event mode, a model with constraints projects its drift at step events, and <code>n_steps</code> and
+<code>n_rhs</code> count the importer's completed steps and derivative evaluations; the solver controls are not used.</p>
 </body>
 </html>
 "#,

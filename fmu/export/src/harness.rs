@@ -4,6 +4,7 @@
 use std::sync::{Arc, Mutex};
 
 use crate::core::Failure;
+use crate::fmi2::state_machine::Interface;
 use crate::fmi2::Instance;
 use crate::logging::{Logger, Status};
 use crate::model::{BaseType, Model};
@@ -41,8 +42,18 @@ impl<M: Model> Default for Harness<M> {
 }
 
 impl<M: Model> Harness<M> {
-    /// A fresh instance whose log (all categories, debug on) is kept for inspection.
+    /// A fresh Co-Simulation instance whose log (all categories, debug on) is kept for
+    /// inspection.
     pub fn new() -> Harness<M> {
+        Self::for_interface(Interface::CoSimulation)
+    }
+
+    /// A fresh Model Exchange instance, its log kept as by [`Harness::new`].
+    pub fn model_exchange() -> Harness<M> {
+        Self::for_interface(Interface::ModelExchange)
+    }
+
+    fn for_interface(interface: Interface) -> Harness<M> {
         let messages = Arc::new(Mutex::new(Vec::new()));
         let sink = messages.clone();
         let logger = Logger::new(
@@ -51,7 +62,7 @@ impl<M: Model> Harness<M> {
             })),
             true,
         );
-        Harness { instance: Instance::new("harness", logger), messages }
+        Harness { instance: Instance::for_interface("harness", logger, interface), messages }
     }
 
     /// A fresh instance with `params` set by name, initialized at relative tolerance

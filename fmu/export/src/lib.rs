@@ -3,9 +3,10 @@
 //! A model crate declares its variables on its struct's fields (`#[derive(Variables)]`, and
 //! `#[derive(StateVector)]` for named states), implements [`Model`] (the equations) and calls
 //! [`export_fmu!`]. The toolkit's model [`core`] owns time, the solver ([`solvers`]), events,
-//! the variable rules and FMU-state capture, independently of the FMI version; the front end
-//! [`fmi2`] puts the FMI 2.0 state machine and all `fmi2*` C functions over it and writes
-//! `modelDescription.xml`; [`documentation`] renders the page from the same table.
+//! the variable rules and FMU-state capture, independently of the FMI version and interface;
+//! the front end [`fmi2`] puts the FMI 2.0 Co-Simulation and Model Exchange state machines and
+//! all 44 `fmi2*` C functions over it and writes `modelDescription.xml` (its ModelStructure
+//! dependencies found by [`structure`]); [`documentation`] renders the page from the same table.
 
 pub mod catalogue;
 pub mod core;
@@ -15,6 +16,7 @@ pub mod harness;
 pub mod logging;
 pub mod model;
 pub mod phase_cosine;
+pub mod structure;
 pub mod table;
 pub mod units;
 

@@ -478,4 +478,13 @@ pub trait Model: Variables + Default + Clone + Send + Serialize + DeserializeOwn
     fn communication_point(&mut self, _t: f64, _x: &mut [f64]) -> Result<EventOutcome, ModelError> {
         Ok(EventOutcome::Continue)
     }
+
+    /// How far `x` is off the model's algebraic constraints, relative to the model's size
+    /// (a loop-closure gap over the link lengths); 0 for a model without constraints (the
+    /// default). Model Exchange has no communication points: there a drift beyond the relative
+    /// tolerance asks for a step event (`fmi2CompletedIntegratorStep`), in whose event mode
+    /// `communication_point` projects `x` back. Co-Simulation never calls it.
+    fn constraint_drift(&self, _x: &[f64]) -> f64 {
+        0.0
+    }
 }

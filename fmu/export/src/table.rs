@@ -1,6 +1,8 @@
-//! The complete variable table of an FMU: the model's rows followed by the solver controls.
-//! A variable's value reference is its index here, so the C glue, the XML and the
-//! documentation all number variables the same way.
+//! The complete variable table of an FMU: the model's rows, the solver controls, the
+//! independent variable `time` and the derivative `der(x)` of each state `x` (the last two for
+//! Model Exchange, appended so the earlier value references stay as they were). A variable's
+//! value reference is its index here, so the C glue, the XML and the documentation all number
+//! variables the same way.
 
 use std::any::TypeId;
 use std::collections::HashMap;
@@ -13,6 +15,10 @@ use solvers::controls::{Control, CONTROLS};
 pub enum Slot<M> {
     Model(Access<M>),
     Control(Control),
+    /// The independent variable, the instance's time.
+    Time,
+    /// The time derivative of state `k`, from `Model::derivatives`.
+    Derivative(usize),
 }
 
 /// One variable of the FMU, whoever owns its value.
@@ -62,10 +68,59 @@ impl<M> Row<M> {
         }
     }
 
+    fn time() -> Row<M> {
+        Row {
+            name: "time",
+            description: "Simulation time",
+            causality: Causality::Independent,
+            variability: Variability::Continuous,
+            initial: None,
+            unit: Some("s"),
+            display_unit: None,
+            base_type: BaseType::Real,
+            slot: Slot::Time,
+        }
+    }
+
+    /// The row `der(x)` of state `k`, whose own row is `state`; `names` holds the derivative's
+    /// name and description.
+    fn derivative(k: usize, state: &Row<M>, names: &'static (String, String)) -> Row<M> {
+        Row {
+            name: &names.0,
+            description: &names.1,
+            causality: Causality::Local,
+            variability: Variability::Continuous,
+            initial: Some(Initial::Calculated),
+            unit: state.unit.and_then(crate::units::rate_of),
+            display_unit: None,
+            base_type: BaseType::Real,
+            slot: Slot::Derivative(k),
+        }
+    }
+
     /// True when the importer may set this variable at all.
     pub fn is_settable(&self) -> bool {
         matches!(self.causality, Causality::Parameter | Causality::Input)
     }
+}
+
+/// The name and description of `der(x)` for each state, in state order.
+type DerivativeNames = &'static [(String, String)];
+
+/// [`DerivativeNames`] made once per model type and process (a row's strings are `&'static`,
+/// and a sweep builds a table per point).
+fn derivative_names<M: Model>(rows: &[Row<M>]) -> DerivativeNames {
+    static NAMES: OnceLock<Mutex<HashMap<TypeId, DerivativeNames>>> = OnceLock::new();
+    let mut names = NAMES.get_or_init(Default::default).lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    names.entry(TypeId::of::<M>()).or_insert_with(|| {
+        let made: Vec<(String, String)> = (0..M::N_STATES)
+            .map(|k| {
+                let state = rows.iter().find(|r| matches!(r.slot, Slot::Model(Access::State(j)) if j == k)).map_or("?", |r| r.name);
+                (format!("der({state})"), format!("Time derivative of {state}"))
+            })
+            .collect();
+        Box::leak(made.into_boxed_slice())
+    })
 }
 
 /// The FMU's variables in value-reference order.
@@ -81,6 +136,16 @@ impl<M: Model> Table<M> {
     pub fn new() -> Table<M> {
         let mut rows: Vec<Row<M>> = M::variables().into_iter().map(Row::from_variable).collect();
         rows.extend(CONTROLS.iter().map(|&c| Row::from_control(c)));
+        rows.push(Row::time());
+        let names = derivative_names::<M>(&rows);
+        for (k, names) in names.iter().enumerate() {
+            let state = rows.iter().find(|r| matches!(r.slot, Slot::Model(Access::State(j)) if j == k));
+            let derivative = match state {
+                Some(state) => Row::derivative(k, state, names),
+                None => Row::derivative(k, &Row::time(), names),
+            };
+            rows.push(derivative);
+        }
         let computed = rows
             .iter()
             .map(|r| {
@@ -142,11 +207,12 @@ impl<M: Model> Table<M> {
 }
 
 /// The declared range of each row of `Table<M>` (the solver controls check their values when
-/// set, so theirs is `Any`). Not kept in the table, whose layout the stepping path reads: only
-/// initialization, the XML and the documentation need them.
+/// set, and `time` and the `der(x)` rows are computed, so theirs is `Any`). Not kept in the
+/// table, whose layout the stepping path reads: only initialization, the XML and the
+/// documentation need them.
 pub fn ranges<M: Model>() -> Vec<Range> {
     let mut ranges: Vec<Range> = M::variables().iter().map(|v| v.range).collect();
-    ranges.resize(ranges.len() + CONTROLS.len(), Range::Any);
+    ranges.resize(ranges.len() + CONTROLS.len() + 1 + M::N_STATES, Range::Any);
     ranges
 }
 
@@ -250,6 +316,7 @@ impl<M: Model> Row<M> {
             Slot::Model(Access::Real { get, .. }) => Start::Real(get(model)),
             Slot::Model(Access::Integer { get, .. }) => Start::Integer(get(model)),
             Slot::Model(Access::Boolean { get, .. }) => Start::Boolean(get(model)),
+            Slot::Time | Slot::Derivative(_) => return None,
             Slot::Control(c) => {
                 let value = c.default_value()?;
                 if c.is_integer() {

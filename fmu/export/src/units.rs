@@ -76,6 +76,14 @@ pub fn unit(name: &str) -> Option<&'static UnitDef> {
     UNITS.iter().find(|u| u.name == name)
 }
 
+/// The unit of the time derivative of a quantity in `unit_name` (its base units over a second):
+/// the first such unit known, `None` if there is none.
+pub fn rate_of(unit_name: &str) -> Option<&'static str> {
+    let base = unit(unit_name)?.base;
+    let rate = BaseUnit { s: base.s - 1, ..base };
+    UNITS.iter().find(|u| u.base == rate).map(|u| u.name)
+}
+
 /// Looks a display unit of `unit_name` up by name.
 pub fn display_unit(unit_name: &str, display_name: &str) -> Option<&'static DisplayUnit> {
     unit(unit_name)?.display_units.iter().find(|d| d.name == display_name)
@@ -97,6 +105,18 @@ mod tests {
         assert!((deg.factor * std::f64::consts::PI - 180.0).abs() < 1e-12);
         let rpm = display_unit("rad/s", "rpm").unwrap();
         assert!((rpm.factor * (2.0 * std::f64::consts::PI) - 60.0).abs() < 1e-12);
+    }
+
+    /// The derivative units of the states the models declare.
+    #[test]
+    fn rates_divide_by_a_second() {
+        assert_eq!(rate_of("m"), Some("m/s"));
+        assert_eq!(rate_of("m/s"), Some("m/s2"));
+        assert_eq!(rate_of("rad"), Some("rad/s"));
+        assert_eq!(rate_of("rad/s"), Some("rad/s2"));
+        assert_eq!(rate_of("m/s2"), Some("m/s3"));
+        assert_eq!(rate_of("N"), None);
+        assert_eq!(rate_of("nope"), None);
     }
 
     #[test]

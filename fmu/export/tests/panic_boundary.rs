@@ -90,3 +90,51 @@ fn a_panic_becomes_fmi2_error_with_a_message() {
         assert_eq!(ffi::do_step::<Exploding>(std::ptr::null_mut(), 0.0, 0.1, 1), 3);
     }
 }
+
+/// The same through Model Exchange's hot path: fmi2GetDerivatives answers fmi2OK for t before
+/// the fuse, fmi2Error with the panic's message after it (the instance in the Error state, where
+/// fmi2SetTime is refused by the state machine and the states can still be read).
+#[test]
+fn a_panic_in_model_exchange_derivatives_becomes_fmi2_error() {
+    // SAFETY: as in the test above.
+    let logger: LoggerFn = unsafe { std::mem::transmute(record as extern "C" fn(_, _, _, _, _)) };
+    let callbacks = CallbackFunctions {
+        logger: Some(logger),
+        allocate_memory: None,
+        free_memory: None,
+        step_finished: None,
+        component_environment: std::ptr::null_mut(),
+    };
+    let guid = std::ffi::CString::new(fmu_export::table::guid::<Exploding>()).unwrap();
+    unsafe {
+        let c = ffi::instantiate::<Exploding>(c"me".as_ptr(), 0, guid.as_ptr(), std::ptr::null(), &callbacks, 0, 0);
+        assert!(!c.is_null());
+        assert_eq!(ffi::set_real::<Exploding>(c, [0u32].as_ptr(), 1, [0.25].as_ptr()), 0);
+        assert_eq!(ffi::setup_experiment::<Exploding>(c, 0, 0.0, 0.0, 0, 0.0), 0);
+        assert_eq!(ffi::enter_initialization_mode::<Exploding>(c), 0);
+        assert_eq!(ffi::exit_initialization_mode::<Exploding>(c), 0);
+        let mut info = ffi::EventInfo::default();
+        assert_eq!(ffi::new_discrete_states::<Exploding>(c, &mut info), 0);
+        assert_eq!(ffi::enter_continuous_time_mode::<Exploding>(c), 0);
+        let mut dx = [f64::NAN];
+        assert_eq!(ffi::set_time::<Exploding>(c, 0.1), 0);
+        assert_eq!(ffi::set_continuous_states::<Exploding>(c, [2.0].as_ptr(), 1), 0);
+        assert_eq!(ffi::get_derivatives::<Exploding>(c, dx.as_mut_ptr(), 1), 0);
+        assert_eq!(dx[0], -2.0);
+        // A NaN state is refused (fmi2Discard), the wrong length too (fmi2Error).
+        assert_eq!(ffi::set_continuous_states::<Exploding>(c, [f64::NAN].as_ptr(), 1), 2);
+        assert_eq!(ffi::get_derivatives::<Exploding>(c, dx.as_mut_ptr(), 2), 3);
+        assert_eq!(ffi::set_time::<Exploding>(c, 0.5), 0);
+        assert_eq!(ffi::get_derivatives::<Exploding>(c, dx.as_mut_ptr(), 1), 3);
+        let logged = MESSAGES.lock().unwrap().join("\n");
+        assert!(logged.contains("fmi2GetDerivatives") && logged.contains("model bug at t = 0.5"), "{logged}");
+        assert!(logged.contains("nx = 2, but this FMU has 1"), "{logged}");
+        assert_eq!(ffi::set_time::<Exploding>(c, 0.6), 3, "the Error state allows no fmi2SetTime");
+        let mut x = [f64::NAN];
+        assert_eq!(ffi::get_continuous_states::<Exploding>(c, x.as_mut_ptr(), 1), 0);
+        assert_eq!(x[0], 2.0);
+        ffi::free_instance::<Exploding>(c);
+        assert_eq!(ffi::set_time::<Exploding>(std::ptr::null_mut(), 0.0), 3);
+        assert_eq!(ffi::get_derivatives::<Exploding>(std::ptr::null_mut(), dx.as_mut_ptr(), 1), 3);
+    }
+}

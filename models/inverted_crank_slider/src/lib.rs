@@ -273,6 +273,12 @@ impl Model for InvertedCrankSlider {
         self.loop_residual = self.gap(s.theta2, s.r3, s.theta3).norm();
     }
 
+    /// The loop-closure gap |e| over r1 + r2 (Model Exchange projects with a step event when
+    /// it exceeds the tolerance).
+    fn constraint_drift(&self, x: &[f64]) -> f64 {
+        self.gap(x[0], x[1], x[2]).norm() / (self.r1 + self.r2)
+    }
+
     /// Projects (r3, theta3) back onto the loop closure by Newton's method (Jacobian A), then
     /// the velocities onto A x' = b. If Newton does not close the loop on the assembly
     /// r3 > 0 (only after a step far too large for the solver), the step fails saying so,

@@ -315,6 +315,12 @@ impl<P: FourBarPreset> Model for FourBar<P> {
         Ok(EventOutcome::Continue)
     }
 
+    /// The loop-closure gap |e| over the sum of the lengths (Model Exchange projects with a
+    /// step event when it exceeds the tolerance).
+    fn constraint_drift(&self, x: &[f64]) -> f64 {
+        self.gap(x[0], x[1], x[2]).norm() / (self.l_oa + self.l_ab + self.l_bc + self.l_co)
+    }
+
     /// At every communication point: project onto the constraints (see `project`); a point
     /// that cannot be projected on this branch is a limit position.
     fn communication_point(&mut self, _t: f64, x: &mut [f64]) -> Result<EventOutcome, ModelError> {

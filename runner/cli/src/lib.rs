@@ -4,6 +4,7 @@
 
 pub mod commands;
 pub mod experiment;
+pub mod integration;
 pub mod interrupt;
 pub mod report;
 pub mod trace;

@@ -1,5 +1,6 @@
-//! `runner`: builds, inspects, simulates, sweeps, compares and animates FMI 2.0 Co-Simulation
-//! FMUs, and reproduces the lab handbook's figures.
+//! `runner`: builds, inspects, simulates, sweeps, compares and animates FMUs (FMI 2.0
+//! Co-Simulation and Model Exchange, the latter integrated with the runner's own solvers; FMI
+//! 3.0 Co-Simulation), and reproduces the lab handbook's figures.
 
 use std::path::PathBuf;
 
@@ -7,11 +8,12 @@ use clap::{Args, Parser, Subcommand};
 
 use runner::commands::{animate, build, compare, handbook, info, simulate, sweep};
 use runner::experiment::{self, RunDefaults};
+use runner::integration::{self, Integration};
 use runner::interrupt;
 use runner::report::figure::Format;
 use runner::report::progress;
 
-/// Build and run FMI 2.0 Co-Simulation FMUs.
+/// Build and run FMI 2.0 FMUs: Co-Simulation, and Model Exchange with the runner's solvers.
 #[derive(Parser)]
 #[command(name = "runner", version, about)]
 struct Cli {
@@ -46,6 +48,40 @@ impl RunArgs {
     }
 }
 
+/// Which interface of the FMU to drive.
+#[derive(Args)]
+struct InterfaceArgs {
+    /// model-exchange (the runner integrates, with --solver) or co-simulation (the FMU
+    /// integrates itself); default: Co-Simulation when the FMU offers it.
+    #[arg(long, value_name = "INTERFACE", value_parser = integration::parse_interface)]
+    interface: Option<fmi_importer::Interface>,
+}
+
+/// The runner's integrator for a Model Exchange run.
+#[derive(Args)]
+struct SolverArgs {
+    /// Model Exchange: the runner's integration method, euler, rk4 or dopri5 (default dopri5,
+    /// with --tolerance as its relative tolerance).
+    #[arg(long, value_name = "METHOD")]
+    solver: Option<String>,
+    /// Model Exchange: the step of euler and rk4 in seconds (default 1e-3).
+    #[arg(long, value_name = "H", allow_negative_numbers = true)]
+    fixed_step: Option<f64>,
+    /// Model Exchange: the absolute tolerance of dopri5 (default 1e-9).
+    #[arg(long, value_name = "A", allow_negative_numbers = true)]
+    abs_tolerance: Option<f64>,
+}
+
+fn integration(interface: InterfaceArgs, solver: Option<SolverArgs>) -> Integration {
+    let solver = solver.unwrap_or(SolverArgs { solver: None, fixed_step: None, abs_tolerance: None });
+    Integration {
+        interface: interface.interface,
+        solver: solver.solver,
+        fixed_step: solver.fixed_step,
+        abs_tolerance: solver.abs_tolerance,
+    }
+}
+
 #[derive(Subcommand)]
 enum Cmd {
     /// Build model crates in release mode and pack target/fmu/<MODEL>.fmu.
@@ -75,6 +111,10 @@ enum Cmd {
         fmu: String,
         #[command(flatten)]
         run: RunArgs,
+        #[command(flatten)]
+        interface: InterfaceArgs,
+        #[command(flatten)]
+        solver: SolverArgs,
         /// Write the CSV here instead of stdout.
         #[arg(long, value_name = "FILE.csv")]
         out: Option<PathBuf>,
@@ -129,6 +169,10 @@ enum Cmd {
         threads: Option<usize>,
         #[command(flatten)]
         run: RunArgs,
+        #[command(flatten)]
+        interface: InterfaceArgs,
+        #[command(flatten)]
+        solver: SolverArgs,
         /// Write the CSV here (default: experiment.toml's, else stdout).
         #[arg(long, value_name = "FILE.csv")]
         out: Option<PathBuf>,
@@ -218,6 +262,8 @@ struct CompareArgs {
     target_error: f64,
     #[command(flatten)]
     run: RunArgs,
+    #[command(flatten)]
+    interface: InterfaceArgs,
     /// Work-precision table (default <MODEL>_compare.csv).
     #[arg(long, value_name = "FILE.csv")]
     out: Option<PathBuf>,
@@ -240,11 +286,23 @@ fn main() {
         Cmd::Info { fmu } => {
             experiment::resolve(&fmu).and_then(|t| fmi_importer::Fmu::load(&t.path)).map(|f| print!("{}", info::report(&f.description)))
         }
-        Cmd::Simulate { fmu, run, out, plot, log, plot_vars, plot_x, overlay, record_events } => {
-            simulate::run(&simulate::Options { fmu, run: run.defaults(), out, plot, log, plot_vars, plot_x, overlay, record_events })
+        Cmd::Simulate { fmu, run, interface, solver, out, plot, log, plot_vars, plot_x, overlay, record_events } => {
+            simulate::run(&simulate::Options {
+                fmu,
+                run: run.defaults(),
+                out,
+                plot,
+                log,
+                plot_vars,
+                plot_x,
+                overlay,
+                record_events,
+                integration: integration(interface, Some(solver)),
+            })
         }
-        Cmd::Sweep { fmu, params, metrics, threads, run, out, plot } => {
-            match sweep::run(&sweep::Options { fmu, params, metrics, threads, run: run.defaults(), out, plot }) {
+        Cmd::Sweep { fmu, params, metrics, threads, run, interface, solver, out, plot } => {
+            let integration = integration(interface, Some(solver));
+            match sweep::run(&sweep::Options { fmu, params, metrics, threads, run: run.defaults(), out, plot, integration }) {
                 Ok(s) if s.failed == 0 => Ok(()),
                 Ok(s) => Err(format!("{} of {} sweep point(s) failed; see the status column", s.failed, s.points)),
                 Err(e) => Err(e),
@@ -262,6 +320,7 @@ fn main() {
                 run: a.run.defaults(),
                 out,
                 plot,
+                integration: integration(a.interface, None),
             })
             .map(|_| ())
         }

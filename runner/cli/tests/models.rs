@@ -380,3 +380,54 @@ fn set_accepts_declared_display_units_and_refuses_others() {
     let err = fails(runner(dir.path(), &["simulate", q, "--set", "speed=30rpm", "--out", "c.csv"]));
     assert!(err.contains("'speed' cannot be given in 'rpm'") && err.contains("m/s, mm/s, in/s"), "{err}");
 }
+
+/// The Ex. 4 sweep through the Model Exchange interface: the runner's DOPRI5 on the FMU's
+/// derivatives does the same arithmetic as the FMU's own DOPRI5 under Co-Simulation, at the
+/// same tolerances and on the same grid, so the transmissibility is the same number to the bit.
+#[test]
+fn the_sweep_through_model_exchange_gives_the_co_simulation_numbers() {
+    let (quarter_car, _) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let q = quarter_car.to_str().unwrap();
+    let args = |out: &'static str| {
+        vec![
+            "sweep",
+            q,
+            "--param",
+            "speed=2:30:7",
+            "--metric",
+            "t=max(z_s)/max(z_r)",
+            "--tolerance",
+            "1e-9",
+            "--threads",
+            "2",
+            "--out",
+            out,
+        ]
+    };
+    ok(runner(dir.path(), &args("cs.csv")));
+    let mut me = args("me.csv");
+    me.extend(["--interface", "model-exchange"]);
+    ok(runner(dir.path(), &me));
+    assert_eq!(std::fs::read(dir.path().join("me.csv")).unwrap(), std::fs::read(dir.path().join("cs.csv")).unwrap());
+}
+
+/// `compare --interface model-exchange` on second_order: the runner's own methods against the
+/// closed form of experiment.toml; RK4 keeps its order 4 and its four evaluations per step,
+/// counted by the runner's integrator.
+#[test]
+fn compare_through_model_exchange_uses_the_runners_solvers() {
+    fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let out = ok(runner(dir.path(), &["compare", "second_order", "--interface", "model-exchange", "--out", "w.csv", "--plot", "w.svg"]));
+    assert!(out.contains("y_ref from the closed-form solution of experiment.toml"), "{out}");
+    let (header, rows) = read_csv(&dir.path().join("w.csv"));
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let rk4: Vec<&Vec<String>> = rows.iter().filter(|r| r[0] == "rk4").collect();
+    let value = |r: &Vec<String>, name: &str| r[col(name)].parse::<f64>().unwrap();
+    let ratio = value(rk4[0], "max_relative_error") / value(rk4[1], "max_relative_error");
+    assert!((13.0..19.0).contains(&ratio), "RK4 halving ratio {ratio}");
+    for r in &rk4 {
+        assert_eq!(value(r, "n_rhs"), 4.0 * value(r, "n_steps"), "{r:?}");
+    }
+}

@@ -1,6 +1,8 @@
 //! One simulation run: instantiate, set, initialize, step on a fixed communication grid, read.
+//! A Model Exchange FMU is integrated by the runner between the grid points, with the grid's
+//! solver; a Co-Simulation FMU integrates itself.
 
-use fmi_importer::{Description, Fmu, Reader, Step, Value, Variable};
+use fmi_importer::{Description, Fmu, Reader, Solver, Step, Value, Variable};
 
 /// Most communication steps a run may have: a billion is minutes per run and a CSV of a
 /// hundred gigabytes, so more is a typo in the stop time or the interval, not an experiment.
@@ -15,8 +17,11 @@ pub struct Grid {
     pub stop: f64,
     /// Communication interval (s).
     pub interval: f64,
-    /// Relative tolerance for fmi2SetupExperiment (`None`: the FMU's own default).
+    /// Relative tolerance for fmi2SetupExperiment (`None`: the FMU's own default), also the
+    /// runner's integrator's for Model Exchange.
     pub tolerance: Option<f64>,
+    /// The runner's integrator for Model Exchange (unused for Co-Simulation).
+    pub solver: Solver,
 }
 
 /// Grid settings from one source (the command line, an experiment file); `None` leaves the
@@ -62,7 +67,7 @@ impl Grid {
                 return Err(format!("tolerance {t} must be a positive number"));
             }
         }
-        Ok(Grid { start, stop, interval, tolerance })
+        Ok(Grid { start, stop, interval, tolerance, solver: Solver::default() })
     }
 
     /// Number of communication steps; a last partial interval is kept (shortened to end at stop).
@@ -93,8 +98,12 @@ impl Grid {
 
 /// How a run ended.
 pub struct Outcome {
-    /// `Some(reason)` when the model stopped before the stop time (fmi2Discard + terminated).
+    /// `Some(reason)` when the model stopped before the stop time (fmi2Discard + terminated,
+    /// or terminateSimulation under Model Exchange).
     pub ended_early: Option<String>,
+    /// Model Exchange: the runner's integrator's accepted steps and right-hand-side
+    /// evaluations (`None` for Co-Simulation).
+    pub counters: Option<(u64, u64)>,
 }
 
 /// The columns a run records: its variables, with each array expanded into its elements
@@ -186,6 +195,7 @@ pub fn run_recording(
     let mut reader = Reader::with_sizes(fmu.description.fmi_version, &recording.variables, &recording.sizes)?;
     let mut values = vec![0.0; reader.len()];
     let mut instance = fmu.instantiate(name, debug_logging)?;
+    instance.set_solver(grid.solver);
     instance.setup_experiment(grid.tolerance, grid.start, grid.stop)?;
     for (variable, value) in assignments {
         instance.set(variable, value)?;
@@ -211,7 +221,7 @@ pub fn run_recording(
                     if let Some(reason) = instance.handle_event(time)? {
                         instance.read(&mut reader, &mut values)?;
                         sample(time, &values, &reader)?;
-                        return Ok(Outcome { ended_early: Some(reason) });
+                        return Ok(Outcome { ended_early: Some(reason), counters: instance.counters() });
                     }
                     if time >= t_next {
                         break;
@@ -224,7 +234,7 @@ pub fn run_recording(
                         instance.read(&mut reader, &mut values)?;
                         sample(last, &values, &reader)?;
                     }
-                    return Ok(Outcome { ended_early: Some(reason) });
+                    return Ok(Outcome { ended_early: Some(reason), counters: instance.counters() });
                 }
             }
         }
@@ -232,7 +242,7 @@ pub fn run_recording(
         sample(t_next, &values, &reader)?;
         t = t_next;
     }
-    Ok(Outcome { ended_early: None })
+    Ok(Outcome { ended_early: None, counters: instance.counters() })
 }
 
 #[cfg(test)]

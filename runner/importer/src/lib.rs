@@ -16,6 +16,27 @@ use std::path::{Path, PathBuf};
 pub use logging::{print_line, set_log_printer};
 pub use model::{Causality, Description, FmiVersion, Interface, Kind, Variability, Variable};
 pub use reader::Reader;
+pub use solvers::Method;
+
+/// How the runner integrates a Model Exchange FMU (a Co-Simulation FMU integrates itself); the
+/// relative tolerance is the run's (`fmi2SetupExperiment`'s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Solver {
+    /// The method: Euler, RK4 or DOPRI5 (the toolkit's solvers).
+    pub method: Method,
+    /// The step of the fixed-step methods (s).
+    pub fixed_step: f64,
+    /// DOPRI5's absolute tolerance.
+    pub abs_tol: f64,
+}
+
+impl Default for Solver {
+    /// The defaults of the toolkit's FMUs' own solver controls.
+    fn default() -> Self {
+        let c = solvers::controls::Controls::default();
+        Solver { method: Method::from_code(c.solver).unwrap_or(Method::Dopri5), fixed_step: c.fixed_step, abs_tol: c.abs_tol }
+    }
+}
 
 /// An FMU archive unpacked into a temporary directory and checked up to the point of loading its
 /// binary: everything the importer reads from a file it did not write, before running any of it.
@@ -38,8 +59,15 @@ pub struct Unpacked {
 
 impl Unpacked {
     /// Extracts `path` safely, parses its modelDescription.xml and finds the binary for this
-    /// platform.
+    /// platform, for Co-Simulation when the FMU offers it, else Model Exchange.
     pub fn open(path: &Path) -> Result<Unpacked, String> {
+        Self::open_as(path, None)
+    }
+
+    /// [`Unpacked::open`] for `interface` (`None`: Co-Simulation when offered, else Model
+    /// Exchange). An interface the FMU does not offer, or one that needs an external tool, is
+    /// refused.
+    pub fn open_as(path: &Path, interface: Option<Interface>) -> Result<Unpacked, String> {
         if !path.is_file() {
             return Err(format!("FMU file {} does not exist", path.display()));
         }
@@ -58,11 +86,29 @@ impl Unpacked {
             let raw = fmi_schema::fmi2::ModelDescription::from_xml(&xml).map_err(|e| at(&e))?;
             (fmi2::describe(&raw), Some(raw), None)
         };
-        let interface = Interface::CoSimulation;
-        let identifier = match description.interface(interface) {
-            Some(caps) => caps.model_identifier.clone(),
-            None => return Err(format!("{}: this FMU does not support Co-Simulation", path.display())),
+        let offered: Vec<Interface> =
+            [Interface::CoSimulation, Interface::ModelExchange].into_iter().filter(|&i| description.interface(i).is_some()).collect();
+        let interface = match interface {
+            Some(asked) if offered.contains(&asked) => asked,
+            Some(asked) => {
+                let has = match offered.first() {
+                    Some(other) => format!("it offers {other} only (--interface {})", other.name()),
+                    None => "it declares neither interface".to_owned(),
+                };
+                return Err(format!("{}: this FMU does not support {asked}: {has}", path.display()));
+            }
+            None => {
+                *offered.first().ok_or_else(|| format!("{}: this FMU declares neither Co-Simulation nor Model Exchange", path.display()))?
+            }
         };
+        let caps = description.interface(interface).expect("offered");
+        if interface == Interface::ModelExchange && caps.needs_execution_tool {
+            return Err(format!(
+                "{}: this Model Exchange FMU needs an external simulation tool (needsExecutionTool=\"true\"): its binary only talks to that tool, which the runner cannot provide",
+                path.display()
+            ));
+        }
+        let identifier = caps.model_identifier.clone();
         // The identifier names the binary to load: with a '/' it could name any library on disk.
         if identifier.is_empty() || identifier.contains(['/', '\0']) {
             return Err(format!("{}: modelIdentifier {identifier:?} is not a file name (FMI requires a C identifier)", path.display()));
@@ -136,13 +182,20 @@ pub struct Fmu {
 }
 
 impl Fmu {
-    /// Unpacks and loads the `.fmu` at `path`.
+    /// Unpacks and loads the `.fmu` at `path`, for Co-Simulation when it offers it.
     pub fn load(path: &Path) -> Result<Fmu, String> {
-        let Unpacked { description, interface, identifier, binary, dir, .. } = Unpacked::open(path)?;
+        Self::load_as(path, None)
+    }
+
+    /// Unpacks and loads the `.fmu` at `path` for `interface` (`None`: Co-Simulation when
+    /// offered, else Model Exchange).
+    pub fn load_as(path: &Path, interface: Option<Interface>) -> Result<Fmu, String> {
+        let Unpacked { description, interface, identifier, binary, dir, .. } = Unpacked::open_as(path, interface)?;
         let loaded = match description.fmi_version {
-            FmiVersion::Fmi2 => Binding::Fmi2(
-                fmi2::Binary::load(&binary, interface == Interface::CoSimulation).map_err(|e| format!("{}: {e}", path.display()))?,
-            ),
+            FmiVersion::Fmi2 => Binding::Fmi2(fmi2::Binary::load(&binary, interface).map_err(|e| format!("{}: {e}", path.display()))?),
+            FmiVersion::Fmi3 if interface == Interface::ModelExchange => {
+                return Err(format!("{}: FMI 3.0 Model Exchange is not supported yet: run it as Co-Simulation", path.display()))
+            }
             FmiVersion::Fmi3 => Binding::Fmi3(fmi3::Binary::load(&binary).map_err(|e| format!("{}: {e}", path.display()))?),
         };
         let resources = dir.path().join("resources");
@@ -159,7 +212,10 @@ impl Fmu {
     /// A new instance named `name`; `debug_logging` turns the FMU's debug logging on.
     pub fn instantiate(&self, name: &str, debug_logging: bool) -> Result<Instance<'_>, String> {
         match &self.binding {
-            Binding::Fmi2(binary) => Ok(Instance::Fmi2Cs(fmi2::CoSimulation::new(self, binary, name, debug_logging)?)),
+            Binding::Fmi2(binary) => Ok(match self.interface {
+                Interface::CoSimulation => Instance::Fmi2Cs(fmi2::CoSimulation::new(self, binary, name, debug_logging)?),
+                Interface::ModelExchange => Instance::Fmi2Me(Box::new(fmi2::ModelExchange::new(self, binary, name, debug_logging)?)),
+            }),
             Binding::Fmi3(binary) => Ok(Instance::Fmi3Cs(fmi3::CoSimulation::new(self, binary, name, debug_logging)?)),
         }
     }
@@ -212,15 +268,28 @@ pub enum Step {
 /// communication point, and a match inlines where a virtual call cannot.
 pub enum Instance<'a> {
     Fmi2Cs(fmi2::CoSimulation<'a>),
+    /// Integrated by the runner (see [`fmi2::ModelExchange`]); boxed, as it carries the
+    /// integrator.
+    Fmi2Me(Box<fmi2::ModelExchange<'a>>),
     Fmi3Cs(fmi3::CoSimulation<'a>),
 }
 
 impl Instance<'_> {
+    /// The runner's integrator for a Model Exchange instance (before initialization ends);
+    /// a Co-Simulation FMU integrates itself and ignores it.
+    pub fn set_solver(&mut self, solver: Solver) {
+        match self {
+            Instance::Fmi2Cs(_) | Instance::Fmi3Cs(_) => {}
+            Instance::Fmi2Me(i) => i.set_solver(solver),
+        }
+    }
+
     /// Sets up the experiment: an optional relative tolerance, the start and stop time.
     pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.setup_experiment(tolerance, start, stop),
             Instance::Fmi3Cs(i) => i.setup_experiment(tolerance, start, stop),
+            Instance::Fmi2Me(i) => i.setup_experiment(tolerance, start, stop),
         }
     }
 
@@ -229,6 +298,7 @@ impl Instance<'_> {
         match self {
             Instance::Fmi2Cs(i) => i.enter_initialization_mode(),
             Instance::Fmi3Cs(i) => i.enter_initialization_mode(),
+            Instance::Fmi2Me(i) => i.enter_initialization_mode(),
         }
     }
 
@@ -237,6 +307,7 @@ impl Instance<'_> {
         match self {
             Instance::Fmi2Cs(i) => i.exit_initialization_mode(),
             Instance::Fmi3Cs(i) => i.exit_initialization_mode(),
+            Instance::Fmi2Me(i) => i.exit_initialization_mode(),
         }
     }
 
@@ -245,6 +316,7 @@ impl Instance<'_> {
         match self {
             Instance::Fmi2Cs(i) => i.set(variable, value),
             Instance::Fmi3Cs(i) => i.set(variable, value),
+            Instance::Fmi2Me(i) => i.set(variable, value),
         }
     }
 
@@ -254,6 +326,7 @@ impl Instance<'_> {
         match self {
             Instance::Fmi2Cs(i) => i.read(reader, out),
             Instance::Fmi3Cs(i) => i.read(reader, out),
+            Instance::Fmi2Me(i) => i.read(reader, out),
         }
     }
 
@@ -262,7 +335,17 @@ impl Instance<'_> {
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         match self {
             Instance::Fmi2Cs(i) => i.do_step(t, h),
+            Instance::Fmi2Me(i) => i.do_step(t, h),
             Instance::Fmi3Cs(i) => i.do_step(t, h),
+        }
+    }
+
+    /// Accepted steps and right-hand-side evaluations of the runner's integrator, for a Model
+    /// Exchange instance (`None` for Co-Simulation, whose FMU does the integration).
+    pub fn counters(&self) -> Option<(u64, u64)> {
+        match self {
+            Instance::Fmi2Cs(_) | Instance::Fmi3Cs(_) => None,
+            Instance::Fmi2Me(i) => Some(i.counters()),
         }
     }
 
@@ -270,7 +353,7 @@ impl Instance<'_> {
     /// the simulation there.
     pub fn handle_event(&mut self, time: f64) -> Result<Option<String>, String> {
         match self {
-            Instance::Fmi2Cs(_) => Ok(None),
+            Instance::Fmi2Cs(_) | Instance::Fmi2Me(_) => Ok(None),
             Instance::Fmi3Cs(i) => i.handle_event(time),
         }
     }

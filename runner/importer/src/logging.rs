@@ -37,14 +37,16 @@ pub(crate) fn level(status: i32) -> &'static str {
     }
 }
 
-/// What the logger knows about one instance: the last problem it reported, for error messages.
+/// What the logger knows about one instance: the last problem it reported, for error messages,
+/// and the last message of any status, for the reason of a terminateSimulation.
 #[derive(Default)]
 pub struct LogContext {
     last_problem: Mutex<Option<String>>,
+    last_message: Mutex<Option<String>>,
 }
 
 impl LogContext {
-    /// Prints a message and remembers problems (discard and worse).
+    /// Prints a message and remembers it, and problems (discard and worse) apart.
     pub(crate) fn receive(&self, instance: &str, status: i32, category: &str, text: &str) {
         print_line(&format!("[{instance}] {} ({category}): {text}", level(status)));
         if status >= 2 {
@@ -52,10 +54,20 @@ impl LogContext {
                 *last = Some(text.to_owned());
             }
         }
+        if let Ok(mut last) = self.last_message.lock() {
+            *last = Some(text.to_owned());
+        }
     }
 
     /// The last problem reported since the previous call, if any.
     pub fn take_problem(&self) -> Option<String> {
         self.last_problem.lock().ok().and_then(|mut l| l.take())
+    }
+
+    /// Why the model ended the simulation: the last problem, else the last message (an FMU
+    /// may log its reason as information), since the previous call.
+    pub fn take_reason(&self) -> Option<String> {
+        let message = self.last_message.lock().ok().and_then(|mut l| l.take());
+        self.take_problem().or(message)
     }
 }

@@ -3,6 +3,13 @@
 //! (fixed, tunable, input) and FMU-state capture. Each front end (`fmi2`, later `fmi3`) keeps
 //! its own state machine, decides which call is legal when, and translates its C calls into
 //! the operations below; a [`Failure`] says whether the instance is still usable.
+//!
+//! Co-Simulation steps with the toolkit's solver ([`Core::do_step`]); Model Exchange leaves
+//! the integration to the importer, who sets time and states and asks for derivatives and
+//! event indicators, and the core finds which indicators crossed at an event, runs the model's
+//! event handling and its constraint projection (`exchange.rs`).
+
+mod exchange;
 
 pub mod snapshot;
 
@@ -12,6 +19,8 @@ use serde::{Deserialize, Serialize};
 use crate::logging::{Logger, Status, LOG_EVENTS};
 use crate::model::{Access, Causality, EventOutcome, Model, Variability};
 use crate::table::{Slot, Table};
+
+pub use exchange::{EventUpdate, StepCompleted};
 use solvers::controls::{Control, Controls};
 use solvers::{Advance, Integrator, OdeSystem, SolverError};
 
@@ -77,6 +86,13 @@ pub struct State<M> {
     pub(crate) last_successful_time: f64,
     /// The status of the last step (`Ok`, `Discard` or `Error`).
     pub(crate) last_step_status: Status,
+    /// Model Exchange: the event indicators' reference values, against which an event finds
+    /// the indicators that changed sign (see `exchange.rs`).
+    pub(crate) z_ref: Vec<f64>,
+    /// Model Exchange: completed integrator steps and derivative evaluations the importer
+    /// asked for, reported as `n_steps` and `n_rhs` (the importer's solver does the work).
+    pub(crate) exchange_steps: u64,
+    pub(crate) exchange_rhs: u64,
 }
 
 impl<M: Model> State<M> {
@@ -104,6 +120,9 @@ impl<M: Model> State<M> {
             terminated: false,
             last_successful_time: 0.0,
             last_step_status: Status::Ok,
+            z_ref: vec![0.0; M::N_EVENT_INDICATORS],
+            exchange_steps: 0,
+            exchange_rhs: 0,
         }
     }
 }
@@ -156,8 +175,13 @@ pub enum StepEnd {
 pub enum Phase {
     /// Before initialization ends: every parameter may be set.
     Initializing,
-    /// After initialization: only inputs and tunable parameters.
+    /// After initialization (Co-Simulation between steps): only inputs and tunable parameters.
+    /// A value that is not finite when read means the FMU's own solution diverged.
     Running,
+    /// Model Exchange event mode: as `Running`, but the states are the importer's.
+    Event,
+    /// Model Exchange continuous-time mode: only continuous-time inputs may be set.
+    ContinuousTime,
 }
 
 /// A live instance of model `M`.
@@ -271,7 +295,8 @@ impl<M: Model> Core<M> {
     }
 
     fn control_value(&self, c: Control) -> f64 {
-        let counters = self.state.integrator.as_ref().map(|i| (i.n_steps(), i.n_rhs())).unwrap_or((0, 0));
+        let s = &self.state;
+        let counters = s.integrator.as_ref().map_or((s.exchange_steps, s.exchange_rhs), |i| (i.n_steps(), i.n_rhs()));
         match c {
             Control::NSteps => counters.0 as f64,
             Control::NRhs => counters.1 as f64,
@@ -284,6 +309,8 @@ impl<M: Model> Core<M> {
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64], phase: Phase) -> CallResult {
         self.prepare_read(phase)?;
         let mut all_finite = true;
+        // The derivatives, computed at the first der(x) read (rare: sweeps read outputs).
+        let mut dx: Option<Vec<f64>> = None;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
             let i = *vr as usize;
             *value = match self.table.rows.get(i).map(|r| &r.slot) {
@@ -295,6 +322,15 @@ impl<M: Model> Core<M> {
                     get(&self.state.model)
                 }
                 Some(Slot::Control(c)) if !c.is_integer() => self.control_value(*c),
+                Some(Slot::Time) => self.state.t,
+                Some(Slot::Derivative(k)) => {
+                    let State { model, t, x, .. } = &self.state;
+                    dx.get_or_insert_with(|| {
+                        let mut dx = vec![0.0; M::N_STATES];
+                        model.derivatives(*t, x, &mut dx);
+                        dx
+                    })[*k]
+                }
                 _ => return Err(self.unknown(*vr, "Real")),
             };
             all_finite &= value.is_finite();
@@ -310,8 +346,9 @@ impl<M: Model> Core<M> {
         let t = self.state.t;
         let message = format!("{name} = {value} at t = {t} s is not finite: the solution diverged ({DIVERGED_ADVICE})");
         // While initializing, the parameters can still be corrected: the instance is not broken.
+        // Under Model Exchange the states are the importer's, who may set others.
         Err(match phase {
-            Phase::Initializing => Failure::error(message),
+            Phase::Initializing | Phase::Event | Phase::ContinuousTime => Failure::error(message),
             Phase::Running => Failure::broken(format!("{message}; the instance is now in the Error state")),
         })
     }
@@ -377,6 +414,20 @@ impl<M: Model> Core<M> {
                 _ => "not settable",
             };
             return Err(Failure::error(format!("'{}' is {what} and cannot be set", row.name)));
+        }
+        if phase == Phase::ContinuousTime {
+            if row.causality == Causality::Input && row.variability == Variability::Continuous {
+                return Ok(vr as usize);
+            }
+            return Err(Failure::error(format!(
+                "'{}' can be set in state {state} only if it is a continuous-time input: enter event mode first{}",
+                row.name,
+                if row.causality == Causality::Parameter && row.variability != Variability::Tunable {
+                    format!(" (and it is a fixed parameter, settable only before {})", self.names.exit_initialization)
+                } else {
+                    String::new()
+                }
+            )));
         }
         let allowed = match (row.causality, row.variability) {
             (Causality::Input, _) => true,

@@ -11,8 +11,9 @@ use crate::model::Model;
 
 const MAGIC: &[u8; 4] = b"RFMS";
 /// Version 2: the state-machine state is the front end's, after the core's state (version 1
-/// had FMI 2.0's inside the core).
-const FORMAT_VERSION: u16 = 2;
+/// had FMI 2.0's inside the core). Version 3: the core's Model Exchange fields and the Model
+/// Exchange states of the state machine.
+const FORMAT_VERSION: u16 = 3;
 const HEADER_LEN: usize = 4 + 2 + 8 + 8 + 4;
 
 /// Encodes `state` and the front end's `phase` with a header tying them to the model whose

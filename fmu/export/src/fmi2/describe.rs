@@ -2,8 +2,9 @@
 //! serves, so the description and the binary cannot disagree.
 
 use crate::logging::CATEGORIES;
-use crate::model::{BaseType, Causality, Initial, Model, Variability};
-use crate::table::{guid, ranges, Start, Table};
+use crate::model::{Access, BaseType, Causality, Initial, Model, Variability};
+use crate::structure;
+use crate::table::{guid, ranges, Slot, Start, Table};
 use crate::units;
 use fmi_schema::fmi2 as d;
 
@@ -45,6 +46,18 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
     md.description = Some(info.description.to_owned());
     md.generation_tool = Some(format!("fmu toolkit {}", env!("CARGO_PKG_VERSION")));
     md.variable_naming_convention = Some(d::VariableNamingConvention::Flat);
+    md.number_of_event_indicators = Some(M::N_EVENT_INDICATORS as u32);
+    // The same binary serves both interfaces (one fmi2Instantiate, by fmuType).
+    md.model_exchange = Some(d::ModelExchange {
+        model_identifier: info.identifier.to_owned(),
+        // fmi2CompletedIntegratorStep checks sign changes and the constraints' drift.
+        completed_integrator_step_not_needed: false,
+        can_get_and_set_fmu_state: true,
+        can_serialize_fmu_state: true,
+        can_not_use_memory_management_functions: true,
+        can_be_instantiated_only_once_per_process: false,
+        ..Default::default()
+    });
     md.co_simulation = Some(d::CoSimulation {
         model_identifier: info.identifier.to_owned(),
         can_handle_variable_communication_step_size: true,
@@ -85,6 +98,11 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
                     Some(Start::Real(v)) => Some(v),
                     _ => None,
                 },
+                // der(x) names its state x by 1-based index.
+                derivative: match row.slot {
+                    Slot::Derivative(k) => state_index(&table, k),
+                    _ => None,
+                },
                 ..Default::default()
             }),
             BaseType::Integer => d::VariableType::Integer(d::IntegerVariable {
@@ -113,23 +131,41 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
         md.model_variables.push(sv);
     }
 
-    // ModelStructure (FMI 2.0 section 2.2.8): every output; as initial unknowns, the outputs
-    // whose initial is approx or calculated and every calculated parameter. Dependencies are
-    // omitted, which declares a dependence on all knowns: true for our models.
+    // ModelStructure (FMI 2.0 section 2.2.8): every output; every state derivative, in state
+    // order (which is the order of the state vector); as initial unknowns, the outputs whose
+    // initial is approx or calculated, every calculated parameter and every derivative. The
+    // dependencies are those probing the equations finds (`structure`); a discrete output
+    // claims none, which declares a dependence on all knowns.
+    let dependencies = structure::dependencies::<M>();
+    let listed = |found: &Option<Vec<usize>>, index: u32| match found {
+        Some(rows) => d::Unknown::with_dependencies(index, rows.iter().map(|&j| j as u32 + 1).collect()),
+        None => d::Unknown::new(index),
+    };
     for (i, row) in table.rows.iter().enumerate() {
         let index = i as u32 + 1;
         if row.causality == Causality::Output {
-            md.model_structure.outputs.push(d::Unknown::new(index));
+            md.model_structure.outputs.push(listed(&dependencies.continuous[i], index));
         }
         // An absent initial takes the standard's default for the causality/variability pair.
         let initial = row.initial.map(initial).or_else(|| d::Initial::default_for(causality(row.causality), variability(row.variability)));
-        let is_initial_unknown =
-            (row.causality == Causality::Output && initial != Some(d::Initial::Exact)) || row.causality == Causality::CalculatedParameter;
+        let is_initial_unknown = (row.causality == Causality::Output && initial != Some(d::Initial::Exact))
+            || row.causality == Causality::CalculatedParameter
+            || matches!(row.slot, Slot::Derivative(_));
         if is_initial_unknown {
-            md.model_structure.initial_unknowns.push(d::Unknown::new(index));
+            md.model_structure.initial_unknowns.push(listed(&dependencies.initial[i], index));
+        }
+    }
+    for k in 0..M::N_STATES {
+        if let Some(i) = table.rows.iter().position(|r| matches!(r.slot, Slot::Derivative(j) if j == k)) {
+            md.model_structure.derivatives.push(listed(&dependencies.continuous[i], i as u32 + 1));
         }
     }
     md
+}
+
+/// The 1-based index of the row of state `k`.
+fn state_index<M: Model>(table: &Table<M>, k: usize) -> Option<u32> {
+    table.rows.iter().position(|r| matches!(r.slot, Slot::Model(Access::State(j)) if j == k)).map(|i| i as u32 + 1)
 }
 
 /// The `modelDescription.xml` text of model `M`.

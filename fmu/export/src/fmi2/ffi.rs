@@ -7,10 +7,10 @@
 use std::ffi::{c_char, c_int, c_uint, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-pub use fmi_c::fmi2::{CallbackFunctions, CallbackLogger as LoggerFn, CO_SIMULATION as FMI2_COSIMULATION};
-use fmi_c::fmi2::{DO_STEP_STATUS, LAST_SUCCESSFUL_TIME, TERMINATED};
+pub use fmi_c::fmi2::{CallbackFunctions, CallbackLogger as LoggerFn, EventInfo, CO_SIMULATION as FMI2_COSIMULATION};
+use fmi_c::fmi2::{DO_STEP_STATUS, LAST_SUCCESSFUL_TIME, MODEL_EXCHANGE, TERMINATED};
 
-use super::state_machine::{Call, FmiState};
+use super::state_machine::{Call, FmiState, Interface};
 use super::Instance;
 use crate::core::{snapshot, CallResult, Failure, State};
 use crate::logging::{Logger, Sink, Status};
@@ -162,7 +162,8 @@ pub fn get_version() -> *const c_char {
     c"2.0".as_ptr()
 }
 
-/// `fmi2Instantiate`: checks the interface type and GUID; NULL with a logged reason on refusal.
+/// `fmi2Instantiate`: an instance for the interface `fmuType` asks for (Model Exchange or
+/// Co-Simulation, the same binary); checks the GUID; NULL with a logged reason on refusal.
 pub unsafe fn instantiate<M: Model>(
     instance_name: *const c_char,
     fmu_type: c_int,
@@ -186,9 +187,11 @@ pub unsafe fn instantiate<M: Model>(
         if name.is_empty() {
             return refuse(&mut logger, "instanceName must be a non-empty string".to_owned());
         }
-        if fmu_type != FMI2_COSIMULATION {
-            return refuse(&mut logger, format!("fmuType = {fmu_type}: this FMU supports only Co-Simulation (fmi2CoSimulation = 1)"));
-        }
+        let interface = match fmu_type {
+            FMI2_COSIMULATION => Interface::CoSimulation,
+            MODEL_EXCHANGE => Interface::ModelExchange,
+            _ => return refuse(&mut logger, format!("fmuType = {fmu_type} is neither fmi2ModelExchange (0) nor fmi2CoSimulation (1)")),
+        };
         let expected = crate::table::guid::<M>();
         match opt_str(guid) {
             Some(g) if g == expected => {}
@@ -202,7 +205,7 @@ pub unsafe fn instantiate<M: Model>(
                 )
             }
         }
-        let component = Box::new(Component { magic: COMPONENT_MAGIC, instance: Instance::<M>::new(name, logger) });
+        let component = Box::new(Component { magic: COMPONENT_MAGIC, instance: Instance::<M>::for_interface(name, logger, interface) });
         Box::into_raw(component) as *mut c_void
     });
     result.unwrap_or(std::ptr::null_mut())
@@ -572,6 +575,159 @@ pub unsafe fn get_string_status<M: Model>(c: *mut c_void, kind: c_int, _value: *
     })
 }
 
+/// `fmi2EnterEventMode`.
+pub unsafe fn enter_event_mode<M: Model>(c: *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::EnterEventMode, |inst| ok(inst.enter_event_mode()))
+}
+
+/// `fmi2NewDiscreteStates`: fills `*info`.
+pub unsafe fn new_discrete_states<M: Model>(c: *mut c_void, info: *mut EventInfo) -> c_int {
+    with_instance::<M>(c, Call::NewDiscreteStates, |inst| {
+        if info.is_null() {
+            inst.check(Call::NewDiscreteStates)?;
+            return Err(Failure::error("fmi2NewDiscreteStates: eventInfo is NULL"));
+        }
+        let event = inst.new_discrete_states()?;
+        *info = EventInfo {
+            new_discrete_states_needed: event.new_discrete_states_needed as c_int,
+            terminate_simulation: event.terminate_simulation as c_int,
+            nominals_of_continuous_states_changed: event.nominals_of_continuous_states_changed as c_int,
+            values_of_continuous_states_changed: event.values_of_continuous_states_changed as c_int,
+            next_event_time_defined: event.next_event_time.is_some() as c_int,
+            next_event_time: event.next_event_time.unwrap_or(0.0),
+        };
+        Ok(Status::Ok)
+    })
+}
+
+/// `fmi2EnterContinuousTimeMode`.
+pub unsafe fn enter_continuous_time_mode<M: Model>(c: *mut c_void) -> c_int {
+    with_instance::<M>(c, Call::EnterContinuousTimeMode, |inst| ok(inst.enter_continuous_time_mode()))
+}
+
+/// `fmi2CompletedIntegratorStep`: fills `*enter_event_mode` and `*terminate_simulation`.
+pub unsafe fn completed_integrator_step<M: Model>(
+    c: *mut c_void,
+    _no_set_prior: c_int,
+    enter_event_mode: *mut c_int,
+    terminate_simulation: *mut c_int,
+) -> c_int {
+    with_instance::<M>(c, Call::CompletedIntegratorStep, |inst| {
+        if enter_event_mode.is_null() || terminate_simulation.is_null() {
+            inst.check(Call::CompletedIntegratorStep)?;
+            return Err(Failure::error("fmi2CompletedIntegratorStep: enterEventMode or terminateSimulation is NULL"));
+        }
+        let step = inst.completed_integrator_step()?;
+        *enter_event_mode = step.enter_event_mode as c_int;
+        *terminate_simulation = step.terminate_simulation as c_int;
+        Ok(Status::Ok)
+    })
+}
+
+/// The instance behind `c` when it is one of ours, for the hot paths below.
+#[inline(always)]
+unsafe fn instance_mut<'a, M: Model>(c: *mut c_void) -> Option<&'a mut Instance<M>> {
+    let component = c as *mut Component<M>;
+    if component.is_null() || (*component).magic != COMPONENT_MAGIC {
+        None
+    } else {
+        Some(&mut (*component).instance)
+    }
+}
+
+// fmi2SetTime, fmi2SetContinuousStates and fmi2GetDerivatives come once per evaluation of the
+// derivatives, several times per solver step of the importer: their usual call is done in
+// place and answers fmi2OK directly; anything else takes the general path (out of line, so the
+// usual call does not set up its frame), which checks the call again and explains the refusal.
+// fmi2SetTime and fmi2SetContinuousStates run no model code, so their usual call cannot unwind.
+
+/// `fmi2SetTime`.
+#[inline(always)]
+pub unsafe fn set_time<M: Model>(c: *mut c_void, time: f64) -> c_int {
+    if let Some(inst) = instance_mut::<M>(c) {
+        if inst.try_set_time(time) {
+            return Status::Ok as c_int;
+        }
+    }
+    set_time_in_full::<M>(c, time)
+}
+
+#[cold]
+#[inline(never)]
+unsafe fn set_time_in_full<M: Model>(c: *mut c_void, time: f64) -> c_int {
+    with_instance::<M>(c, Call::SetTime, |inst| ok(inst.set_time(time)))
+}
+
+/// `fmi2SetContinuousStates`.
+#[inline(always)]
+pub unsafe fn set_continuous_states<M: Model>(c: *mut c_void, x: *const f64, nx: usize) -> c_int {
+    if let Some(inst) = instance_mut::<M>(c) {
+        if !x.is_null() && inst.try_set_continuous_states(std::slice::from_raw_parts(x, nx)) {
+            return Status::Ok as c_int;
+        }
+    }
+    set_continuous_states_in_full::<M>(c, x, nx)
+}
+
+#[cold]
+#[inline(never)]
+unsafe fn set_continuous_states_in_full<M: Model>(c: *mut c_void, x: *const f64, nx: usize) -> c_int {
+    with_instance::<M>(c, Call::SetContinuousStates, |inst| {
+        let x = slice(x, nx, Call::SetContinuousStates, "x[]")?;
+        ok(inst.set_continuous_states(x))
+    })
+}
+
+/// `fmi2GetDerivatives`.
+#[inline(always)]
+pub unsafe fn get_derivatives<M: Model>(c: *mut c_void, dx: *mut f64, nx: usize) -> c_int {
+    if let Some(inst) = instance_mut::<M>(c) {
+        if !dx.is_null() {
+            let out = std::slice::from_raw_parts_mut(dx, nx);
+            // The model's code runs: inside the unwinding guard.
+            if let Ok(Some(true)) = catch_unwind(AssertUnwindSafe(|| inst.try_get_derivatives(out))) {
+                return Status::Ok as c_int;
+            }
+        }
+    }
+    get_derivatives_in_full::<M>(c, dx, nx)
+}
+
+/// The general path of `fmi2GetDerivatives` (evaluates the derivatives again: a refusal
+/// counts twice in `n_rhs`, the usual call once).
+#[cold]
+#[inline(never)]
+unsafe fn get_derivatives_in_full<M: Model>(c: *mut c_void, dx: *mut f64, nx: usize) -> c_int {
+    with_instance::<M>(c, Call::GetDerivatives, |inst| {
+        let dx = slice_mut(dx, nx, Call::GetDerivatives, "derivatives[]")?;
+        inst.get_derivatives(dx)
+    })
+}
+
+/// `fmi2GetEventIndicators`.
+pub unsafe fn get_event_indicators<M: Model>(c: *mut c_void, z: *mut f64, ni: usize) -> c_int {
+    with_instance::<M>(c, Call::GetEventIndicators, |inst| {
+        let z = slice_mut(z, ni, Call::GetEventIndicators, "eventIndicators[]")?;
+        ok(inst.get_event_indicators(z))
+    })
+}
+
+/// `fmi2GetContinuousStates`.
+pub unsafe fn get_continuous_states<M: Model>(c: *mut c_void, x: *mut f64, nx: usize) -> c_int {
+    with_instance::<M>(c, Call::GetContinuousStates, |inst| {
+        let x = slice_mut(x, nx, Call::GetContinuousStates, "x[]")?;
+        ok(inst.get_continuous_states(x))
+    })
+}
+
+/// `fmi2GetNominalsOfContinuousStates`.
+pub unsafe fn get_nominals_of_continuous_states<M: Model>(c: *mut c_void, x: *mut f64, nx: usize) -> c_int {
+    with_instance::<M>(c, Call::GetNominalsOfContinuousStates, |inst| {
+        let x = slice_mut(x, nx, Call::GetNominalsOfContinuousStates, "x_nominal[]")?;
+        ok(inst.get_nominals_of_continuous_states(x))
+    })
+}
+
 /// Copies `text` NUL-terminated into `buffer` when it fits; returns the bytes needed
 /// (including the NUL), like `snprintf`, so the caller can size its buffer.
 pub unsafe fn copy_out(text: &str, buffer: *mut c_char, size: usize) -> usize {
@@ -583,7 +739,8 @@ pub unsafe fn copy_out(text: &str, buffer: *mut c_char, size: usize) -> usize {
     needed
 }
 
-/// Exports all 34 FMI 2.0 Co-Simulation functions for `$model`, plus
+/// Exports all 44 FMI 2.0 functions for `$model` (the 25 common ones, the 9 of Co-Simulation
+/// and the 10 of Model Exchange: one binary serves both interfaces), plus
 /// `fmu_model_description` and `fmu_documentation` (used by `runner build` to write the
 /// `.fmu`'s XML and HTML from the compiled table). Invoke once per model crate.
 #[macro_export]
@@ -773,6 +930,51 @@ macro_rules! export_fmu {
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetStringStatus(c: *mut c_void, kind: c_int, v: *mut *const c_char) -> c_int {
                 f::get_string_status::<M>(c, kind, v)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2EnterEventMode(c: *mut c_void) -> c_int {
+                f::enter_event_mode::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2NewDiscreteStates(c: *mut c_void, info: *mut f::EventInfo) -> c_int {
+                f::new_discrete_states::<M>(c, info)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2EnterContinuousTimeMode(c: *mut c_void) -> c_int {
+                f::enter_continuous_time_mode::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2CompletedIntegratorStep(
+                c: *mut c_void,
+                no_set_prior: c_int,
+                enter_event_mode: *mut c_int,
+                terminate: *mut c_int,
+            ) -> c_int {
+                f::completed_integrator_step::<M>(c, no_set_prior, enter_event_mode, terminate)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetTime(c: *mut c_void, time: f64) -> c_int {
+                f::set_time::<M>(c, time)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetContinuousStates(c: *mut c_void, x: *const f64, nx: usize) -> c_int {
+                f::set_continuous_states::<M>(c, x, nx)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetDerivatives(c: *mut c_void, dx: *mut f64, nx: usize) -> c_int {
+                f::get_derivatives::<M>(c, dx, nx)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetEventIndicators(c: *mut c_void, z: *mut f64, ni: usize) -> c_int {
+                f::get_event_indicators::<M>(c, z, ni)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetContinuousStates(c: *mut c_void, x: *mut f64, nx: usize) -> c_int {
+                f::get_continuous_states::<M>(c, x, nx)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetNominalsOfContinuousStates(c: *mut c_void, x: *mut f64, nx: usize) -> c_int {
+                f::get_nominals_of_continuous_states::<M>(c, x, nx)
             }
 
             /// Writes this FMU's modelDescription.xml into `buf`; returns the size needed.

@@ -1,36 +1,52 @@
-//! The FMI 2.0 front end: the Co-Simulation state machine over the model core. Each call is
-//! checked against the standard's table (`state_machine`), handed to the core, and the core's
-//! outcome turned into a status and the next state. The C glue (`ffi`) only converts pointers
-//! and statuses around it; `describe` writes the modelDescription.xml.
+//! The FMI 2.0 front ends: the Co-Simulation and the Model Exchange state machines over the
+//! model core. Each call is checked against the standard's table (`state_machine`), handed to
+//! the core, and the core's outcome turned into a status and the next state. The calls both
+//! interfaces share and the Co-Simulation ones are here, the Model Exchange ones in
+//! `model_exchange`; the C glue (`ffi`) only converts pointers and statuses around them, and
+//! one `fmi2Instantiate` makes an instance of either by `fmuType`. `describe` writes the
+//! modelDescription.xml.
 
 pub mod describe;
 pub mod ffi;
+mod model_exchange;
 pub mod state_machine;
 
 use crate::core::{CallResult, Core, Failure, Names, Phase, State, StepEnd};
 use crate::logging::{Logger, Status, LOG_CALLS};
 use crate::model::Model;
 use crate::table::Table;
-use state_machine::{Call, FmiState};
+pub use model_exchange::EventInfo;
+use state_machine::{Call, FmiState, Interface};
 
 /// The FMI 2.0 names the core's messages refer to.
 const NAMES: Names = Names { setup: "fmi2SetupExperiment", exit_initialization: "fmi2ExitInitializationMode" };
 
-/// A live FMI 2.0 instance of model `M`.
+/// A live FMI 2.0 instance of model `M`, for one interface.
 pub struct Instance<M: Model> {
     core: Core<M>,
     state: FmiState,
+    interface: Interface,
 }
 
 impl<M: Model> Instance<M> {
-    /// A new instance in state Instantiated with the table's start values.
+    /// A new Co-Simulation instance in state Instantiated with the table's start values.
     pub fn new(name: &str, logger: Logger) -> Instance<M> {
-        Instance { core: Core::new(name, logger, NAMES), state: FmiState::Instantiated }
+        Self::for_interface(name, logger, Interface::CoSimulation)
+    }
+
+    /// A new instance of `interface` in state Instantiated with the table's start values.
+    pub fn for_interface(name: &str, logger: Logger, interface: Interface) -> Instance<M> {
+        Instance { core: Core::new(name, logger, NAMES), state: FmiState::Instantiated, interface }
     }
 
     /// The current state-machine state.
     pub fn state(&self) -> FmiState {
         self.state
+    }
+
+    /// The interface the instance was created for.
+    pub fn interface(&self) -> Interface {
+        self.interface
     }
 
     /// The instance's variable table.
@@ -48,22 +64,37 @@ impl<M: Model> Instance<M> {
         &mut self.core.logger
     }
 
-    /// Refuses `call` when the state machine does not allow it now.
+    /// Refuses `call` when the state machine does not allow it now, or when it belongs to the
+    /// other interface.
     #[inline]
     pub fn check(&self, call: Call) -> CallResult {
-        if call.is_allowed_in(self.state) {
+        if self.permits(call) {
             Ok(())
         } else {
-            Err(Self::illegal(call, self.state))
+            Err(self.illegal(call))
         }
     }
 
+    /// True when `call` is allowed now (what [`Instance::check`] decides, as a flag).
+    #[inline(always)]
+    pub fn permits(&self, call: Call) -> bool {
+        call.is_allowed_in(self.state) && call.interface().is_none_or(|i| i == self.interface)
+    }
+
     // Out of line: every call passes `check`, and its message would otherwise be set up on
-    // the hot path of fmi2DoStep and fmi2GetReal.
+    // the hot path of fmi2DoStep, fmi2GetDerivatives and fmi2GetReal.
     #[cold]
     #[inline(never)]
-    fn illegal(call: Call, state: FmiState) -> Failure {
-        Failure::error(format!("{} is not allowed in state {}: illegal call sequence", call.name(), state.name()))
+    fn illegal(&self, call: Call) -> Failure {
+        match call.interface() {
+            Some(interface) if interface != self.interface => Failure::error(format!(
+                "{} is a {} function, but this instance was instantiated for {}: illegal call sequence",
+                call.name(),
+                interface.name(),
+                self.interface.name()
+            )),
+            _ => Failure::error(format!("{} is not allowed in state {}: illegal call sequence", call.name(), self.state.name())),
+        }
     }
 
     /// Logs a call in the `logCalls` category (formatting only when someone listens).
@@ -78,6 +109,8 @@ impl<M: Model> Instance<M> {
     fn phase(&self) -> Phase {
         match self.state {
             FmiState::Instantiated | FmiState::InitializationMode => Phase::Initializing,
+            FmiState::ContinuousTimeMode => Phase::ContinuousTime,
+            _ if self.interface == Interface::ModelExchange => Phase::Event,
             _ => Phase::Running,
         }
     }
@@ -106,11 +139,20 @@ impl<M: Model> Instance<M> {
         Ok(())
     }
 
-    /// `fmi2ExitInitializationMode`: checks parameters and solver controls, starts the solver.
+    /// `fmi2ExitInitializationMode`: checks parameters and solver controls; Co-Simulation
+    /// starts the solver and can step, Model Exchange enters event mode.
     pub fn exit_initialization_mode(&mut self) -> CallResult {
         self.check(Call::ExitInitializationMode)?;
-        self.core.start()?;
-        self.state = FmiState::StepComplete;
+        match self.interface {
+            Interface::CoSimulation => {
+                self.core.start()?;
+                self.state = FmiState::StepComplete;
+            }
+            Interface::ModelExchange => {
+                self.core.start_exchange()?;
+                self.state = FmiState::EventMode;
+            }
+        }
         Ok(())
     }
 
@@ -218,8 +260,17 @@ impl<M: Model> Instance<M> {
     }
 
     /// `fmi2SetFMUstate`: continues from a captured state, including its state-machine state.
+    /// A state taken in a mode of the other interface is refused.
     pub fn set_fmu_state(&mut self, saved: &(State<M>, FmiState)) -> CallResult {
         self.check(Call::SetFMUstate)?;
+        if saved.1.interface().is_some_and(|i| i != self.interface) {
+            return Err(Failure::error(format!(
+                "the FMU state was taken from a {} instance in state {}; this instance is for {}",
+                saved.1.interface().map_or("", Interface::name),
+                saved.1.name(),
+                self.interface.name()
+            )));
+        }
         self.core.restore(&saved.0);
         self.state = saved.1;
         Ok(())

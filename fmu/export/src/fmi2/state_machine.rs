@@ -1,9 +1,32 @@
-//! The FMI 2.0 Co-Simulation state machine (FMI 2.0.4, section 4.2.4): which call is allowed
-//! in which state. This table is the only place that decides it.
+//! The FMI 2.0 state machines of both interfaces: Co-Simulation (FMI 2.0.4, section 4.2.4) and
+//! Model Exchange (section 3.2.3), which share their first and last states. One table over the
+//! union of their states decides which call is allowed when: a Co-Simulation instance never
+//! enters EventMode or ContinuousTimeMode and a Model Exchange instance never StepComplete or
+//! StepFailed, and a call of the other interface is refused whatever the state (the states
+//! Terminated and Error are shared). This table is the only place that decides it.
 
 use serde::{Deserialize, Serialize};
 
-/// States of a Co-Simulation slave (asynchronous states are never entered: we step synchronously).
+/// The interface an instance was created for (`fmuType` of `fmi2Instantiate`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Interface {
+    ModelExchange,
+    CoSimulation,
+}
+
+impl Interface {
+    /// The standard's name, for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Interface::ModelExchange => "Model Exchange",
+            Interface::CoSimulation => "Co-Simulation",
+        }
+    }
+}
+
+/// States of an instance. A Co-Simulation slave steps synchronously, so the asynchronous
+/// states (StepInProgress, StepCanceled) are never entered. The Model Exchange states come
+/// last so that the numbering of the Co-Simulation ones, which FMU states record, is unchanged.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum FmiState {
     Instantiated,
@@ -13,6 +36,11 @@ pub enum FmiState {
     Terminated,
     Error,
     Fatal,
+    /// Model Exchange: discrete-time equations active, time stands still (after initialization
+    /// and at each event).
+    EventMode,
+    /// Model Exchange: the importer integrates the continuous states.
+    ContinuousTimeMode,
 }
 
 impl FmiState {
@@ -26,15 +54,27 @@ impl FmiState {
             FmiState::Terminated => "Terminated",
             FmiState::Error => "Error",
             FmiState::Fatal => "Fatal",
+            FmiState::EventMode => "EventMode",
+            FmiState::ContinuousTimeMode => "ContinuousTimeMode",
         }
     }
 
-    fn bit(self) -> u8 {
-        1 << (self as u8)
+    /// The interface whose state machine has this state; `None` for the states both share.
+    pub fn interface(self) -> Option<Interface> {
+        match self {
+            FmiState::StepComplete | FmiState::StepFailed => Some(Interface::CoSimulation),
+            FmiState::EventMode | FmiState::ContinuousTimeMode => Some(Interface::ModelExchange),
+            _ => None,
+        }
+    }
+
+    const fn bit(self) -> u16 {
+        1 << (self as u16)
     }
 }
 
-/// Every instance-level FMI 2.0 Co-Simulation call, for the allowed-state check and messages.
+/// Every instance-level FMI 2.0 call of either interface, for the allowed-state check and
+/// messages.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Call {
     SetDebugLogging,
@@ -68,16 +108,28 @@ pub enum Call {
     GetIntegerStatus,
     GetBooleanStatus,
     GetStringStatus,
+    EnterEventMode,
+    NewDiscreteStates,
+    EnterContinuousTimeMode,
+    CompletedIntegratorStep,
+    SetTime,
+    SetContinuousStates,
+    GetDerivatives,
+    GetEventIndicators,
+    GetContinuousStates,
+    GetNominalsOfContinuousStates,
 }
 
-const I: u8 = 1 << FmiState::Instantiated as u8;
-const INIT: u8 = 1 << FmiState::InitializationMode as u8;
-const DONE: u8 = 1 << FmiState::StepComplete as u8;
-const FAILED: u8 = 1 << FmiState::StepFailed as u8;
-const TERM: u8 = 1 << FmiState::Terminated as u8;
-const ERR: u8 = 1 << FmiState::Error as u8;
+const I: u16 = FmiState::Instantiated.bit();
+const INIT: u16 = FmiState::InitializationMode.bit();
+const DONE: u16 = FmiState::StepComplete.bit();
+const FAILED: u16 = FmiState::StepFailed.bit();
+const TERM: u16 = FmiState::Terminated.bit();
+const ERR: u16 = FmiState::Error.bit();
+const EVENT: u16 = FmiState::EventMode.bit();
+const CT: u16 = FmiState::ContinuousTimeMode.bit();
 /// Every state but Fatal: after a fatal error nothing but freeing is meaningful.
-const ALIVE: u8 = I | INIT | DONE | FAILED | TERM | ERR;
+const ALIVE: u16 = I | INIT | DONE | FAILED | TERM | ERR | EVENT | CT;
 
 impl Call {
     /// The C name of the call, for log messages.
@@ -114,26 +166,66 @@ impl Call {
             Call::GetIntegerStatus => "fmi2GetIntegerStatus",
             Call::GetBooleanStatus => "fmi2GetBooleanStatus",
             Call::GetStringStatus => "fmi2GetStringStatus",
+            Call::EnterEventMode => "fmi2EnterEventMode",
+            Call::NewDiscreteStates => "fmi2NewDiscreteStates",
+            Call::EnterContinuousTimeMode => "fmi2EnterContinuousTimeMode",
+            Call::CompletedIntegratorStep => "fmi2CompletedIntegratorStep",
+            Call::SetTime => "fmi2SetTime",
+            Call::SetContinuousStates => "fmi2SetContinuousStates",
+            Call::GetDerivatives => "fmi2GetDerivatives",
+            Call::GetEventIndicators => "fmi2GetEventIndicators",
+            Call::GetContinuousStates => "fmi2GetContinuousStates",
+            Call::GetNominalsOfContinuousStates => "fmi2GetNominalsOfContinuousStates",
         }
     }
 
-    /// The states in which the standard allows this call.
-    fn allowed(self) -> u8 {
+    /// The interface this call belongs to; `None` for the functions both share.
+    pub fn interface(self) -> Option<Interface> {
+        match self {
+            Call::SetRealInputDerivatives
+            | Call::GetRealOutputDerivatives
+            | Call::DoStep
+            | Call::CancelStep
+            | Call::GetStatus
+            | Call::GetRealStatus
+            | Call::GetIntegerStatus
+            | Call::GetBooleanStatus
+            | Call::GetStringStatus => Some(Interface::CoSimulation),
+            Call::EnterEventMode
+            | Call::NewDiscreteStates
+            | Call::EnterContinuousTimeMode
+            | Call::CompletedIntegratorStep
+            | Call::SetTime
+            | Call::SetContinuousStates
+            | Call::GetDerivatives
+            | Call::GetEventIndicators
+            | Call::GetContinuousStates
+            | Call::GetNominalsOfContinuousStates => Some(Interface::ModelExchange),
+            _ => None,
+        }
+    }
+
+    /// The states in which the standard allows this call (both interfaces' tables in one: each
+    /// interface's states are disjoint except the shared ones).
+    fn allowed(self) -> u16 {
         match self {
             Call::SetDebugLogging => ALIVE,
             Call::FreeInstance | Call::Reset => ALIVE,
             Call::SetupExperiment | Call::EnterInitializationMode => I,
             Call::ExitInitializationMode => INIT,
-            Call::Terminate => DONE | FAILED,
-            Call::GetReal | Call::GetInteger | Call::GetBoolean | Call::GetString => INIT | DONE | FAILED | TERM | ERR,
-            Call::SetReal | Call::SetInteger | Call::SetBoolean | Call::SetString => I | INIT | DONE,
+            Call::Terminate => DONE | FAILED | EVENT | CT,
+            Call::GetReal | Call::GetInteger | Call::GetBoolean | Call::GetString => INIT | DONE | FAILED | TERM | ERR | EVENT | CT,
+            // In ContinuousTimeMode only continuous Real inputs may be set (the core's rules
+            // refuse the rest), so only fmi2SetReal is allowed there.
+            Call::SetReal => I | INIT | DONE | EVENT | CT,
+            Call::SetInteger | Call::SetBoolean | Call::SetString => I | INIT | DONE | EVENT,
             Call::GetFMUstate
             | Call::SetFMUstate
             | Call::FreeFMUstate
             | Call::SerializedFMUstateSize
             | Call::SerializeFMUstate
             | Call::DeSerializeFMUstate => ALIVE,
-            Call::GetDirectionalDerivative => INIT | DONE | FAILED | TERM | ERR,
+            Call::GetDirectionalDerivative => INIT | DONE | FAILED | TERM | ERR | EVENT | CT,
             Call::SetRealInputDerivatives => I | INIT | DONE,
             Call::GetRealOutputDerivatives => DONE | FAILED | TERM | ERR,
             Call::DoStep => DONE,
@@ -142,10 +234,20 @@ impl Call {
             Call::GetStatus | Call::GetRealStatus | Call::GetIntegerStatus | Call::GetBooleanStatus | Call::GetStringStatus => {
                 DONE | FAILED | TERM
             }
+            // Model Exchange (section 3.2.3).
+            Call::EnterEventMode => EVENT | CT,
+            Call::NewDiscreteStates | Call::EnterContinuousTimeMode => EVENT,
+            Call::CompletedIntegratorStep | Call::SetContinuousStates => CT,
+            Call::SetTime => EVENT | CT,
+            Call::GetEventIndicators | Call::GetContinuousStates => INIT | EVENT | CT | TERM | ERR,
+            Call::GetDerivatives => EVENT | CT | TERM | ERR,
+            Call::GetNominalsOfContinuousStates => I | EVENT | CT | TERM | ERR,
         }
     }
 
-    /// True when the standard allows this call in `state`.
+    /// True when the standard allows this call in `state` (of an instance of the call's
+    /// interface: see [`Call::interface`]).
+    #[inline]
     pub fn is_allowed_in(self, state: FmiState) -> bool {
         self.allowed() & state.bit() != 0
     }
@@ -176,5 +278,34 @@ mod tests {
         assert!(!Call::CancelStep.is_allowed_in(StepComplete));
         assert!(Call::GetBooleanStatus.is_allowed_in(StepFailed));
         assert!(!Call::GetBooleanStatus.is_allowed_in(Error));
+    }
+
+    /// Spot checks against the Model Exchange table (section 3.2.3), and the rule that keeps
+    /// the two interfaces apart.
+    #[test]
+    fn model_exchange_table_matches_the_standard() {
+        use FmiState::*;
+        assert!(Call::SetContinuousStates.is_allowed_in(ContinuousTimeMode));
+        assert!(!Call::SetContinuousStates.is_allowed_in(EventMode));
+        assert!(Call::NewDiscreteStates.is_allowed_in(EventMode));
+        assert!(!Call::NewDiscreteStates.is_allowed_in(ContinuousTimeMode));
+        assert!(Call::EnterEventMode.is_allowed_in(ContinuousTimeMode) && Call::EnterEventMode.is_allowed_in(EventMode));
+        assert!(!Call::CompletedIntegratorStep.is_allowed_in(EventMode));
+        assert!(Call::GetContinuousStates.is_allowed_in(InitializationMode));
+        assert!(!Call::GetDerivatives.is_allowed_in(InitializationMode) && Call::GetDerivatives.is_allowed_in(Error));
+        assert!(Call::GetNominalsOfContinuousStates.is_allowed_in(Instantiated));
+        assert!(Call::Terminate.is_allowed_in(EventMode) && Call::Terminate.is_allowed_in(ContinuousTimeMode));
+        assert!(Call::SetReal.is_allowed_in(ContinuousTimeMode) && !Call::SetInteger.is_allowed_in(ContinuousTimeMode));
+        assert!(Call::SetBoolean.is_allowed_in(EventMode));
+        for s in [Instantiated, InitializationMode, EventMode, ContinuousTimeMode, Terminated, Error, Fatal] {
+            assert!(!Call::DoStep.is_allowed_in(s), "DoStep in {s:?}");
+        }
+        assert_eq!(Call::GetBooleanStatus.interface(), Some(Interface::CoSimulation));
+        assert_eq!(Call::GetDerivatives.interface(), Some(Interface::ModelExchange));
+        assert_eq!(Call::GetReal.interface(), None);
+        assert_eq!(
+            (EventMode.interface(), StepFailed.interface(), Terminated.interface()),
+            (Some(Interface::ModelExchange), Some(Interface::CoSimulation), None)
+        );
     }
 }

@@ -1,6 +1,8 @@
 //! `runner compare`: Ex. 4's question "which solver is cheapest for a given accuracy?",
-//! answered through the FMI interface alone: each run sets the toolkit's solver controls
-//! (`solver`, `fixed_step`, tolerance, `abs_tol`) and reads the counters `n_steps`, `n_rhs`.
+//! answered through the FMI interface alone: under Co-Simulation each run sets the toolkit's
+//! solver controls (`solver`, `fixed_step`, tolerance, `abs_tol`) and reads the counters
+//! `n_steps`, `n_rhs`; under Model Exchange (`--interface model-exchange`, any ME FMU) the
+//! runner's own integrator runs with those settings and counts its own steps and evaluations.
 //! Errors are measured against the model's closed-form solution where its experiment.toml gives
 //! one (`[compare.reference]`), else against DOPRI5 at a tolerance far below the table's.
 
@@ -8,7 +10,7 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use fmi_importer::{Causality, Description, Fmu, Kind, Value, Variability, Variable};
+use fmi_importer::{Causality, Description, Fmu, Interface, Kind, Solver, Value, Variability, Variable};
 use runner_engine::metrics::Formula;
 use runner_engine::run::{self as sim, Grid};
 use runner_engine::variables;
@@ -16,6 +18,7 @@ use solvers::controls::Control;
 use solvers::Method;
 
 use crate::experiment::{self, RunDefaults};
+use crate::integration::Integration;
 use crate::interrupt;
 use crate::report::output;
 use crate::report::plot::{self, Mark, Series};
@@ -38,6 +41,8 @@ pub struct Options {
     pub out: PathBuf,
     /// Work-precision plot (SVG).
     pub plot: PathBuf,
+    /// The interface (the runner's integrator settings are the table's, not given here).
+    pub integration: Integration,
 }
 
 /// One run of the work-precision table.
@@ -75,11 +80,21 @@ fn settings(solver: &str, interval: f64) -> Result<Trials, String> {
 fn control(description: &Description, control: Control) -> Result<&Variable, String> {
     let name = control.name();
     description.variable(name).ok_or_else(|| {
-        format!("{} has no variable '{name}': `runner compare` needs the solver controls of this toolkit's FMUs", description.model_name)
+        let hint = if description.model_exchange.is_some() {
+            "; it offers Model Exchange, which the runner integrates with its own solvers: add --interface model-exchange"
+        } else {
+            ""
+        };
+        format!(
+            "{} has no variable '{name}': `runner compare` on Co-Simulation needs the solver controls of this toolkit's FMUs{hint}",
+            description.model_name
+        )
     })
 }
 
-/// Runs one setting; returns the sampled compared outputs and the final counters.
+/// Runs one setting; returns the sampled compared outputs and the final counters: the FMU's
+/// `counters` (`n_steps`, `n_rhs`) under Co-Simulation, the runner's integrator's when
+/// `counters` is empty (Model Exchange).
 fn run_once(
     fmu: &Fmu,
     grid: &Grid,
@@ -97,11 +112,17 @@ fn run_once(
     let n = compared.len();
     let outcome = sim::run(fmu, "compare", grid, &assignments, &recorded, false, |_, values| {
         samples.push(values[..n].to_vec());
-        last = (values[n], values[n + 1]);
+        if !counters.is_empty() {
+            last = (values[n], values[n + 1]);
+        }
         Ok(())
     })?;
     if let Some(reason) = outcome.ended_early {
         return Err(format!("the run ended early: {reason}"));
+    }
+    if counters.is_empty() {
+        let (steps, rhs) = outcome.counters.unwrap_or((0, 0));
+        last = (steps as f64, rhs as f64);
     }
     Ok((samples, last.0, last.1))
 }
@@ -185,16 +206,29 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
     // Both files are written after the runs.
     output::check_destination(&options.out)?;
     output::check_destination(&options.plot)?;
+    if options.integration.solver.is_some() || options.integration.fixed_step.is_some() || options.integration.abs_tolerance.is_some() {
+        return Err(
+            "compare runs every solver of --solvers over its own settings: --solver, --fixed-step and --abs-tolerance do not apply"
+                .to_owned(),
+        );
+    }
     let target = experiment::resolve(&options.fmu)?;
-    let fmu = Fmu::load(&target.path)?;
+    let fmu: Fmu = options.integration.load(&target.path)?;
     let md = &fmu.description;
     let grid = Grid::choose(md, &[options.run.grid(), target.experiment.simulate.grid()])?;
     let mut set_texts = target.experiment.simulate.set.clone();
     set_texts.extend(target.experiment.compare.set.iter().cloned());
     set_texts.extend(options.run.set.iter().cloned());
     let base = variables::parse_sets(md, &set_texts)?;
-    let (solver, fixed_step, abs_tol) = (control(md, Control::Solver)?, control(md, Control::FixedStep)?, control(md, Control::AbsTol)?);
-    let counters = [control(md, Control::NSteps)?, control(md, Control::NRhs)?];
+    // Co-Simulation: the FMU's own solver controls and counters, which only this toolkit's
+    // FMUs have. Model Exchange: the runner's integrator, for any FMU.
+    let exchange = fmu.interface == Interface::ModelExchange;
+    let controls = if exchange {
+        None
+    } else {
+        Some((control(md, Control::Solver)?, control(md, Control::FixedStep)?, control(md, Control::AbsTol)?))
+    };
+    let counters: Vec<&Variable> = if exchange { Vec::new() } else { vec![control(md, Control::NSteps)?, control(md, Control::NRhs)?] };
     let compared: Vec<&Variable> = md.outputs().filter(|v| v.kind == Kind::Real && v.variability == Variability::Continuous).collect();
     if compared.is_empty() {
         return Err(format!("{} has no continuous Real outputs to compare", md.model_name));
@@ -207,8 +241,14 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
         if !analytical.reference.is_empty() {
             eprintln!("note: the closed-form reference in experiment.toml holds for its own parameter values; with --set the reference is DOPRI5 at rtol {REFERENCE_RTOL:e}");
         }
-        let reference_grid = Grid { tolerance: Some(REFERENCE_RTOL), ..grid };
-        let reference_settings = [(solver, Value::Integer(Method::Dopri5.code())), (abs_tol, Value::Real(REFERENCE_RTOL * 1e-2))];
+        let reference_solver = Solver { method: Method::Dopri5, abs_tol: REFERENCE_RTOL * 1e-2, ..Solver::default() };
+        let reference_grid = Grid { tolerance: Some(REFERENCE_RTOL), solver: reference_solver, ..grid };
+        let reference_settings = match controls {
+            Some((solver, _, abs_tol)) => {
+                vec![(solver, Value::Integer(Method::Dopri5.code())), (abs_tol, Value::Real(REFERENCE_RTOL * 1e-2))]
+            }
+            None => Vec::new(),
+        };
         let (reference, _, _) = run_once(&fmu, &reference_grid, &base, &reference_settings, &compared, &counters)
             .map_err(|e| format!("the reference run (DOPRI5 at rtol {REFERENCE_RTOL}) failed: {e}"))?;
         (compared, reference, format!("DOPRI5 at rtol {REFERENCE_RTOL:e}"))
@@ -224,10 +264,18 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
             if interrupt::requested() {
                 return Err(format!("interrupted after {} runs; no file written", rows.len()));
             }
-            let (run_grid, extra) = if *setting == Control::FixedStep.name() {
-                (grid, vec![(solver, Value::Integer(*code)), (fixed_step, Value::Real(value))])
-            } else {
-                (Grid { tolerance: Some(value), ..grid }, vec![(solver, Value::Integer(*code)), (abs_tol, Value::Real(value * 1e-3))])
+            let method = Method::from_code(*code).expect("a method's own code");
+            let fixed = *setting == Control::FixedStep.name();
+            let (run_grid, extra) = match (controls, fixed) {
+                (Some((solver, fixed_step, _)), true) => (grid, vec![(solver, Value::Integer(*code)), (fixed_step, Value::Real(value))]),
+                (Some((solver, _, abs_tol)), false) => {
+                    (Grid { tolerance: Some(value), ..grid }, vec![(solver, Value::Integer(*code)), (abs_tol, Value::Real(value * 1e-3))])
+                }
+                (None, true) => (Grid { solver: Solver { method, fixed_step: value, ..Solver::default() }, ..grid }, Vec::new()),
+                (None, false) => {
+                    let solver = Solver { method, abs_tol: value * 1e-3, ..Solver::default() };
+                    (Grid { tolerance: Some(value), solver, ..grid }, Vec::new())
+                }
             };
             let started = Instant::now();
             let result = run_once(&fmu, &run_grid, &base, &extra, &compared, &counters);

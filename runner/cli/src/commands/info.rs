@@ -36,10 +36,26 @@ pub fn report(d: &Description) -> String {
             }
             line(format!("  {:<32}{}", "max output derivative order", cs.max_output_derivative_order));
         }
-        None => line("Co-Simulation: not offered (the runner cannot simulate this FMU)".to_owned()),
+        None => line("Co-Simulation: not offered".to_owned()),
     }
-    if d.model_exchange.is_some() {
-        line("Model Exchange: offered (not used by the runner)".to_owned());
+    match &d.model_exchange {
+        Some(me) => {
+            line(format!(
+                "Model Exchange: modelIdentifier {} ({} continuous states, {} event indicators; the runner integrates it with --interface model-exchange)",
+                me.model_identifier, d.number_of_continuous_states, d.number_of_event_indicators
+            ));
+            let flags = [
+                ("get/set FMU state", me.can_get_and_set_fmu_state),
+                ("serialize FMU state", me.can_serialize_fmu_state),
+                ("directional derivatives", me.provides_directional_derivative),
+                ("one instance per process only", me.can_be_instantiated_only_once_per_process),
+                ("needs execution tool", me.needs_execution_tool),
+            ];
+            for (what, on) in flags {
+                line(format!("  {:<32}{}", what, if on { "yes" } else { "no" }));
+            }
+        }
+        None => line("Model Exchange: not offered".to_owned()),
     }
     if let Some(e) = &d.default_experiment {
         let show = |v: Option<f64>| v.map_or("-".to_owned(), |x| x.to_string());

@@ -10,6 +10,7 @@ use runner_engine::run::{Grid, Recording};
 use runner_engine::variables::{self, UnitConversion};
 
 use crate::experiment::{self, RunDefaults};
+use crate::integration::Integration;
 use crate::report::figure::{self, Curve, Figure, Format, Note, Panel, VLine};
 use crate::report::output;
 use crate::trace::{self, Event, Trace};
@@ -35,6 +36,8 @@ pub struct Options {
     pub overlay: Option<String>,
     /// Also writes a row at each event a step stops at (FMI 3.0), before the event is handled.
     pub record_events: bool,
+    /// The interface, and the runner's integrator for Model Exchange.
+    pub integration: Integration,
 }
 
 /// One run of an overlay: its label and the assignment that makes it.
@@ -177,9 +180,10 @@ pub fn run(options: &Options) -> Result<(), String> {
         return Err("--plot-vars and --plot-x choose what --plot FILE draws: give --plot too".to_owned());
     }
     let target = experiment::resolve(&options.fmu)?;
-    let fmu = Fmu::load(&target.path)?;
+    let fmu: Fmu = options.integration.load(&target.path)?;
     let md = &fmu.description;
-    let grid = Grid::choose(md, &[options.run.grid(), target.experiment.simulate.grid()])?;
+    let mut grid = Grid::choose(md, &[options.run.grid(), target.experiment.simulate.grid()])?;
+    grid.solver = options.integration.solver()?;
     let mut set_texts = target.experiment.simulate.set.clone();
     set_texts.extend(options.run.set.iter().cloned());
     let assignments = variables::parse_sets(md, &set_texts)?;

@@ -11,6 +11,7 @@ use runner_engine::sweep::{parse_range, Plan};
 use runner_engine::variables;
 
 use crate::experiment::{self, RunDefaults};
+use crate::integration::Integration;
 use crate::interrupt;
 use crate::report::output;
 use crate::report::plot::{self, Mark, Series};
@@ -33,6 +34,8 @@ pub struct Options {
     pub out: Option<PathBuf>,
     /// SVG destination.
     pub plot: Option<PathBuf>,
+    /// The interface, and the runner's integrator for Model Exchange.
+    pub integration: Integration,
 }
 
 /// What a finished sweep reports.
@@ -68,9 +71,10 @@ pub fn run(options: &Options) -> Result<Summary, String> {
     }
     let ranges = param_texts.iter().map(|p| parse_range(p)).collect::<Result<Vec<_>, _>>()?;
     let metrics = Metrics::parse(&metric_texts)?;
-    let fmu = Fmu::load(&target.path)?;
+    let fmu: Fmu = options.integration.load(&target.path)?;
     let d = &fmu.description;
-    let grid = Grid::choose(d, &[options.run.grid(), defaults.run().grid()])?;
+    let mut grid = Grid::choose(d, &[options.run.grid(), defaults.run().grid()])?;
+    grid.solver = options.integration.solver()?;
     let mut set_texts = defaults.set.clone();
     set_texts.extend(options.run.set.iter().cloned());
     let fixed = variables::parse_sets(d, &set_texts)?;

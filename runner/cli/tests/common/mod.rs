@@ -97,3 +97,23 @@ pub fn column(header: &[String], rows: &[Vec<String>], name: &str) -> Vec<f64> {
     let i = header.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name} in {header:?}"));
     rows.iter().map(|r| r[i].parse().unwrap_or_else(|_| panic!("{name} = {:?} is not a number", r[i]))).collect()
 }
+
+/// Builds the Model Exchange test FMU tests/c_fmu/me_faults.c as `<dir>/<file>`, its
+/// modelDescription.xml passed through `edit` first; returns its path.
+pub fn me_faults_fmu(dir: &Path, file: &str, edit: impl Fn(&str) -> String) -> PathBuf {
+    let so = dir.join(format!("{file}.so"));
+    let source = c_fmu_dir().join("me_faults.c");
+    let status = Command::new("cc")
+        .args(["-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-o"])
+        .arg(&so)
+        .arg(&source)
+        .arg("-lm")
+        .status()
+        .expect("the C compiler `cc` runs");
+    assert!(status.success(), "cc failed to compile {}", source.display());
+    let binary = std::fs::read(&so).unwrap();
+    let xml = edit(&std::fs::read_to_string(c_fmu_dir().join("me_faults.xml")).unwrap());
+    let path = dir.join(file);
+    write_zip(&path, &[ZipItem::File("modelDescription.xml", xml.as_bytes()), ZipItem::File("binaries/linux64/me_faults.so", &binary)]);
+    path
+}

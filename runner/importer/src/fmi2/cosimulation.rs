@@ -1,224 +1,84 @@
-//! An FMI 2.0 Co-Simulation instance (fmi2Instantiate .. fmi2FreeInstance).
+//! An FMI 2.0 Co-Simulation instance: the FMU integrates itself, one `fmi2DoStep` per
+//! communication step.
 
-use std::ffi::{c_int, CString};
+use std::ffi::c_int;
 
 use fmi_c::fmi2 as c;
 
-use super::{Binary, Callbacks};
-use crate::model::{Kind, Variable};
-use crate::reader::Buffer;
-use crate::{Fmu, Reader, Step, Value};
-
-const OK: c_int = c::Status::Ok as c_int;
-const WARNING: c_int = c::Status::Warning as c_int;
-const DISCARD: c_int = c::Status::Discard as c_int;
-const ERROR: c_int = c::Status::Error as c_int;
-const FATAL: c_int = c::Status::Fatal as c_int;
+use super::component::{Component, DISCARD, OK, WARNING};
+use super::Binary;
+use crate::{Fmu, Reader, Step, Value, Variable};
 
 /// One Co-Simulation instance of an FMI 2.0 FMU.
 pub struct CoSimulation<'a> {
-    binary: &'a Binary,
-    name: String,
-    component: c::Component,
-    // Must stay at a fixed address for the instance's lifetime: the FMU keeps pointers into it.
-    callbacks: Box<Callbacks>,
-    /// fmi2Terminate is allowed now: the instance left initialization (stepComplete or
-    /// stepFailed) and no call has since returned fmi2Error, after which only fmi2Reset and
-    /// fmi2FreeInstance are.
-    terminate_allowed: bool,
-    fatal: bool,
+    component: Component<'a>,
 }
 
 impl<'a> CoSimulation<'a> {
     /// fmi2Instantiate as Co-Simulation; `debug_logging` sets loggingOn.
     pub(crate) fn new(fmu: &'a Fmu, binary: &'a Binary, name: &str, debug_logging: bool) -> Result<CoSimulation<'a>, String> {
-        let callbacks = Callbacks::new();
-        let c_name = CString::new(name).map_err(|_| format!("instance name {name:?} contains a NUL byte"))?;
-        // SAFETY: every pointer is valid for the call; the callbacks outlive the component.
-        let component = unsafe {
-            (binary.api.instantiate)(
-                c_name.as_ptr(),
-                c::CO_SIMULATION,
-                fmu.token.as_ptr(),
-                fmu.resource_uri.as_ptr(),
-                &callbacks.functions,
-                c::FALSE,
-                debug_logging as c::Boolean,
-            )
-        };
-        let instance = CoSimulation { binary, name: name.to_owned(), component, callbacks, terminate_allowed: false, fatal: false };
-        if component.is_null() {
-            return Err(instance.failure("fmi2Instantiate", "returned NULL"));
-        }
-        Ok(instance)
-    }
-
-    /// An error message for a failed call, with the last problem the FMU logged.
-    fn failure(&self, call: &str, what: &str) -> String {
-        match self.callbacks.log.take_problem() {
-            Some(message) => format!("{}: {call} {what}: {message}", self.name),
-            None => format!("{}: {call} {what} (the FMU logged no reason)", self.name),
-        }
-    }
-
-    /// Ok for fmi2OK and fmi2Warning, else the failure with the FMU's logged reason. Inlined
-    /// (it follows every doStep and read), with the failure path kept out of line.
-    #[inline]
-    fn check(&mut self, call: &str, status: c_int) -> Result<(), String> {
-        match status {
-            OK | WARNING => Ok(()),
-            _ => Err(self.refused(call, status)),
-        }
-    }
-
-    #[cold]
-    fn refused(&mut self, call: &str, status: c_int) -> String {
-        if status == FATAL {
-            self.fatal = true;
-        }
-        if status == ERROR || status == FATAL {
-            self.terminate_allowed = false;
-        }
-        self.failure(call, &format!("returned {}", c::status_name(status)))
+        Ok(CoSimulation { component: Component::instantiate(fmu, binary, name, debug_logging, c::CO_SIMULATION)? })
     }
 
     /// fmi2SetupExperiment with an optional relative tolerance and a defined stop time.
     pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
-        let status = unsafe {
-            (self.binary.api.setup_experiment)(self.component, tolerance.is_some() as c_int, tolerance.unwrap_or(0.0), start, 1, stop)
-        };
-        self.check("fmi2SetupExperiment", status)
+        self.component.setup_experiment(tolerance, start, stop)
     }
 
     /// fmi2EnterInitializationMode.
     pub fn enter_initialization_mode(&mut self) -> Result<(), String> {
-        let status = unsafe { (self.binary.api.enter_initialization_mode)(self.component) };
-        self.check("fmi2EnterInitializationMode", status)
+        self.component.enter_initialization_mode()
     }
 
     /// fmi2ExitInitializationMode.
     pub fn exit_initialization_mode(&mut self) -> Result<(), String> {
-        let status = unsafe { (self.binary.api.exit_initialization_mode)(self.component) };
-        self.check("fmi2ExitInitializationMode", status)?;
-        self.terminate_allowed = true;
-        Ok(())
+        self.component.exit_initialization_mode()
     }
 
     /// Sets one variable (fmi2Set<Type> with one value reference).
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
-        let vr = variable.value_reference;
-        let comp = self.component;
-        let api = &self.binary.api;
-        // SAFETY: one value reference and one value, both valid for the call.
-        let status = unsafe {
-            match value {
-                Value::Real(v) => (api.set_real)(comp, &vr, 1, v),
-                Value::Integer(v) => (api.set_integer)(comp, &vr, 1, v),
-                Value::Boolean(v) => (api.set_boolean)(comp, &vr, 1, &(*v as c_int)),
-                Value::String(v) => {
-                    let s = CString::new(v.as_str()).map_err(|_| format!("the value of {} contains a NUL byte", variable.name))?;
-                    (api.set_string)(comp, &vr, 1, &s.as_ptr())
-                }
-                Value::Int(_) | Value::Binary(_) | Value::List(_) => {
-                    return Err(format!("{}: {value:?} is not a value of an FMI 2.0 variable", variable.name));
-                }
-            }
-        };
-        let kind = match variable.kind {
-            Kind::Boolean => "Boolean",
-            Kind::String => "String",
-            Kind::Integer | Kind::Enumeration => "Integer",
-            _ => "Real",
-        };
-        self.check(&format!("fmi2Set{kind} of {}", variable.name), status)
+        self.component.set(variable, value)
     }
 
     /// Reads the variables of `reader` into `out` (one f64 per variable, Booleans as 0/1).
     #[inline]
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
-        if reader.direct {
-            // Only Reals (the usual sweep): they are in `out`'s order, so read straight into it.
-            if let Some(group) = reader.groups.first() {
-                let status = unsafe { (self.binary.api.get_real)(self.component, group.vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
-                self.check("fmi2GetReal", status)?;
-            }
-            return Ok(());
-        }
-        self.read_groups(reader)?;
-        reader.gather(out);
-        Ok(())
-    }
-
-    /// [`CoSimulation::read`] for variables of several types, through the reader's buffers.
-    fn read_groups(&mut self, reader: &mut Reader) -> Result<(), String> {
-        let comp = self.component;
-        for group in &mut reader.groups {
-            let (vrs, n) = (group.vrs.as_ptr(), group.vrs.len());
-            let api = &self.binary.api;
-            // SAFETY: each buffer holds one value per value reference of its group.
-            let (call, status) = unsafe {
-                match &mut group.buffer {
-                    Buffer::F64(b) => ("fmi2GetReal", (api.get_real)(comp, vrs, n, b.as_mut_ptr())),
-                    Buffer::I32(b) => ("fmi2GetInteger", (api.get_integer)(comp, vrs, n, b.as_mut_ptr())),
-                    Buffer::IntBool(b) => ("fmi2GetBoolean", (api.get_boolean)(comp, vrs, n, b.as_mut_ptr())),
-                    _ => return Err(format!("{}: a {} variable cannot be read from an FMI 2.0 FMU", self.name, group.kind)),
-                }
-            };
-            self.check(call, status)?;
-        }
-        Ok(())
+        self.component.read(reader, out)
     }
 
     /// fmi2DoStep from `t` over `h`; a discard with fmi2Terminated becomes [`Step::Ended`].
     /// Inlined into the run loop, with the discard handling out of line.
     #[inline]
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
-        let do_step = self.binary.api.do_step.expect("resolved for Co-Simulation");
-        let status = unsafe { do_step(self.component, t, h, c::TRUE) };
+        let do_step = self.component.binary.api.do_step.expect("resolved for Co-Simulation");
+        let status = unsafe { do_step(self.component.raw, t, h, c::TRUE) };
         if status == DISCARD {
             return self.discarded(t);
         }
-        self.check("fmi2DoStep", status)?;
+        self.component.check("fmi2DoStep", status)?;
         Ok(Step::Done)
     }
 
     /// After fmi2Discard from the step at `t`: [`Step::Ended`] if the model terminated.
     #[cold]
     fn discarded(&mut self, t: f64) -> Result<Step, String> {
-        let api = &self.binary.api;
+        let api = &self.component.binary.api;
         let (get_boolean_status, get_real_status) = (api.get_boolean_status.expect("resolved"), api.get_real_status.expect("resolved"));
+        let raw = self.component.raw;
         let mut terminated: c_int = 0;
-        let s = unsafe { get_boolean_status(self.component, c::TERMINATED, &mut terminated) };
-        self.check("fmi2GetBooleanStatus(fmi2Terminated)", s)?;
-        let reason = self.callbacks.log.take_problem().unwrap_or_else(|| "no reason logged".to_owned());
+        let s = unsafe { get_boolean_status(raw, c::TERMINATED, &mut terminated) };
+        self.component.check("fmi2GetBooleanStatus(fmi2Terminated)", s)?;
+        let reason = self.component.callbacks.log.take_problem().unwrap_or_else(|| "no reason logged".to_owned());
         if terminated == 0 {
-            return Err(format!("{}: fmi2DoStep at t = {t} returned fmi2Discard without terminating: {reason}", self.name));
+            return Err(format!("{}: fmi2DoStep at t = {t} returned fmi2Discard without terminating: {reason}", self.component.name));
         }
         let mut last = f64::NAN;
-        let s = unsafe { get_real_status(self.component, c::LAST_SUCCESSFUL_TIME, &mut last) };
+        let s = unsafe { get_real_status(raw, c::LAST_SUCCESSFUL_TIME, &mut last) };
         let last_time = (s == OK || s == WARNING).then_some(last).filter(|t| t.is_finite());
         let when = match last_time {
             Some(last) => format!("t = {last}"),
             None => format!("the step from t = {t}"),
         };
         Ok(Step::Ended { reason: format!("the model ended the simulation at {when}: {reason}"), last_time })
-    }
-}
-
-impl Drop for CoSimulation<'_> {
-    fn drop(&mut self) {
-        // After fmi2Fatal the standard allows no further call, not even fmi2FreeInstance.
-        if self.fatal {
-            return;
-        }
-        // SAFETY: the component is live; fmi2Terminate only where the standard allows it (a
-        // call it refuses would log an "illegal call sequence"), and fmi2FreeInstance is the
-        // last call.
-        unsafe {
-            if self.terminate_allowed {
-                (self.binary.api.terminate)(self.component);
-            }
-            (self.binary.api.free_instance)(self.component);
-        }
     }
 }

@@ -2,8 +2,10 @@
 //! functions resolved once, and instances driven through them. It assumes nothing about who
 //! exported the FMU beyond the standard.
 
+mod component;
 mod cosimulation;
 mod description;
+mod model_exchange;
 
 use std::ffi::{c_char, c_int, c_void, CStr};
 use std::path::Path;
@@ -13,8 +15,10 @@ use libloading::os::unix::{Library, Symbol, RTLD_LOCAL, RTLD_NOW};
 
 pub use cosimulation::CoSimulation;
 pub use description::describe;
+pub use model_exchange::{ModelExchange, MAX_EVENT_ITERATIONS};
 
 use crate::logging::LogContext;
+use crate::model::Interface;
 
 /// FMI 2.0's platform folder for this machine.
 pub const PLATFORM: &str = "linux64";
@@ -79,6 +83,22 @@ pub(crate) struct Api {
     pub(crate) do_step: Option<c::DoStep>,
     pub(crate) get_boolean_status: Option<c::GetBooleanStatus>,
     pub(crate) get_real_status: Option<c::GetRealStatus>,
+    /// The Model Exchange functions, resolved when the binary is loaded for that interface.
+    pub(crate) exchange: Option<ExchangeApi>,
+}
+
+/// The Model Exchange functions the importer calls.
+#[derive(Clone, Copy)]
+pub(crate) struct ExchangeApi {
+    pub(crate) enter_event_mode: c::EnterEventMode,
+    pub(crate) new_discrete_states: c::NewDiscreteStates,
+    pub(crate) enter_continuous_time_mode: c::EnterContinuousTimeMode,
+    pub(crate) completed_integrator_step: c::CompletedIntegratorStep,
+    pub(crate) set_time: c::SetTime,
+    pub(crate) set_continuous_states: c::SetContinuousStates,
+    pub(crate) get_derivatives: c::GetDerivatives,
+    pub(crate) get_event_indicators: c::GetEventIndicators,
+    pub(crate) get_continuous_states: c::GetContinuousStates,
 }
 
 /// A loaded FMI 2.0 binary.
@@ -89,14 +109,14 @@ pub struct Binary {
 }
 
 impl Binary {
-    /// Loads the shared library at `path` and resolves the functions; the Co-Simulation ones
-    /// only when `co_simulation`.
-    pub fn load(path: &Path, co_simulation: bool) -> Result<Binary, String> {
+    /// Loads the shared library at `path` and resolves the functions the common ones and
+    /// those of `interface`.
+    pub fn load(path: &Path, interface: Interface) -> Result<Binary, String> {
         // SAFETY: loading runs the library's initializers: the price of running any FMU.
         // RTLD_LOCAL keeps two FMUs' fmi2* symbols apart.
         let library =
             unsafe { Library::open(Some(path), RTLD_NOW | RTLD_LOCAL) }.map_err(|e| format!("cannot load {}: {e}", path.display()))?;
-        let api = Api::resolve(&library, co_simulation).map_err(|e| format!("{e} (FMI 2.0 requires it)"))?;
+        let api = Api::resolve(&library, interface).map_err(|e| format!("{e} (FMI 2.0 requires it of a {interface} FMU)"))?;
         // SAFETY: both return static C strings per the standard.
         let version = unsafe { c_text(symbol::<c::GetVersion>(&library, "fmi2GetVersion")?()).into_owned() };
         if version != "2.0" {
@@ -127,8 +147,25 @@ fn optional<F: Copy>(library: &Library, name: &str, needed: bool) -> Result<Opti
 }
 
 impl Api {
-    fn resolve(lib: &Library, co_simulation: bool) -> Result<Api, String> {
+    fn resolve(lib: &Library, interface: Interface) -> Result<Api, String> {
+        let co_simulation = interface == Interface::CoSimulation;
+        let exchange = if interface == Interface::ModelExchange {
+            Some(ExchangeApi {
+                enter_event_mode: symbol(lib, "fmi2EnterEventMode")?,
+                new_discrete_states: symbol(lib, "fmi2NewDiscreteStates")?,
+                enter_continuous_time_mode: symbol(lib, "fmi2EnterContinuousTimeMode")?,
+                completed_integrator_step: symbol(lib, "fmi2CompletedIntegratorStep")?,
+                set_time: symbol(lib, "fmi2SetTime")?,
+                set_continuous_states: symbol(lib, "fmi2SetContinuousStates")?,
+                get_derivatives: symbol(lib, "fmi2GetDerivatives")?,
+                get_event_indicators: symbol(lib, "fmi2GetEventIndicators")?,
+                get_continuous_states: symbol(lib, "fmi2GetContinuousStates")?,
+            })
+        } else {
+            None
+        };
         Ok(Api {
+            exchange,
             instantiate: symbol(lib, "fmi2Instantiate")?,
             free_instance: symbol(lib, "fmi2FreeInstance")?,
             setup_experiment: symbol(lib, "fmi2SetupExperiment")?,

@@ -1,0 +1,99 @@
+//! `--interface`, `--solver`, `--fixed-step` and `--abs-tolerance`: which interface of an FMU a
+//! command drives, and for Model Exchange the runner's own integrator (a Co-Simulation FMU
+//! integrates itself). The relative tolerance is `--tolerance`, for either interface.
+
+use std::path::Path;
+
+use fmi_importer::{Fmu, Interface, Method, Solver};
+
+/// The interface and integrator options of `simulate`, `sweep` and `compare`.
+#[derive(Debug, Clone, Default)]
+pub struct Integration {
+    /// The interface to drive (`None`: Co-Simulation when the FMU offers it, else Model Exchange).
+    pub interface: Option<Interface>,
+    /// The runner's integration method for Model Exchange: euler, rk4 or dopri5.
+    pub solver: Option<String>,
+    /// The step of Euler and RK4 (s).
+    pub fixed_step: Option<f64>,
+    /// DOPRI5's absolute tolerance.
+    pub abs_tolerance: Option<f64>,
+}
+
+/// The interface for its command-line spelling, or a message listing both.
+pub fn parse_interface(text: &str) -> Result<Interface, String> {
+    Interface::from_name(text).ok_or_else(|| format!("'{text}' is not an interface: use model-exchange or co-simulation"))
+}
+
+/// The method called `name`, or a message listing every method.
+pub fn parse_method(name: &str) -> Result<Method, String> {
+    Method::from_name(name).ok_or_else(|| {
+        let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+        format!("unknown solver '{name}': use {}", names.join(", "))
+    })
+}
+
+impl Integration {
+    /// True when an option of the runner's integrator was given.
+    fn sets_solver(&self) -> bool {
+        self.solver.is_some() || self.fixed_step.is_some() || self.abs_tolerance.is_some()
+    }
+
+    /// Loads the FMU at `path` for the chosen interface. The integrator's options are refused
+    /// for a Co-Simulation run, where they would silently do nothing.
+    pub fn load(&self, path: &Path) -> Result<Fmu, String> {
+        let fmu = Fmu::load_as(path, self.interface)?;
+        if fmu.interface == Interface::CoSimulation && self.sets_solver() {
+            let offers_me = fmu.description.model_exchange.is_some();
+            return Err(format!(
+                "--solver, --fixed-step and --abs-tolerance set the runner's integrator, which only Model Exchange uses; {} runs as Co-Simulation here, where the FMU integrates itself ({})",
+                fmu.identifier,
+                if offers_me {
+                    "add --interface model-exchange, or for this toolkit's FMUs set their own solver with --set solver=N"
+                } else {
+                    "it offers no Model Exchange interface"
+                }
+            ));
+        }
+        Ok(fmu)
+    }
+
+    /// The runner's integrator from the options, checked (defaults: the toolkit's FMUs' own
+    /// solver controls, DOPRI5 with a 1 ms fixed step and abs_tol 1e-9).
+    pub fn solver(&self) -> Result<Solver, String> {
+        let mut solver = Solver::default();
+        if let Some(name) = &self.solver {
+            solver.method = parse_method(name)?;
+        }
+        if let Some(h) = self.fixed_step {
+            if !(h.is_finite() && h > 0.0) {
+                return Err(format!("--fixed-step {h} must be a positive number (seconds)"));
+            }
+            solver.fixed_step = h;
+        }
+        if let Some(a) = self.abs_tolerance {
+            if !(a.is_finite() && a >= 0.0) {
+                return Err(format!("--abs-tolerance {a} must be a number, zero or greater"));
+            }
+            solver.abs_tol = a;
+        }
+        Ok(solver)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn options_are_checked_with_their_names() {
+        assert_eq!(parse_interface("model-exchange").unwrap(), Interface::ModelExchange);
+        assert!(parse_interface("me").unwrap_err().contains("use model-exchange or co-simulation"));
+        assert!(parse_method("ode45").unwrap_err().contains("use euler, rk4, dopri5"));
+        let bad = Integration { fixed_step: Some(0.0), ..Default::default() };
+        assert!(bad.solver().unwrap_err().contains("--fixed-step 0 must be a positive number"));
+        let bad = Integration { abs_tolerance: Some(-1.0), ..Default::default() };
+        assert!(bad.solver().unwrap_err().contains("--abs-tolerance -1"));
+        let good = Integration { solver: Some("RK4".into()), fixed_step: Some(1e-4), ..Default::default() };
+        assert_eq!(good.solver().unwrap(), Solver { method: Method::Rk4, fixed_step: 1e-4, abs_tol: 1e-9 });
+    }
+}

@@ -1,0 +1,202 @@
+//! An instantiated FMI 2.0 component (fmi2Instantiate .. fmi2FreeInstance) and the calls both
+//! interfaces share: setup, initialization, setting and reading variables, and the checks that
+//! turn a status into an error message with the FMU's logged reason.
+
+use std::ffi::{c_int, CString};
+
+use fmi_c::fmi2 as c;
+
+use super::{Binary, Callbacks};
+use crate::model::{Kind, Variable};
+use crate::reader::Buffer;
+use crate::{Fmu, Reader, Value};
+
+pub(crate) const OK: c_int = c::Status::Ok as c_int;
+pub(crate) const WARNING: c_int = c::Status::Warning as c_int;
+pub(crate) const DISCARD: c_int = c::Status::Discard as c_int;
+pub(crate) const ERROR: c_int = c::Status::Error as c_int;
+pub(crate) const FATAL: c_int = c::Status::Fatal as c_int;
+
+/// One instance of an FMI 2.0 FMU, of either interface.
+pub(crate) struct Component<'a> {
+    pub(crate) binary: &'a Binary,
+    pub(crate) name: String,
+    pub(crate) raw: c::Component,
+    // Must stay at a fixed address for the instance's lifetime: the FMU keeps pointers into it.
+    pub(crate) callbacks: Box<Callbacks>,
+    /// fmi2Terminate is allowed now: the instance left initialization (Co-Simulation:
+    /// stepComplete or stepFailed; Model Exchange: event or continuous-time mode) and no call
+    /// has since returned fmi2Error, after which only fmi2Reset and fmi2FreeInstance are.
+    pub(crate) terminate_allowed: bool,
+    pub(crate) fatal: bool,
+}
+
+impl<'a> Component<'a> {
+    /// fmi2Instantiate for `fmu_type`; `debug_logging` sets loggingOn.
+    pub(crate) fn instantiate(
+        fmu: &'a Fmu,
+        binary: &'a Binary,
+        name: &str,
+        debug_logging: bool,
+        fmu_type: c::Type,
+    ) -> Result<Component<'a>, String> {
+        let callbacks = Callbacks::new();
+        let c_name = CString::new(name).map_err(|_| format!("instance name {name:?} contains a NUL byte"))?;
+        // SAFETY: every pointer is valid for the call; the callbacks outlive the component.
+        let raw = unsafe {
+            (binary.api.instantiate)(
+                c_name.as_ptr(),
+                fmu_type,
+                fmu.token.as_ptr(),
+                fmu.resource_uri.as_ptr(),
+                &callbacks.functions,
+                c::FALSE,
+                debug_logging as c::Boolean,
+            )
+        };
+        let component = Component { binary, name: name.to_owned(), raw, callbacks, terminate_allowed: false, fatal: false };
+        if raw.is_null() {
+            return Err(component.failure("fmi2Instantiate", "returned NULL"));
+        }
+        Ok(component)
+    }
+
+    /// An error message for a failed call, with the last problem the FMU logged.
+    pub(crate) fn failure(&self, call: &str, what: &str) -> String {
+        match self.callbacks.log.take_problem() {
+            Some(message) => format!("{}: {call} {what}: {message}", self.name),
+            None => format!("{}: {call} {what} (the FMU logged no reason)", self.name),
+        }
+    }
+
+    /// Ok for fmi2OK and fmi2Warning, else the failure with the FMU's logged reason. Inlined
+    /// (it follows every doStep and read), with the failure path kept out of line.
+    #[inline]
+    pub(crate) fn check(&mut self, call: &str, status: c_int) -> Result<(), String> {
+        match status {
+            OK | WARNING => Ok(()),
+            _ => Err(self.refused(call, status)),
+        }
+    }
+
+    /// Records what a status other than OK or Warning means for the calls still allowed.
+    #[cold]
+    pub(crate) fn note_status(&mut self, status: c_int) {
+        if status == FATAL {
+            self.fatal = true;
+        }
+        if status == ERROR || status == FATAL {
+            self.terminate_allowed = false;
+        }
+    }
+
+    #[cold]
+    fn refused(&mut self, call: &str, status: c_int) -> String {
+        self.note_status(status);
+        self.failure(call, &format!("returned {}", c::status_name(status)))
+    }
+
+    /// fmi2SetupExperiment with an optional relative tolerance and a defined stop time.
+    pub(crate) fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
+        let status =
+            unsafe { (self.binary.api.setup_experiment)(self.raw, tolerance.is_some() as c_int, tolerance.unwrap_or(0.0), start, 1, stop) };
+        self.check("fmi2SetupExperiment", status)
+    }
+
+    /// fmi2EnterInitializationMode.
+    pub(crate) fn enter_initialization_mode(&mut self) -> Result<(), String> {
+        let status = unsafe { (self.binary.api.enter_initialization_mode)(self.raw) };
+        self.check("fmi2EnterInitializationMode", status)
+    }
+
+    /// fmi2ExitInitializationMode.
+    pub(crate) fn exit_initialization_mode(&mut self) -> Result<(), String> {
+        let status = unsafe { (self.binary.api.exit_initialization_mode)(self.raw) };
+        self.check("fmi2ExitInitializationMode", status)?;
+        self.terminate_allowed = true;
+        Ok(())
+    }
+
+    /// Sets one variable (fmi2Set<Type> with one value reference).
+    pub(crate) fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
+        let vr = variable.value_reference;
+        let comp = self.raw;
+        let api = &self.binary.api;
+        // SAFETY: one value reference and one value, both valid for the call.
+        let status = unsafe {
+            match value {
+                Value::Real(v) => (api.set_real)(comp, &vr, 1, v),
+                Value::Integer(v) => (api.set_integer)(comp, &vr, 1, v),
+                Value::Boolean(v) => (api.set_boolean)(comp, &vr, 1, &(*v as c_int)),
+                Value::String(v) => {
+                    let s = CString::new(v.as_str()).map_err(|_| format!("the value of {} contains a NUL byte", variable.name))?;
+                    (api.set_string)(comp, &vr, 1, &s.as_ptr())
+                }
+                Value::Int(_) | Value::Binary(_) | Value::List(_) => {
+                    return Err(format!("{}: {value:?} is not a value of an FMI 2.0 variable", variable.name));
+                }
+            }
+        };
+        let kind = match variable.kind {
+            Kind::Boolean => "Boolean",
+            Kind::String => "String",
+            Kind::Integer | Kind::Enumeration => "Integer",
+            _ => "Real",
+        };
+        self.check(&format!("fmi2Set{kind} of {}", variable.name), status)
+    }
+
+    /// Reads the variables of `reader` into `out` (one f64 per variable, Booleans as 0/1).
+    #[inline]
+    pub(crate) fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
+        if reader.direct {
+            // Only Reals (the usual sweep): they are in `out`'s order, so read straight into it.
+            if let Some(group) = reader.groups.first() {
+                let status = unsafe { (self.binary.api.get_real)(self.raw, group.vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
+                self.check("fmi2GetReal", status)?;
+            }
+            return Ok(());
+        }
+        self.read_groups(reader)?;
+        reader.gather(out);
+        Ok(())
+    }
+
+    /// [`Component::read`] for variables of several types, through the reader's buffers.
+    fn read_groups(&mut self, reader: &mut Reader) -> Result<(), String> {
+        let comp = self.raw;
+        for group in &mut reader.groups {
+            let (vrs, n) = (group.vrs.as_ptr(), group.vrs.len());
+            let api = &self.binary.api;
+            // SAFETY: each buffer holds one value per value reference of its group.
+            let (call, status) = unsafe {
+                match &mut group.buffer {
+                    Buffer::F64(b) => ("fmi2GetReal", (api.get_real)(comp, vrs, n, b.as_mut_ptr())),
+                    Buffer::I32(b) => ("fmi2GetInteger", (api.get_integer)(comp, vrs, n, b.as_mut_ptr())),
+                    Buffer::IntBool(b) => ("fmi2GetBoolean", (api.get_boolean)(comp, vrs, n, b.as_mut_ptr())),
+                    _ => return Err(format!("{}: a {} variable cannot be read from an FMI 2.0 FMU", self.name, group.kind)),
+                }
+            };
+            self.check(call, status)?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Component<'_> {
+    fn drop(&mut self) {
+        // After fmi2Fatal the standard allows no further call, not even fmi2FreeInstance.
+        if self.fatal {
+            return;
+        }
+        // SAFETY: the component is live; fmi2Terminate only where the standard allows it (a
+        // call it refuses would log an "illegal call sequence"), and fmi2FreeInstance is the
+        // last call.
+        unsafe {
+            if self.terminate_allowed {
+                (self.binary.api.terminate)(self.raw);
+            }
+            (self.binary.api.free_instance)(self.raw);
+        }
+    }
+}

@@ -7,6 +7,7 @@ pub mod archive;
 pub mod fmi2;
 mod logging;
 pub mod model;
+pub mod trace;
 
 use std::ffi::CString;
 use std::path::{Path, PathBuf};

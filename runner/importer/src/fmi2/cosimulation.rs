@@ -6,6 +6,7 @@ use fmi_c::fmi2 as c;
 
 use super::{Binary, Callbacks};
 use crate::model::{Kind, Variable};
+use crate::trace::{self, Call};
 use crate::{Fmu, Reader, Step, Value};
 
 const OK: c_int = c::Status::Ok as c_int;
@@ -26,6 +27,8 @@ pub struct CoSimulation<'a> {
     /// fmi2FreeInstance are.
     terminate_allowed: bool,
     fatal: bool,
+    /// The model time reached (NaN before fmi2SetupExperiment), for [`trace`].
+    time: f64,
 }
 
 impl<'a> CoSimulation<'a> {
@@ -33,6 +36,7 @@ impl<'a> CoSimulation<'a> {
     pub(crate) fn new(fmu: &'a Fmu, binary: &'a Binary, name: &str, debug_logging: bool) -> Result<CoSimulation<'a>, String> {
         let callbacks = Callbacks::new();
         let c_name = CString::new(name).map_err(|_| format!("instance name {name:?} contains a NUL byte"))?;
+        trace::enter(Call::Instantiate, f64::NAN);
         // SAFETY: every pointer is valid for the call; the callbacks outlive the component.
         let component = unsafe {
             (binary.api.instantiate)(
@@ -45,7 +49,7 @@ impl<'a> CoSimulation<'a> {
                 debug_logging as c::Boolean,
             )
         };
-        let instance = CoSimulation { binary, name: name.to_owned(), component, callbacks, terminate_allowed: false, fatal: false };
+        let instance = CoSimulation { binary, name: name.to_owned(), component, callbacks, terminate_allowed: false, fatal: false, time: f64::NAN };
         if component.is_null() {
             return Err(instance.failure("fmi2Instantiate", "returned NULL"));
         }
@@ -83,6 +87,8 @@ impl<'a> CoSimulation<'a> {
 
     /// fmi2SetupExperiment with an optional relative tolerance and a defined stop time.
     pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
+        self.time = start;
+        trace::enter(Call::SetupExperiment, start);
         let status = unsafe {
             (self.binary.api.setup_experiment)(self.component, tolerance.is_some() as c_int, tolerance.unwrap_or(0.0), start, 1, stop)
         };
@@ -91,12 +97,14 @@ impl<'a> CoSimulation<'a> {
 
     /// fmi2EnterInitializationMode.
     pub fn enter_initialization_mode(&mut self) -> Result<(), String> {
+        trace::enter(Call::EnterInitializationMode, self.time);
         let status = unsafe { (self.binary.api.enter_initialization_mode)(self.component) };
         self.check("fmi2EnterInitializationMode", status)
     }
 
     /// fmi2ExitInitializationMode.
     pub fn exit_initialization_mode(&mut self) -> Result<(), String> {
+        trace::enter(Call::ExitInitializationMode, self.time);
         let status = unsafe { (self.binary.api.exit_initialization_mode)(self.component) };
         self.check("fmi2ExitInitializationMode", status)?;
         self.terminate_allowed = true;
@@ -108,13 +116,24 @@ impl<'a> CoSimulation<'a> {
         let vr = variable.value_reference;
         let comp = self.component;
         let api = &self.binary.api;
+        let time = self.time;
         // SAFETY: one value reference and one value, both valid for the call.
         let status = unsafe {
             match value {
-                Value::Real(v) => (api.set_real)(comp, &vr, 1, v),
-                Value::Integer(v) => (api.set_integer)(comp, &vr, 1, v),
-                Value::Boolean(v) => (api.set_boolean)(comp, &vr, 1, &(*v as c_int)),
+                Value::Real(v) => {
+                    trace::enter(Call::SetReal, time);
+                    (api.set_real)(comp, &vr, 1, v)
+                }
+                Value::Integer(v) => {
+                    trace::enter(Call::SetInteger, time);
+                    (api.set_integer)(comp, &vr, 1, v)
+                }
+                Value::Boolean(v) => {
+                    trace::enter(Call::SetBoolean, time);
+                    (api.set_boolean)(comp, &vr, 1, &(*v as c_int))
+                }
                 Value::String(v) => {
+                    trace::enter(Call::SetString, time);
                     let s = CString::new(v.as_str()).map_err(|_| format!("the value of {} contains a NUL byte", variable.name))?;
                     (api.set_string)(comp, &vr, 1, &s.as_ptr())
                 }
@@ -135,6 +154,7 @@ impl<'a> CoSimulation<'a> {
         if reader.integer_vrs.is_empty() && reader.boolean_vrs.is_empty() && out.len() == reader.real_vrs.len() {
             // Only Reals (the usual sweep): they are in `out`'s order, so read straight into it.
             if !out.is_empty() {
+                trace::enter(Call::GetReal, self.time);
                 let status = unsafe { (self.binary.api.get_real)(self.component, reader.real_vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
                 self.check("fmi2GetReal", status)?;
             }
@@ -148,15 +168,18 @@ impl<'a> CoSimulation<'a> {
         let comp = self.component;
         let api = &self.binary.api;
         if !reader.real_vrs.is_empty() {
+            trace::enter(Call::GetReal, self.time);
             let status = unsafe { (api.get_real)(comp, reader.real_vrs.as_ptr(), reader.real_vrs.len(), reader.real_buf.as_mut_ptr()) };
             self.check("fmi2GetReal", status)?;
         }
         if !reader.integer_vrs.is_empty() {
+            trace::enter(Call::GetInteger, self.time);
             let status =
                 unsafe { (api.get_integer)(comp, reader.integer_vrs.as_ptr(), reader.integer_vrs.len(), reader.integer_buf.as_mut_ptr()) };
             self.check("fmi2GetInteger", status)?;
         }
         if !reader.boolean_vrs.is_empty() {
+            trace::enter(Call::GetBoolean, self.time);
             let status =
                 unsafe { (api.get_boolean)(comp, reader.boolean_vrs.as_ptr(), reader.boolean_vrs.len(), reader.boolean_buf.as_mut_ptr()) };
             self.check("fmi2GetBoolean", status)?;
@@ -170,11 +193,13 @@ impl<'a> CoSimulation<'a> {
     #[inline]
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         let do_step = self.binary.api.do_step.expect("resolved for Co-Simulation");
+        trace::enter(Call::DoStep, t);
         let status = unsafe { do_step(self.component, t, h, c::TRUE) };
         if status == DISCARD {
             return self.discarded(t);
         }
         self.check("fmi2DoStep", status)?;
+        self.time = t + h;
         Ok(Step::Done)
     }
 
@@ -184,6 +209,7 @@ impl<'a> CoSimulation<'a> {
         let api = &self.binary.api;
         let (get_boolean_status, get_real_status) = (api.get_boolean_status.expect("resolved"), api.get_real_status.expect("resolved"));
         let mut terminated: c_int = 0;
+        trace::enter(Call::GetBooleanStatus, t);
         let s = unsafe { get_boolean_status(self.component, c::TERMINATED, &mut terminated) };
         self.check("fmi2GetBooleanStatus(fmi2Terminated)", s)?;
         let reason = self.callbacks.log.take_problem().unwrap_or_else(|| "no reason logged".to_owned());
@@ -191,6 +217,7 @@ impl<'a> CoSimulation<'a> {
             return Err(format!("{}: fmi2DoStep at t = {t} returned fmi2Discard without terminating: {reason}", self.name));
         }
         let mut last = f64::NAN;
+        trace::enter(Call::GetRealStatus, t);
         let s = unsafe { get_real_status(self.component, c::LAST_SUCCESSFUL_TIME, &mut last) };
         let last_time = (s == OK || s == WARNING).then_some(last).filter(|t| t.is_finite());
         let when = match last_time {
@@ -212,8 +239,10 @@ impl Drop for CoSimulation<'_> {
         // last call.
         unsafe {
             if self.terminate_allowed {
+                trace::enter(Call::Terminate, self.time);
                 (self.binary.api.terminate)(self.component);
             }
+            trace::enter(Call::FreeInstance, self.time);
             (self.binary.api.free_instance)(self.component);
         }
     }

@@ -6,4 +6,5 @@ pub mod commands;
 pub mod experiment;
 pub mod interrupt;
 pub mod report;
+pub mod workers;
 pub mod workspace;

@@ -81,6 +81,8 @@ enum Cmd {
         /// Turn on the FMU's debug logging (messages go to stderr with the instance name).
         #[arg(long)]
         log: bool,
+        #[command(flatten)]
+        isolation: SimulateIsolation,
     },
     /// Run a parameter sweep: one FMU instance per point, in parallel; metrics per point as CSV.
     ///
@@ -117,6 +119,8 @@ enum Cmd {
         /// (default: experiment.toml's, unless --out names the CSV).
         #[arg(long, value_name = "FILE.svg")]
         plot: Option<PathBuf>,
+        #[command(flatten)]
+        isolation: SweepIsolation,
     },
     /// Compare solvers: steps, rhs evaluations and time each needs to reach a target error.
     ///
@@ -130,6 +134,39 @@ enum Cmd {
     ///
     /// Example: `runner compare quarter_car --solvers euler,rk4,dopri5 --target-error 1e-6`
     Compare(CompareArgs),
+    /// A worker process of sweep, simulate and compare (started by the runner itself).
+    #[command(hide = true)]
+    Worker,
+}
+
+/// How `runner sweep` isolates its points, and resumes.
+#[derive(Args)]
+struct SweepIsolation {
+    /// Run the points on threads of this process instead of worker processes (for trusted FMUs:
+    /// a crash then ends the sweep).
+    #[arg(long)]
+    in_process: bool,
+    /// Record a point that runs longer than this as timed out and replace its worker.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    point_timeout: Option<f64>,
+    /// Memory limit of each worker process in MiB (default: three quarters of the machine's,
+    /// shared among the workers); a worker that grows past half of it is replaced.
+    #[arg(long, value_name = "MIB")]
+    worker_memory: Option<u64>,
+    /// Continue the interrupted or killed sweep whose finished rows are in <out>.partial.
+    #[arg(long)]
+    resume: bool,
+}
+
+/// How `runner simulate` isolates its run.
+#[derive(Args)]
+struct SimulateIsolation {
+    /// Stop the run (and fail) if it takes longer than this.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    timeout: Option<f64>,
+    /// Run the FMU in this process instead of a worker process (for trusted FMUs).
+    #[arg(long)]
+    in_process: bool,
 }
 
 /// Arguments of `runner compare`.
@@ -151,10 +188,23 @@ struct CompareArgs {
     /// Work-precision plot (default <MODEL>_compare.svg).
     #[arg(long, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
+    /// Run in this process instead of a worker process (for trusted FMUs).
+    #[arg(long)]
+    in_process: bool,
+    /// Record a run that takes longer than this as timed out and replace its worker.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    point_timeout: Option<f64>,
 }
 
 fn main() {
     let cli = Cli::parse();
+    if let Cmd::Worker = cli.command {
+        if let Err(e) = runner_engine::worker::serve() {
+            eprintln!("runner worker: {e}");
+            std::process::exit(1);
+        }
+        return;
+    }
     interrupt::install();
     // FMU log lines go above the progress bar, when one is drawn.
     fmi_importer::set_log_printer(progress::eprint_line);
@@ -167,9 +217,30 @@ fn main() {
         Cmd::Info { fmu } => {
             experiment::resolve(&fmu).and_then(|t| fmi_importer::Fmu::load(&t.path)).map(|f| print!("{}", info::report(&f.description)))
         }
-        Cmd::Simulate { fmu, run, out, plot, log } => simulate::run(&simulate::Options { fmu, run: run.defaults(), out, plot, log }),
-        Cmd::Sweep { fmu, params, metrics, threads, run, out, plot } => {
-            match sweep::run(&sweep::Options { fmu, params, metrics, threads, run: run.defaults(), out, plot }) {
+        Cmd::Simulate { fmu, run, out, plot, log, isolation } => simulate::run(&simulate::Options {
+            fmu,
+            run: run.defaults(),
+            out,
+            plot,
+            log,
+            timeout: isolation.timeout,
+            in_process: isolation.in_process,
+        }),
+        Cmd::Sweep { fmu, params, metrics, threads, run, out, plot, isolation } => {
+            match sweep::run(&sweep::Options {
+                fmu,
+                params,
+                metrics,
+                threads,
+                run: run.defaults(),
+                out,
+                plot,
+                in_process: isolation.in_process,
+                point_timeout: isolation.point_timeout,
+                worker_memory: isolation.worker_memory,
+                resume: isolation.resume,
+                command_line: std::env::args().collect(),
+            }) {
                 Ok(s) if s.failed == 0 => Ok(()),
                 Ok(s) => Err(format!("{} of {} sweep point(s) failed; see the status column", s.failed, s.points)),
                 Err(e) => Err(e),
@@ -187,9 +258,12 @@ fn main() {
                 run: a.run.defaults(),
                 out,
                 plot,
+                in_process: a.in_process,
+                point_timeout: a.point_timeout,
             })
             .map(|_| ())
         }
+        Cmd::Worker => unreachable!("served above"),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

@@ -7,7 +7,7 @@ use fmi_importer::{Description, Fmu, Reader, Step, Value, Variable};
 pub const MAX_STEPS: usize = 1_000_000_000;
 
 /// The time grid and tolerance of a run.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Grid {
     /// Start time (s).
     pub start: f64,

@@ -9,7 +9,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use fmi_importer::{Causality, Description, Fmu, Kind, Value, Variability, Variable};
+use runner_engine::isolation::{self, Runs};
 use runner_engine::metrics::Formula;
+use runner_engine::protocol::{FmuSource, RunJob};
 use runner_engine::run::{self as sim, Grid};
 use runner_engine::variables;
 use solvers::controls::Control;
@@ -20,6 +22,7 @@ use crate::interrupt;
 use crate::report::output;
 use crate::report::plot::{self, Mark, Series};
 use crate::report::progress::Progress;
+use crate::workers;
 
 /// Relative tolerance of the reference run (DOPRI5): far below any error the table reports.
 pub const REFERENCE_RTOL: f64 = 1e-12;
@@ -38,6 +41,16 @@ pub struct Options {
     pub out: PathBuf,
     /// Work-precision plot (SVG).
     pub plot: PathBuf,
+    /// Runs in this process instead of a worker process.
+    pub in_process: bool,
+    /// A run taking longer (seconds) is recorded as timed out (needs a worker process).
+    pub point_timeout: Option<f64>,
+}
+
+/// Where the runs happen: in this process, or one after another in a worker process.
+enum Engine<'a> {
+    InProcess(&'a Fmu),
+    Workers(Runs<'a>),
 }
 
 /// One run of the work-precision table.
@@ -81,7 +94,7 @@ fn control(description: &Description, control: Control) -> Result<&Variable, Str
 
 /// Runs one setting; returns the sampled compared outputs and the final counters.
 fn run_once(
-    fmu: &Fmu,
+    engine: &mut Engine,
     grid: &Grid,
     base: &[(&Variable, Value)],
     extra: &[(&Variable, Value)],
@@ -95,11 +108,15 @@ fn run_once(
     let mut samples = Vec::with_capacity(grid.steps() + 1);
     let mut last = (0.0, 0.0);
     let n = compared.len();
-    let outcome = sim::run(fmu, "compare", grid, &assignments, &recorded, false, |_, values| {
+    let sample = |_, values: &[f64]| {
         samples.push(values[..n].to_vec());
         last = (values[n], values[n + 1]);
         Ok(())
-    })?;
+    };
+    let outcome = match engine {
+        Engine::InProcess(fmu) => sim::run(fmu, "compare", grid, &assignments, &recorded, false, sample)?,
+        Engine::Workers(runs) => runs.run(&RunJob::new("compare", *grid, &assignments, &recorded, false), &interrupt::requested, sample)?,
+    };
     if let Some(reason) = outcome.ended_early {
         return Err(format!("the run ended early: {reason}"));
     }
@@ -188,9 +205,31 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
     // Both files are written after the runs.
     output::check_destination(&options.out)?;
     output::check_destination(&options.plot)?;
+    let timeout = workers::timeout("--point-timeout", options.point_timeout)?;
+    if options.in_process && timeout.is_some() {
+        return Err("--point-timeout needs worker processes (a run in this process cannot be stopped): drop --in-process".to_owned());
+    }
     let target = experiment::resolve(&options.fmu)?;
-    let fmu = Fmu::load(&target.path)?;
-    let md = &fmu.description;
+    let source = FmuSource { path: target.path.clone() };
+    // With workers, only the description is read here: the FMU's binary runs in them alone.
+    let (fmu, unpacked) = if options.in_process { (Some(source.load()?), None) } else { (None, Some(source.open()?)) };
+    let (md, interface) = match (&fmu, &unpacked) {
+        (Some(f), _) => (&f.description, f.interface),
+        (None, Some(u)) => (&u.description, u.interface),
+        (None, None) => unreachable!("one of them is held"),
+    };
+    let once = isolation::once_per_process(md, interface);
+    if options.in_process && once {
+        return Err(format!(
+            "{} declares canBeInstantiatedOnlyOncePerProcess, so its runs cannot share a process: drop --in-process",
+            md.model_name
+        ));
+    }
+    let config = workers::isolation(timeout, workers::default_memory_mib(1), once)?;
+    let mut engine = match &fmu {
+        Some(fmu) => Engine::InProcess(fmu),
+        None => Engine::Workers(Runs::new(&config, &source)),
+    };
     let grid = Grid::choose(md, &[options.run.grid(), target.experiment.simulate.grid()])?;
     let mut set_texts = target.experiment.simulate.set.clone();
     set_texts.extend(target.experiment.compare.set.iter().cloned());
@@ -212,7 +251,7 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
         }
         let reference_grid = Grid { tolerance: Some(REFERENCE_RTOL), ..grid };
         let reference_settings = [(solver, Value::Integer(Method::Dopri5.code())), (abs_tol, Value::Real(REFERENCE_RTOL * 1e-2))];
-        let (reference, _, _) = run_once(&fmu, &reference_grid, &base, &reference_settings, &compared, &counters)
+        let (reference, _, _) = run_once(&mut engine, &reference_grid, &base, &reference_settings, &compared, &counters)
             .map_err(|e| format!("the reference run (DOPRI5 at rtol {REFERENCE_RTOL}) failed: {e}"))?;
         (compared, reference, format!("DOPRI5 at rtol {REFERENCE_RTOL:e}"))
     } else {
@@ -233,7 +272,7 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
                 (Grid { tolerance: Some(value), ..grid }, vec![(solver, Value::Integer(*code)), (abs_tol, Value::Real(value * 1e-3))])
             };
             let started = Instant::now();
-            let result = run_once(&fmu, &run_grid, &base, &extra, &compared, &counters);
+            let result = run_once(&mut engine, &run_grid, &base, &extra, &compared, &counters);
             let seconds = started.elapsed().as_secs_f64();
             rows.push(match result {
                 Ok((samples, n_steps, n_rhs)) => Row {

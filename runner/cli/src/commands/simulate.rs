@@ -1,14 +1,18 @@
-//! `runner simulate`: one run, written as CSV in fmpy's layout (`time`, then the outputs).
+//! `runner simulate`: one run, written as CSV in fmpy's layout (`time`, then the outputs), in a
+//! worker process by default so that a crash of the FMU is reported with its signal and call.
 
 use std::path::PathBuf;
 
-use fmi_importer::Fmu;
+use runner_engine::isolation::{self, Runs};
+use runner_engine::protocol::{FmuSource, RunJob};
 use runner_engine::run::{self as sim, Grid};
 use runner_engine::variables;
 
 use crate::experiment::{self, RunDefaults};
+use crate::interrupt;
 use crate::report::output;
 use crate::report::plot::{self, Series};
+use crate::workers;
 
 /// Options of `runner simulate`.
 pub struct Options {
@@ -22,6 +26,10 @@ pub struct Options {
     pub plot: Option<PathBuf>,
     /// Turns the FMU's debug logging on.
     pub log: bool,
+    /// The run fails if it takes longer (seconds; needs a worker process).
+    pub timeout: Option<f64>,
+    /// Runs the FMU in this process.
+    pub in_process: bool,
 }
 
 /// Runs `runner simulate`.
@@ -29,13 +37,24 @@ pub fn run(options: &Options) -> Result<(), String> {
     if let Some(plot) = &options.plot {
         output::check_destination(plot)?;
     }
+    let timeout = workers::timeout("--timeout", options.timeout)?;
+    if options.in_process && timeout.is_some() {
+        return Err("--timeout needs a worker process (a run in this process cannot be stopped): drop --in-process".to_owned());
+    }
     let target = experiment::resolve(&options.fmu)?;
-    let fmu = Fmu::load(&target.path)?;
-    let grid = Grid::choose(&fmu.description, &[options.run.grid(), target.experiment.simulate.grid()])?;
+    let source = FmuSource { path: target.path.clone() };
+    // In a worker, only the description is read here: the FMU's binary runs in the worker alone.
+    let (fmu, unpacked) = if options.in_process { (Some(source.load()?), None) } else { (None, Some(source.open()?)) };
+    let (description, identifier, interface) = match (&fmu, &unpacked) {
+        (Some(f), _) => (&f.description, &f.identifier, f.interface),
+        (None, Some(u)) => (&u.description, &u.identifier, u.interface),
+        (None, None) => unreachable!("one of them is held"),
+    };
+    let grid = Grid::choose(description, &[options.run.grid(), target.experiment.simulate.grid()])?;
     let mut set_texts = target.experiment.simulate.set.clone();
     set_texts.extend(options.run.set.iter().cloned());
-    let assignments = variables::parse_sets(&fmu.description, &set_texts)?;
-    let outputs: Vec<_> = fmu.description.outputs().filter(|v| v.kind.is_numeric()).collect();
+    let assignments = variables::parse_sets(description, &set_texts)?;
+    let outputs: Vec<_> = description.outputs().filter(|v| v.kind.is_numeric()).collect();
     let mut writer = output::csv_writer(options.out.as_deref())?;
     let mut header = vec!["time".to_owned()];
     header.extend(outputs.iter().map(|v| v.name.clone()));
@@ -43,7 +62,7 @@ pub fn run(options: &Options) -> Result<(), String> {
     // Only a plot needs the trajectory kept; the CSV is written as the samples arrive.
     let mut kept: Vec<Vec<(f64, f64)>> = vec![Vec::new(); if options.plot.is_some() { outputs.len() } else { 0 }];
     let mut row = Vec::with_capacity(outputs.len() + 1);
-    let outcome = sim::run(&fmu, &fmu.identifier, &grid, &assignments, &outputs, options.log, |t, values| {
+    let sample = |t: f64, values: &[f64]| {
         row.clear();
         row.push(format!("{t:?}"));
         row.extend(values.iter().map(|v| format!("{v:?}")));
@@ -51,10 +70,19 @@ pub fn run(options: &Options) -> Result<(), String> {
             series.push((t, v));
         }
         writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
-    })?;
+    };
+    let outcome = match &fmu {
+        Some(fmu) => sim::run(fmu, identifier, &grid, &assignments, &outputs, options.log, sample)?,
+        None => {
+            let config = workers::isolation(timeout, workers::default_memory_mib(1), isolation::once_per_process(description, interface))?;
+            let mut runs = Runs::new(&config, &source);
+            let job = RunJob::new(identifier, grid, &assignments, &outputs, options.log);
+            runs.run(&job, &interrupt::requested, sample)?
+        }
+    };
     output::finish_csv(writer)?;
     if let Some(reason) = &outcome.ended_early {
-        eprintln!("{}: stopped before the stop time {} s: {reason}", fmu.identifier, grid.stop);
+        eprintln!("{identifier}: stopped before the stop time {} s: {reason}", grid.stop);
     }
     if let Some(path) = &options.plot {
         let units: Vec<Option<&str>> = outputs.iter().map(|v| v.unit.as_deref()).collect();
@@ -75,7 +103,7 @@ pub fn run(options: &Options) -> Result<(), String> {
             Some(u) => format!("value ({u})"),
             None => "value (SI units, see legend)".to_owned(),
         };
-        plot::lines(path, &format!("{}: outputs", fmu.description.model_name), "time (s)", &y_label, &series, &[])?;
+        plot::lines(path, &format!("{}: outputs", description.model_name), "time (s)", &y_label, &series, &[])?;
     }
     Ok(())
 }

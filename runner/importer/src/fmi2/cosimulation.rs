@@ -49,7 +49,8 @@ impl<'a> CoSimulation<'a> {
                 debug_logging as c::Boolean,
             )
         };
-        let instance = CoSimulation { binary, name: name.to_owned(), component, callbacks, terminate_allowed: false, fatal: false, time: f64::NAN };
+        let instance =
+            CoSimulation { binary, name: name.to_owned(), component, callbacks, terminate_allowed: false, fatal: false, time: f64::NAN };
         if component.is_null() {
             return Err(instance.failure("fmi2Instantiate", "returned NULL"));
         }

@@ -1,0 +1,78 @@
+//! How the commands start worker processes: the runner's own binary with the hidden `worker`
+//! command, and the limits each worker gets.
+
+use std::time::Duration;
+
+use runner_engine::isolation::{Isolation, WorkerCommand};
+
+/// The hidden command a worker runs (`runner worker`).
+pub const WORKER_COMMAND: &str = "worker";
+
+/// Physical memory in bytes, from /proc/meminfo (`None` if unreadable).
+fn physical_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// The default memory limit of each of `workers` workers: together three quarters of the
+/// machine's memory, so a leaking FMU fails its point before the machine starts to swap.
+pub fn default_memory_mib(workers: usize) -> u64 {
+    physical_memory().map_or(4096, |bytes| bytes / 4 * 3 / workers.max(1) as u64 / (1 << 20))
+}
+
+/// Checks a timeout given in seconds on the command line.
+pub fn timeout(option: &str, seconds: Option<f64>) -> Result<Option<Duration>, String> {
+    match seconds {
+        None => Ok(None),
+        Some(s) if s.is_finite() && s > 0.0 && s < 1e9 => Ok(Some(Duration::from_secs_f64(s))),
+        Some(s) => Err(format!("{option} {s} must be a positive number of seconds")),
+    }
+}
+
+/// The isolation of runs in worker processes of this binary.
+pub fn isolation(timeout: Option<Duration>, memory_mib: u64, one_instance_per_process: bool) -> Result<Isolation, String> {
+    if memory_mib < 64 {
+        return Err(format!("--worker-memory {memory_mib} MiB is too little for a worker (at least 64)"));
+    }
+    let program = std::env::current_exe().map_err(|e| format!("cannot find the runner's own binary to start workers: {e}"))?;
+    Ok(Isolation {
+        command: WorkerCommand { program, args: vec![WORKER_COMMAND.to_owned()] },
+        timeout,
+        memory_limit: Some(memory_mib << 20),
+        one_instance_per_process,
+    })
+}
+
+/// A shell-quoted command line (for "continue with: ..." messages).
+pub fn shell_line(args: &[String]) -> String {
+    args.iter()
+        .map(|a| {
+            if !a.is_empty() && a.chars().all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c)) {
+                a.clone()
+            } else {
+                format!("'{}'", a.replace('\'', r"'\''"))
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn command_lines_are_quoted_for_the_shell() {
+        let args: Vec<String> = ["runner", "sweep", "m=max(x)/2", "a b", "it's"].map(String::from).to_vec();
+        assert_eq!(shell_line(&args), r"runner sweep 'm=max(x)/2' 'a b' 'it'\''s'");
+    }
+
+    #[test]
+    fn timeouts_must_be_positive() {
+        assert_eq!(timeout("--timeout", Some(0.5)).unwrap(), Some(Duration::from_millis(500)));
+        assert!(timeout("--timeout", Some(0.0)).unwrap_err().contains("--timeout 0 must be a positive"));
+        assert!(timeout("--timeout", Some(f64::NAN)).is_err());
+    }
+}

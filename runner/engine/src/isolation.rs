@@ -1,0 +1,510 @@
+//! Runs in worker processes: the runner's own binary started again as a worker
+//! ([`crate::worker::serve`]), one per thread, each loading the FMU once and running many
+//! points. A worker that crashes (any signal, an `exit` inside the FMU), hangs past the timeout or
+//! grows past its memory limit costs only the point it was running: that point is recorded as
+//! failed with the signal and the FMI call it was in, and a new worker takes the dead one's place.
+//!
+//! Workers run in a process group of their own (a Ctrl-C at the terminal reaches only the
+//! supervisor, which decides) and are killed by the kernel if the thread that started them dies,
+//! so a killed runner leaves no workers behind. They must be started from one long-lived thread
+//! (the one calling these functions), as that parent-death signal follows the starting thread.
+
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::os::unix::process::{CommandExt, ExitStatusExt};
+use std::path::PathBuf;
+use std::process::{Child, ChildStdin, Command, ExitStatus, Stdio};
+use std::sync::mpsc::{self, Receiver, Sender};
+use std::time::{Duration, Instant};
+
+use fmi_importer::trace::{Call, CallSlot};
+use fmi_importer::{Description, Interface};
+
+use crate::protocol::{self, FmuSource, Reply, Request, RunJob};
+use crate::run::Outcome;
+use crate::sweep::{Plan, PointResult, SweepSpec};
+use crate::worker::SLOT_FD;
+
+/// How to start a worker: a program (the runner's own binary) and its arguments.
+#[derive(Debug, Clone)]
+pub struct WorkerCommand {
+    pub program: PathBuf,
+    pub args: Vec<String>,
+}
+
+/// How runs are isolated.
+#[derive(Debug, Clone)]
+pub struct Isolation {
+    /// How to start a worker.
+    pub command: WorkerCommand,
+    /// A point or run taking longer is stopped and recorded as timed out.
+    pub timeout: Option<Duration>,
+    /// Address space a worker may use (bytes); a worker whose resident memory passes half of it
+    /// after a point is replaced before its next one (an FMU that leaks).
+    pub memory_limit: Option<u64>,
+    /// One worker per instance: the FMU declares canBeInstantiatedOnlyOncePerProcess.
+    pub one_instance_per_process: bool,
+}
+
+/// True if the FMU declares, for `interface`, that it can be instantiated only once per process.
+pub fn once_per_process(description: &Description, interface: Interface) -> bool {
+    description.interface(interface).is_some_and(|c| c.can_be_instantiated_only_once_per_process)
+}
+
+/// The name of signal `signal` (`SIGSEGV`), as the status column shows it.
+pub fn signal_name(signal: i32) -> String {
+    let name = match signal {
+        libc::SIGSEGV => "SIGSEGV",
+        libc::SIGABRT => "SIGABRT",
+        libc::SIGBUS => "SIGBUS",
+        libc::SIGFPE => "SIGFPE",
+        libc::SIGILL => "SIGILL",
+        libc::SIGKILL => "SIGKILL",
+        libc::SIGTERM => "SIGTERM",
+        libc::SIGTRAP => "SIGTRAP",
+        libc::SIGSYS => "SIGSYS",
+        libc::SIGPIPE => "SIGPIPE",
+        libc::SIGXCPU => "SIGXCPU",
+        libc::SIGXFSZ => "SIGXFSZ",
+        libc::SIGINT => "SIGINT",
+        libc::SIGHUP => "SIGHUP",
+        libc::SIGQUIT => "SIGQUIT",
+        libc::SIGALRM => "SIGALRM",
+        libc::SIGUSR1 => "SIGUSR1",
+        libc::SIGUSR2 => "SIGUSR2",
+        _ => return format!("signal {signal}"),
+    };
+    name.to_owned()
+}
+
+/// Where a worker was: `in fmi2DoStep at t = 0.31`.
+fn place((call, time): (Call, Option<f64>)) -> String {
+    match (call, time) {
+        (Call::None, _) => "before its first FMI call".to_owned(),
+        (Call::Load, _) => "while loading the FMU's binary".to_owned(),
+        (call, Some(t)) => format!("in {} at t = {t}", call.name()),
+        (call, None) => format!("in {}", call.name()),
+    }
+}
+
+/// The status of a point whose worker ended with `status` while at `at`.
+fn death(status: ExitStatus, at: (Call, Option<f64>)) -> String {
+    match (status.signal(), status.code()) {
+        (Some(signal), _) => format!("crashed: {} {}", signal_name(signal), place(at)),
+        (None, Some(code)) => format!("exited: the worker process ended with code {code} {}", place(at)),
+        (None, None) => format!("crashed: the worker ended ({status}) {}", place(at)),
+    }
+}
+
+fn timed_out(limit: Duration, at: (Call, Option<f64>)) -> String {
+    format!("timed out after {} s {}", limit.as_secs_f64(), place(at))
+}
+
+/// The page a worker records its FMI calls in, mapped in the supervisor too.
+struct SharedSlot {
+    fd: libc::c_int,
+    page: *mut libc::c_void,
+}
+
+impl SharedSlot {
+    fn new() -> Result<SharedSlot, String> {
+        let error = |what: &str| format!("cannot create the memory shared with a worker ({what}): {}", std::io::Error::last_os_error());
+        // SAFETY: plain system calls; the page is checked before use and unmapped on drop.
+        unsafe {
+            let fd = libc::memfd_create(c"runner-call-slot".as_ptr(), libc::MFD_CLOEXEC);
+            if fd < 0 {
+                return Err(error("memfd_create"));
+            }
+            if libc::ftruncate(fd, 4096) != 0 {
+                libc::close(fd);
+                return Err(error("ftruncate"));
+            }
+            let page = libc::mmap(std::ptr::null_mut(), 4096, libc::PROT_READ | libc::PROT_WRITE, libc::MAP_SHARED, fd, 0);
+            if page == libc::MAP_FAILED {
+                libc::close(fd);
+                return Err(error("mmap"));
+            }
+            let slot = SharedSlot { fd, page };
+            slot.slot().clear();
+            Ok(slot)
+        }
+    }
+
+    fn slot(&self) -> &CallSlot {
+        // SAFETY: a mapped, zero-initialized page outlives the borrow; CallSlot is atomics only.
+        unsafe { &*(self.page as *const CallSlot) }
+    }
+}
+
+impl Drop for SharedSlot {
+    fn drop(&mut self) {
+        // SAFETY: the page and descriptor are ours.
+        unsafe {
+            libc::munmap(self.page, 4096);
+            libc::close(self.fd);
+        }
+    }
+}
+
+/// What a worker's reader thread reports.
+enum Event {
+    Reply(Reply),
+    /// The worker closed its reply pipe: it exited or died.
+    Gone,
+}
+
+/// A running worker.
+struct Worker {
+    id: u64,
+    child: Child,
+    /// `None` once closed (the worker then exits when idle).
+    requests: Option<ChildStdin>,
+    slot: SharedSlot,
+}
+
+impl Worker {
+    fn send(&mut self, request: &Request) -> Result<(), String> {
+        let pipe = self.requests.as_mut().ok_or("the worker was retired")?;
+        protocol::send(pipe, request).map_err(|e| format!("cannot send a request to a worker: {e}"))
+    }
+
+    /// Kills the worker's process group now and reaps it.
+    fn kill(mut self) -> ExitStatus {
+        // SAFETY: signalling the process group we created for this worker (its pid).
+        unsafe { libc::kill(-(self.child.id() as libc::pid_t), libc::SIGKILL) };
+        let _ = self.child.kill();
+        self.requests = None;
+        self.child.wait().unwrap_or_else(|_| ExitStatus::from_raw(libc::SIGKILL))
+    }
+
+    /// Asks an idle worker to exit (closing its requests), waits a moment, then kills it.
+    fn retire(mut self) {
+        self.requests = None;
+        let deadline = Instant::now() + Duration::from_secs(2);
+        while Instant::now() < deadline {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        self.kill();
+    }
+}
+
+/// Starts workers and gathers what they say in one channel.
+struct Pool<'a> {
+    config: &'a Isolation,
+    source: &'a FmuSource,
+    sender: Sender<(u64, Event)>,
+    events: Receiver<(u64, Event)>,
+    next_id: u64,
+}
+
+impl<'a> Pool<'a> {
+    fn new(config: &'a Isolation, source: &'a FmuSource) -> Pool<'a> {
+        let (sender, events) = mpsc::channel();
+        Pool { config, source, sender, events, next_id: 0 }
+    }
+
+    /// Starts a worker and asks it to load the FMU (it answers Ready or Failed later).
+    fn spawn(&mut self) -> Result<Worker, String> {
+        let slot = SharedSlot::new()?;
+        let (memfd, limit, parent) = (slot.fd, self.config.memory_limit, std::process::id());
+        let command = &self.config.command;
+        let mut cmd = Command::new(&command.program);
+        cmd.args(&command.args).stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::inherit()).process_group(0);
+        // SAFETY: only async-signal-safe calls between fork and exec.
+        unsafe {
+            cmd.pre_exec(move || {
+                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) != 0 || libc::getppid() != parent as libc::pid_t {
+                    return Err(std::io::Error::other("the runner is gone"));
+                }
+                // dup2 onto the slot's number clears close-on-exec; if it already has that
+                // number, clear the flag itself.
+                let moved = if memfd == SLOT_FD { libc::fcntl(memfd, libc::F_SETFD, 0) } else { libc::dup2(memfd, SLOT_FD) };
+                if moved < 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                if let Some(bytes) = limit {
+                    let rlimit = libc::rlimit { rlim_cur: bytes as libc::rlim_t, rlim_max: bytes as libc::rlim_t };
+                    if libc::setrlimit(libc::RLIMIT_AS, &rlimit) != 0 {
+                        return Err(std::io::Error::last_os_error());
+                    }
+                }
+                Ok(())
+            });
+        }
+        let mut child = cmd.spawn().map_err(|e| format!("cannot start a worker process ({}): {e}", command.program.display()))?;
+        let id = self.next_id;
+        self.next_id += 1;
+        let replies = child.stdout.take().expect("piped");
+        let sender = self.sender.clone();
+        std::thread::spawn(move || {
+            let mut replies = std::io::BufReader::new(replies);
+            loop {
+                match protocol::receive::<Reply>(&mut replies) {
+                    Ok(Some(reply)) => {
+                        if sender.send((id, Event::Reply(reply))).is_err() {
+                            return;
+                        }
+                    }
+                    _ => {
+                        let _ = sender.send((id, Event::Gone));
+                        return;
+                    }
+                }
+            }
+        });
+        let requests = child.stdin.take();
+        let mut worker = Worker { id, child, requests, slot };
+        worker.send(&Request::Load(self.source.clone()))?;
+        Ok(worker)
+    }
+
+    /// The next event, or `None` after `wait`.
+    fn next(&self, wait: Duration) -> Option<(u64, Event)> {
+        self.events.recv_timeout(wait).ok()
+    }
+
+    /// True if a worker that reported `resident` bytes should be replaced before its next job.
+    fn worn_out(&self, resident: u64) -> bool {
+        self.config.one_instance_per_process || self.config.memory_limit.is_some_and(|limit| resident > limit / 2)
+    }
+}
+
+/// How long the supervisor waits for an event before it looks at the clock and Ctrl-C again.
+const TICK: Duration = Duration::from_millis(50);
+
+/// One thread's worker and the point it runs.
+#[derive(Default)]
+struct Lane {
+    worker: Option<Worker>,
+    /// The point being run and when it was sent.
+    busy: Option<(usize, Instant)>,
+}
+
+/// Runs the points `points` of `plan` (made from `spec`) in `threads` worker processes and calls
+/// `deliver(i, result)` in point order, like [`Plan::execute_range`]. Stops when `stop()` turns
+/// true (the points in progress are abandoned and their workers killed) or `deliver` fails.
+#[allow(clippy::too_many_arguments)]
+pub fn execute_sweep(
+    plan: &Plan,
+    spec: &SweepSpec,
+    source: &FmuSource,
+    config: &Isolation,
+    points: Range<usize>,
+    threads: usize,
+    stop: &dyn Fn() -> bool,
+    mut deliver: impl FnMut(usize, PointResult) -> Result<(), String>,
+) -> Result<(), String> {
+    if threads == 0 {
+        return Err("--threads must be at least 1".to_owned());
+    }
+    let end = points.end.min(plan.space.len);
+    let mut pool = Pool::new(config, source);
+    let mut lanes: Vec<Lane> = (0..threads.min(end.saturating_sub(points.start)).max(1)).map(|_| Lane::default()).collect();
+    let mut retired: Vec<Worker> = Vec::new();
+    let mut next = points.start;
+    let mut row = points.start;
+    let mut waiting: BTreeMap<usize, PointResult> = BTreeMap::new();
+    let outcome = (|| -> Result<(), String> {
+        loop {
+            if stop() {
+                return Ok(());
+            }
+            for lane in lanes.iter_mut().filter(|l| l.busy.is_none()) {
+                if next >= end {
+                    break;
+                }
+                if lane.worker.is_none() {
+                    let mut worker = pool.spawn()?;
+                    worker.send(&Request::Sweep(spec.clone()))?;
+                    lane.worker = Some(worker);
+                }
+                let worker = lane.worker.as_mut().expect("started above");
+                worker.slot.slot().clear();
+                worker.send(&Request::Point(next as u64))?;
+                lane.busy = Some((next, Instant::now()));
+                next += 1;
+            }
+            if lanes.iter().all(|l| l.busy.is_none()) {
+                return Ok(());
+            }
+            // Wake for the first deadline, or a tick to look at Ctrl-C.
+            let now = Instant::now();
+            let wait = lanes
+                .iter()
+                .filter_map(|l| l.busy.zip(config.timeout).map(|((_, started), limit)| (started + limit).saturating_duration_since(now)))
+                .fold(TICK, Duration::min);
+            if let Some((id, event)) = pool.next(wait) {
+                let lane = lanes.iter_mut().find(|l| l.worker.as_ref().is_some_and(|w| w.id == id));
+                match (lane, event) {
+                    (_, Event::Reply(Reply::Log(line))) => fmi_importer::print_line(&line),
+                    (Some(_), Event::Reply(Reply::Failed(e))) => return Err(e),
+                    (Some(lane), Event::Reply(Reply::Point { index, result, resident })) => {
+                        if lane.busy.map(|(i, _)| i as u64) == Some(index) {
+                            waiting.insert(index as usize, result);
+                            lane.busy = None;
+                            if pool.worn_out(resident) {
+                                retired.extend(lane.worker.take());
+                            }
+                        }
+                    }
+                    (Some(lane), Event::Gone) => {
+                        let worker = lane.worker.take().expect("matched by id");
+                        let at = worker.slot.slot().read();
+                        let status = worker.kill();
+                        // An idle worker that ended is replaced at its next point.
+                        if let Some((i, _)) = lane.busy.take() {
+                            waiting.insert(i, PointResult { metrics: None, status: death(status, at) });
+                        }
+                    }
+                    (None, Event::Gone) => {
+                        if let Some(k) = retired.iter().position(|w| w.id == id) {
+                            retired.swap_remove(k).retire();
+                        }
+                    }
+                    (_, Event::Reply(_)) => {} // Ready, or a late word from a worker already replaced
+                }
+            }
+            if let Some(limit) = config.timeout {
+                for lane in lanes.iter_mut() {
+                    if let Some((i, started)) = lane.busy {
+                        if started.elapsed() >= limit {
+                            let worker = lane.worker.take().expect("a busy lane has a worker");
+                            let at = worker.slot.slot().read();
+                            worker.kill();
+                            lane.busy = None;
+                            waiting.insert(i, PointResult { metrics: None, status: timed_out(limit, at) });
+                        }
+                    }
+                }
+            }
+            while let Some(result) = waiting.remove(&row) {
+                deliver(row, result)?;
+                row += 1;
+            }
+        }
+    })();
+    for lane in lanes {
+        if let Some(worker) = lane.worker {
+            if lane.busy.is_some() {
+                worker.kill();
+            } else {
+                worker.retire();
+            }
+        }
+    }
+    for worker in retired {
+        worker.retire();
+    }
+    outcome
+}
+
+/// Runs one job after another in a worker process (simulate, the runs of a comparison),
+/// replacing the worker after a crash.
+pub struct Runs<'a> {
+    pool: Pool<'a>,
+    worker: Option<Worker>,
+}
+
+impl<'a> Runs<'a> {
+    /// A supervisor for runs of `source`; no worker starts before the first run.
+    pub fn new(config: &'a Isolation, source: &'a FmuSource) -> Runs<'a> {
+        Runs { pool: Pool::new(config, source), worker: None }
+    }
+
+    /// Runs `job` in a worker, calling `sample(t, values)` at every communication point as
+    /// [`crate::run::run`] does. A crash, a timeout, `stop()` or a failing `sample` end the run
+    /// with an error naming the signal and the FMI call.
+    pub fn run(
+        &mut self,
+        job: &RunJob,
+        stop: &dyn Fn() -> bool,
+        mut sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
+    ) -> Result<Outcome, String> {
+        let mut worker = match self.worker.take() {
+            Some(w) => w,
+            None => self.pool.spawn()?,
+        };
+        worker.slot.slot().clear();
+        worker.send(&Request::Run(job.clone()))?;
+        let width = 1 + job.recorded.len();
+        let started = Instant::now();
+        let timeout = self.pool.config.timeout;
+        loop {
+            if stop() {
+                worker.kill();
+                return Err("interrupted".to_owned());
+            }
+            if let Some(limit) = timeout {
+                if started.elapsed() >= limit {
+                    let at = worker.slot.slot().read();
+                    worker.kill();
+                    return Err(format!("{}: {}", job.name, timed_out(limit, at)));
+                }
+            }
+            let wait = timeout.map_or(TICK, |limit| (started + limit).saturating_duration_since(Instant::now()).min(TICK));
+            let Some((id, event)) = self.pool.next(wait) else { continue };
+            if id != worker.id {
+                continue; // an earlier worker's last words
+            }
+            match event {
+                Event::Reply(Reply::Log(line)) => fmi_importer::print_line(&line),
+                Event::Reply(Reply::Failed(e)) => {
+                    worker.kill();
+                    return Err(e);
+                }
+                Event::Reply(Reply::Samples(values)) => {
+                    for chunk in values.chunks_exact(width) {
+                        if let Err(e) = sample(chunk[0], &chunk[1..]) {
+                            worker.kill();
+                            return Err(e);
+                        }
+                    }
+                }
+                Event::Reply(Reply::RunDone { result, resident }) => {
+                    if self.pool.worn_out(resident) {
+                        worker.retire();
+                    } else {
+                        self.worker = Some(worker);
+                    }
+                    return result.map(|ended_early| Outcome { ended_early });
+                }
+                Event::Reply(_) => {}
+                Event::Gone => {
+                    let at = worker.slot.slot().read();
+                    let status = worker.kill();
+                    return Err(format!("{}: {}", job.name, death(status, at)));
+                }
+            }
+        }
+    }
+}
+
+impl Drop for Runs<'_> {
+    fn drop(&mut self) {
+        if let Some(worker) = self.worker.take() {
+            worker.retire();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn statuses_name_the_signal_the_call_and_the_time() {
+        let segv = ExitStatus::from_raw(libc::SIGSEGV);
+        assert_eq!(death(segv, (Call::DoStep, Some(0.31))), "crashed: SIGSEGV in fmi2DoStep at t = 0.31");
+        assert_eq!(death(ExitStatus::from_raw(libc::SIGABRT), (Call::Instantiate, None)), "crashed: SIGABRT in fmi2Instantiate");
+        assert_eq!(
+            death(ExitStatus::from_raw(3 << 8), (Call::DoStep, Some(1.0))),
+            "exited: the worker process ended with code 3 in fmi2DoStep at t = 1"
+        );
+        assert_eq!(death(segv, (Call::Load, None)), "crashed: SIGSEGV while loading the FMU's binary");
+        assert_eq!(timed_out(Duration::from_millis(500), (Call::DoStep, Some(2.5))), "timed out after 0.5 s in fmi2DoStep at t = 2.5");
+        assert_eq!(signal_name(64), "signal 64");
+    }
+}

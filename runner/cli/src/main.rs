@@ -107,7 +107,8 @@ enum Cmd {
         /// A metric NAME=EXPR, e.g. 'transmissibility=max(z_s)/max(z_r)'; repeatable.
         #[arg(long = "metric", value_name = "NAME=EXPR")]
         metrics: Vec<String>,
-        /// Worker threads (default: one per core); results do not depend on it.
+        /// Worker processes, or threads with --in-process (default: one per core); results do
+        /// not depend on it.
         #[arg(long, value_name = "N", allow_negative_numbers = true)]
         threads: Option<usize>,
         #[command(flatten)]

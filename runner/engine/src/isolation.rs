@@ -163,9 +163,13 @@ struct Worker {
 }
 
 impl Worker {
-    fn send(&mut self, request: &Request) -> Result<(), String> {
-        let pipe = self.requests.as_mut().ok_or("the worker was retired")?;
-        protocol::send(pipe, request).map_err(|e| format!("cannot send a request to a worker: {e}"))
+    /// Sends a request. A failure means the worker is gone (a full pipe only blocks), and its
+    /// reader thread reports that, with what the worker said last (a load that failed), so the
+    /// error itself is not needed.
+    fn send(&mut self, request: &Request) {
+        if let Some(pipe) = self.requests.as_mut() {
+            let _ = protocol::send(pipe, request);
+        }
     }
 
     /// Kills the worker's process group now and reaps it.
@@ -257,7 +261,7 @@ impl<'a> Pool<'a> {
         });
         let requests = child.stdin.take();
         let mut worker = Worker { id, child, requests, slot };
-        worker.send(&Request::Load(self.source.clone()))?;
+        worker.send(&Request::Load(self.source.clone()));
         Ok(worker)
     }
 
@@ -318,12 +322,12 @@ pub fn execute_sweep(
                 }
                 if lane.worker.is_none() {
                     let mut worker = pool.spawn()?;
-                    worker.send(&Request::Sweep(spec.clone()))?;
+                    worker.send(&Request::Sweep(spec.clone()));
                     lane.worker = Some(worker);
                 }
                 let worker = lane.worker.as_mut().expect("started above");
                 worker.slot.slot().clear();
-                worker.send(&Request::Point(next as u64))?;
+                worker.send(&Request::Point(next as u64));
                 lane.busy = Some((next, Instant::now()));
                 next += 1;
             }
@@ -428,7 +432,7 @@ impl<'a> Runs<'a> {
             None => self.pool.spawn()?,
         };
         worker.slot.slot().clear();
-        worker.send(&Request::Run(job.clone()))?;
+        worker.send(&Request::Run(job.clone()));
         let width = 1 + job.recorded.len();
         let started = Instant::now();
         let timeout = self.pool.config.timeout;

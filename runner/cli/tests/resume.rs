@@ -214,3 +214,56 @@ fn an_unwritable_destination_is_refused_before_any_point_runs() {
     let err = fails(runner(dir.path(), &sweep_args(f, "no/such/dir/s.csv")));
     assert!(err.contains("the directory no/such/dir does not exist"), "{err}");
 }
+
+/// Unmounts a file system mounted by a test, whatever happens.
+struct Mounted(std::path::PathBuf);
+
+impl Drop for Mounted {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg("-l").arg(&self.0).status();
+    }
+}
+
+/// A really full disk (ENOSPC): a 64 kB tmpfs mounted for the test. The message names the file,
+/// the cause and how many rows it kept, which are exactly the rows on file, each the reference's;
+/// after the file system grows, `--resume` finishes the sweep to the reference's bytes. Mounting
+/// needs root (as the test command runs here); elsewhere the test says it did not run, and the
+/// file size limit test above covers the same code.
+#[test]
+fn a_full_disk_is_reported_and_the_rows_on_it_stay_intact() {
+    let dir = tempfile::tempdir().unwrap();
+    let small = dir.path().join("small");
+    std::fs::create_dir(&small).unwrap();
+    let mounted = Command::new("mount").args(["-t", "tmpfs", "-o", "size=64k", "tmpfs"]).arg(&small).status();
+    if !mounted.is_ok_and(|s| s.success()) {
+        eprintln!("not run: cannot mount a small tmpfs here (it needs root)");
+        return;
+    }
+    let _unmount = Mounted(small.clone());
+    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+    let f = fmu.to_str().unwrap();
+    let args = |out: &str| {
+        ["sweep", f, "--param", "k=0.5:1.5:0.0002", "--metric", "end=final(x)", "--metric", "m=mean(x)", "--out", out].map(String::from)
+    };
+    let run = |a: &[String], extra: &[&str]| {
+        let mut all: Vec<&str> = a.iter().map(String::as_str).collect();
+        all.extend_from_slice(extra);
+        runner(dir.path(), &all)
+    };
+    ok(run(&args("reference.csv"), &["--in-process"]));
+    let expected = std::fs::read(dir.path().join("reference.csv")).unwrap();
+    assert!(expected.len() > 200_000, "the CSV does not fit on 64 kB");
+    let out = small.join("t.csv");
+    let o = run(&args(out.to_str().unwrap()), &[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("t.csv.partial: No space left on device"), "{err}");
+    let partial = std::fs::read(small.join("t.csv.partial")).unwrap();
+    assert!(expected.starts_with(&partial) && partial.ends_with(b"\n"), "complete rows only, each the reference's");
+    let rows = partial.iter().filter(|&&b| b == b'\n').count() - 1;
+    assert!(err.contains(&format!("the {rows} points finished before are kept in")), "the count is of the rows on file: {err}");
+    let grown = Command::new("mount").args(["-o", "remount,size=1m"]).arg(&small).status().unwrap();
+    assert!(grown.success());
+    ok(run(&args(out.to_str().unwrap()), &["--resume"]));
+    assert_eq!(std::fs::read(&out).unwrap(), expected);
+}

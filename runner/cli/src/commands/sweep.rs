@@ -243,7 +243,11 @@ pub fn run(options: &Options) -> Result<Summary, String> {
                 n - finished.rows
             );
             // A kill before the header reached the file leaves it empty: start it again.
-            let file = if finished.valid == 0 { PartialCsv::create(out, &header)? } else { PartialCsv::resume(out, finished.valid)? };
+            let file = if finished.valid == 0 {
+                PartialCsv::create(out, &header)?
+            } else {
+                PartialCsv::resume(out, finished.valid, finished.rows)?
+            };
             start = Some(Start { partial: file, first: finished.rows, kept: finished.metrics, failed: finished.failed });
         } else if options.resume && out.exists() && record_path.exists() {
             earlier()?;
@@ -325,7 +329,7 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         (Held::Described(_), None) => unreachable!("workers have a configuration"),
     };
     drop(progress);
-    let done = kept.len() / m.max(1);
+    let delivered = kept.len() / m.max(1);
     let continue_with = || {
         let mut args = options.command_line.clone();
         if !args.iter().any(|a| a == "--resume") {
@@ -338,8 +342,10 @@ pub fn run(options: &Options) -> Result<Summary, String> {
             Some(file) => {
                 let path = file.path().to_path_buf();
                 let _ = file.close();
+                // What reached the file, read back: rows a failed write did not reach are gone.
+                let kept = partial::read_finished(&path, &header, m, &mut |i| (i < n).then(|| spell(i))).map_or(0, |f| f.rows);
                 format!(
-                    "{e}\nthe {done} points finished before are kept in {}; once it can be written, continue with: {}",
+                    "{e}\nthe {kept} points finished before are kept in {}; once it can be written, continue with: {}",
                     path.display(),
                     continue_with()
                 )
@@ -351,14 +357,14 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         return Err(match partial {
             Some(file) => {
                 let path = file.path().to_path_buf();
-                file.close()?;
+                let done = file.close()?;
                 format!(
                     "interrupted after {done} of {n} points; the finished points are in {}; continue with: {}",
                     path.display(),
                     continue_with()
                 )
             }
-            None => format!("interrupted after {done} of {n} points"),
+            None => format!("interrupted after {delivered} of {n} points"),
         });
     }
     let destination = match (&partial, &out_path) {

@@ -91,10 +91,13 @@ impl Record {
 struct Shared {
     /// `None` after [`PartialCsv::finish`] or a failure.
     file: Option<File>,
-    /// Complete rows not yet written.
+    /// Complete rows not yet written, and how many.
     pending: Vec<u8>,
+    pending_rows: usize,
     /// Bytes on file, all of them complete rows: after a failed write the file is cut back here.
     written: u64,
+    /// Rows on file, the header included.
+    rows_written: usize,
     /// Written since the last fsync.
     unsynced: bool,
     /// The first write or sync failure.
@@ -111,16 +114,7 @@ pub struct PartialCsv {
 }
 
 fn io_error(path: &Path, e: &std::io::Error) -> String {
-    use std::io::ErrorKind;
-    let hint = match e.kind() {
-        ErrorKind::StorageFull => " (the disk is full)",
-        ErrorKind::QuotaExceeded => " (the disk quota is used up)",
-        ErrorKind::FileTooLarge => " (the file is larger than this process may write)",
-        ErrorKind::ReadOnlyFilesystem => " (the file system is read-only)",
-        ErrorKind::PermissionDenied => " (no permission)",
-        _ => "",
-    };
-    format!("cannot write {}: {e}{hint}", path.display())
+    format!("cannot write {}: {e}", path.display())
 }
 
 /// One CSV row's bytes, exactly as a CSV writer spells them in a whole file.
@@ -135,7 +129,7 @@ impl PartialCsv {
     pub fn create(dest: &Path, header: &[String]) -> Result<PartialCsv, String> {
         let path = partial_path(dest);
         let file = File::create(&path).map_err(|e| format!("cannot create {}: {e}", path.display()))?;
-        let mut partial = PartialCsv::start(dest, path, file, 0);
+        let mut partial = PartialCsv::start(dest, path, file, 0, 0);
         partial.append(header)?;
         // The header goes to the file at once: a file killed before its first flush is empty.
         let (lock, _) = &*partial.shared;
@@ -148,18 +142,27 @@ impl PartialCsv {
         Ok(partial)
     }
 
-    /// Continues `<dest>.partial`, whose first `valid` bytes are complete rows (a torn row after
-    /// them is cut off).
-    pub fn resume(dest: &Path, valid: u64) -> Result<PartialCsv, String> {
+    /// Continues `<dest>.partial`, whose first `valid` bytes are the header and `rows` complete
+    /// rows (a torn row after them is cut off).
+    pub fn resume(dest: &Path, valid: u64, rows: usize) -> Result<PartialCsv, String> {
         let path = partial_path(dest);
         let mut file = OpenOptions::new().write(true).open(&path).map_err(|e| format!("cannot open {}: {e}", path.display()))?;
         file.set_len(valid).and_then(|_| file.seek(SeekFrom::Start(valid))).map_err(|e| io_error(&path, &e))?;
-        Ok(PartialCsv::start(dest, path, file, valid))
+        Ok(PartialCsv::start(dest, path, file, valid, rows + 1))
     }
 
-    fn start(dest: &Path, path: PathBuf, file: File, written: u64) -> PartialCsv {
+    fn start(dest: &Path, path: PathBuf, file: File, written: u64, rows_written: usize) -> PartialCsv {
         let shared = Arc::new((
-            Mutex::new(Shared { file: Some(file), pending: Vec::new(), written, unsynced: false, error: None, closing: false }),
+            Mutex::new(Shared {
+                file: Some(file),
+                pending: Vec::new(),
+                pending_rows: 0,
+                written,
+                rows_written,
+                unsynced: false,
+                error: None,
+                closing: false,
+            }),
             Condvar::new(),
         ));
         let flusher = {
@@ -175,6 +178,11 @@ impl PartialCsv {
         &self.path
     }
 
+    /// Point rows on file (those a failed write did not reach are not counted).
+    pub fn rows_on_file(&self) -> usize {
+        self.shared.0.lock().map_or(0, |s| s.rows_written.saturating_sub(1))
+    }
+
     /// Appends one row; fails with the first write error (the rows before it stay intact).
     pub fn append(&mut self, row: &[String]) -> Result<(), String> {
         let mut line = csv_line(&csv::StringRecord::from(row))?;
@@ -184,6 +192,7 @@ impl PartialCsv {
             return Err(e.clone());
         }
         shared.pending.append(&mut line);
+        shared.pending_rows += 1;
         if shared.pending.len() >= BATCH_BYTES {
             write_pending(&mut shared, &self.path);
             if let Some(e) = &shared.error {
@@ -195,9 +204,11 @@ impl PartialCsv {
     }
 
     /// Writes and syncs every row given so far and stops the flushing thread; the partial file
-    /// stays (an interrupted or failed sweep). Returns the first write error, if any.
-    pub fn close(mut self) -> Result<(), String> {
-        self.stop()
+    /// stays (an interrupted or failed sweep). Returns the point rows on file, or the first write
+    /// error.
+    pub fn close(mut self) -> Result<usize, String> {
+        self.stop()?;
+        Ok(self.rows_on_file())
     }
 
     fn stop(&mut self) -> Result<(), String> {
@@ -250,7 +261,9 @@ fn write_pending(shared: &mut Shared, path: &Path) {
     match file.write_all(&shared.pending) {
         Ok(()) => {
             shared.written += shared.pending.len() as u64;
+            shared.rows_written += shared.pending_rows;
             shared.pending.clear();
+            shared.pending_rows = 0;
             shared.unsynced = true;
         }
         Err(e) => {
@@ -420,7 +433,7 @@ mod tests {
             std::fs::write(&path, &whole[..cut]).unwrap();
             let read = read_finished(&path, &header(), 1, &mut points).unwrap();
             assert!(read.rows < 2 && (read.valid as usize) < cut, "cut at {cut}: {} rows", read.rows);
-            let mut again = PartialCsv::resume(&dest, read.valid).unwrap();
+            let mut again = PartialCsv::resume(&dest, read.valid, read.rows).unwrap();
             again.append(&["1.0".into(), "".into(), "crashed: SIGSEGV, \"quoted\"\nin fmi2DoStep".into()]).unwrap();
             if read.rows == 0 {
                 continue;

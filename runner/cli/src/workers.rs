@@ -32,7 +32,7 @@ pub fn timeout(option: &str, seconds: Option<f64>) -> Result<Option<Duration>, S
 }
 
 /// The isolation of runs in worker processes of this binary.
-pub fn isolation(timeout: Option<Duration>, memory_mib: u64, one_instance_per_process: bool) -> Result<Isolation, String> {
+pub fn isolation(timeout: Option<Duration>, memory_mib: u64) -> Result<Isolation, String> {
     if memory_mib < 64 {
         return Err(format!("--worker-memory {memory_mib} MiB is too little for a worker (at least 64)"));
     }
@@ -41,7 +41,6 @@ pub fn isolation(timeout: Option<Duration>, memory_mib: u64, one_instance_per_pr
         command: WorkerCommand { program, args: vec![WORKER_COMMAND.to_owned()] },
         timeout,
         memory_limit: Some(memory_mib << 20),
-        one_instance_per_process,
     })
 }
 

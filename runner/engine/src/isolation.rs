@@ -42,8 +42,6 @@ pub struct Isolation {
     /// Address space a worker may use (bytes); a worker whose resident memory passes half of it
     /// after a point is replaced before its next one (an FMU that leaks).
     pub memory_limit: Option<u64>,
-    /// One worker per instance: the FMU declares canBeInstantiatedOnlyOncePerProcess.
-    pub one_instance_per_process: bool,
 }
 
 /// True if the FMU declares, for `interface`, that it can be instantiated only once per process.
@@ -202,12 +200,14 @@ struct Pool<'a> {
     sender: Sender<(u64, Event)>,
     events: Receiver<(u64, Event)>,
     next_id: u64,
+    /// One worker per instance: the FMU declares canBeInstantiatedOnlyOncePerProcess.
+    once_per_process: bool,
 }
 
 impl<'a> Pool<'a> {
     fn new(config: &'a Isolation, source: &'a FmuSource) -> Pool<'a> {
         let (sender, events) = mpsc::channel();
-        Pool { config, source, sender, events, next_id: 0 }
+        Pool { config, source, sender, events, next_id: 0, once_per_process: false }
     }
 
     /// Starts a worker and asks it to load the FMU (it answers Ready or Failed later).
@@ -272,7 +272,7 @@ impl<'a> Pool<'a> {
 
     /// True if a worker that reported `resident` bytes should be replaced before its next job.
     fn worn_out(&self, resident: u64) -> bool {
-        self.config.one_instance_per_process || self.config.memory_limit.is_some_and(|limit| resident > limit / 2)
+        self.once_per_process || self.config.memory_limit.is_some_and(|limit| resident > limit / 2)
     }
 }
 
@@ -287,26 +287,58 @@ struct Lane {
     busy: Option<(usize, Instant)>,
 }
 
-/// Runs the points `points` of `plan` (made from `spec`) in `threads` worker processes and calls
-/// `deliver(i, result)` in point order, like [`Plan::execute_range`]. Stops when `stop()` turns
-/// true (the points in progress are abandoned and their workers killed) or `deliver` fails.
-#[allow(clippy::too_many_arguments)]
+/// Worker processes started ahead of a sweep, so that they start and load the FMU while the
+/// supervisor reads the description and checks the plan (a worker's start costs about as much as
+/// ten of the handbook's runs).
+pub struct Workers<'a> {
+    pool: Pool<'a>,
+    ready: Vec<Worker>,
+}
+
+impl<'a> Workers<'a> {
+    /// Starts `count` workers of `source` (at least one).
+    pub fn start(config: &'a Isolation, source: &'a FmuSource, count: usize) -> Result<Workers<'a>, String> {
+        let mut pool = Pool::new(config, source);
+        let ready = (0..count.max(1)).map(|_| pool.spawn()).collect::<Result<Vec<_>, _>>()?;
+        Ok(Workers { pool, ready })
+    }
+
+    /// Gives every instance a worker of its own (the FMU declares
+    /// canBeInstantiatedOnlyOncePerProcess): a worker is replaced after each point.
+    pub fn one_instance_per_process(&mut self, once: bool) {
+        self.pool.once_per_process = once;
+    }
+}
+
+impl Drop for Workers<'_> {
+    fn drop(&mut self) {
+        for worker in self.ready.drain(..) {
+            worker.retire();
+        }
+    }
+}
+
+/// Runs the points `points` of `plan` (made from `spec`) in worker processes, as many as were
+/// started, and calls `deliver(i, result)` in point order, like [`Plan::execute_range`]. Stops
+/// when `stop()` turns true (the points in progress are abandoned and their workers killed) or
+/// `deliver` fails.
 pub fn execute_sweep(
     plan: &Plan,
     spec: &SweepSpec,
-    source: &FmuSource,
-    config: &Isolation,
+    mut workers: Workers,
     points: Range<usize>,
-    threads: usize,
     stop: &dyn Fn() -> bool,
     mut deliver: impl FnMut(usize, PointResult) -> Result<(), String>,
 ) -> Result<(), String> {
-    if threads == 0 {
-        return Err("--threads must be at least 1".to_owned());
-    }
     let end = points.end.min(plan.space.len);
-    let mut pool = Pool::new(config, source);
-    let mut lanes: Vec<Lane> = (0..threads.min(end.saturating_sub(points.start)).max(1)).map(|_| Lane::default()).collect();
+    let lane_count = workers.ready.len().min(end.saturating_sub(points.start)).max(1);
+    let mut lanes: Vec<Lane> = (0..lane_count).map(|_| Lane::default()).collect();
+    for (lane, mut worker) in lanes.iter_mut().zip(workers.ready.drain(..lane_count)) {
+        worker.send(&Request::Sweep(spec.clone()));
+        lane.worker = Some(worker);
+    }
+    let config = workers.pool.config;
+    let pool = &mut workers.pool;
     let mut retired: Vec<Worker> = Vec::new();
     let mut next = points.start;
     let mut row = points.start;
@@ -414,8 +446,10 @@ pub struct Runs<'a> {
 
 impl<'a> Runs<'a> {
     /// A supervisor for runs of `source`; no worker starts before the first run.
-    pub fn new(config: &'a Isolation, source: &'a FmuSource) -> Runs<'a> {
-        Runs { pool: Pool::new(config, source), worker: None }
+    pub fn new(config: &'a Isolation, source: &'a FmuSource, one_instance_per_process: bool) -> Runs<'a> {
+        let mut pool = Pool::new(config, source);
+        pool.once_per_process = one_instance_per_process;
+        Runs { pool, worker: None }
     }
 
     /// Runs `job` in a worker, calling `sample(t, values)` at every communication point as

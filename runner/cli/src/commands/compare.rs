@@ -225,10 +225,10 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
             md.model_name
         ));
     }
-    let config = workers::isolation(timeout, workers::default_memory_mib(1), once)?;
+    let config = workers::isolation(timeout, workers::default_memory_mib(1))?;
     let mut engine = match &fmu {
         Some(fmu) => Engine::InProcess(fmu),
-        None => Engine::Workers(Runs::new(&config, &source)),
+        None => Engine::Workers(Runs::new(&config, &source, once)),
     };
     let grid = Grid::choose(md, &[options.run.grid(), target.experiment.simulate.grid()])?;
     let mut set_texts = target.experiment.simulate.set.clone();

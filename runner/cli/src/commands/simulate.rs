@@ -74,8 +74,8 @@ pub fn run(options: &Options) -> Result<(), String> {
     let outcome = match &fmu {
         Some(fmu) => sim::run(fmu, identifier, &grid, &assignments, &outputs, options.log, sample)?,
         None => {
-            let config = workers::isolation(timeout, workers::default_memory_mib(1), isolation::once_per_process(description, interface))?;
-            let mut runs = Runs::new(&config, &source);
+            let config = workers::isolation(timeout, workers::default_memory_mib(1))?;
+            let mut runs = Runs::new(&config, &source, isolation::once_per_process(description, interface));
             let job = RunJob::new(identifier, grid, &assignments, &outputs, options.log);
             runs.run(&job, &interrupt::requested, sample)?
         }

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use fmi_importer::{Fmu, Unpacked, Value};
-use runner_engine::isolation::{self, Isolation};
+use runner_engine::isolation::{self, Isolation, Workers};
 use runner_engine::protocol::FmuSource;
 use runner_engine::run::Grid;
 use runner_engine::sweep::{parse_range, Plan, PointResult, SweepSpec};
@@ -174,6 +174,17 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         return Err("--worker-memory limits worker processes: drop --in-process".to_owned());
     }
     let source = FmuSource { path: target.path.clone() };
+    // Workers start first: they load the FMU while this process reads its description, checks
+    // the plan and opens the files.
+    let config: Option<Isolation> = match options.in_process {
+        true => None,
+        false => Some(workers::isolation(timeout, options.worker_memory.unwrap_or_else(|| workers::default_memory_mib(threads)))?),
+    };
+    let points = ranges.iter().fold(1usize, |n, (_, v)| n.saturating_mul(v.len()));
+    let mut pool = match &config {
+        Some(config) => Some(Workers::start(config, &source, threads.min(points))?),
+        None => None,
+    };
     let held = if options.in_process { Held::Loaded(source.load()?) } else { Held::Described(source.open()?) };
     let d = held.description();
     let grid = Grid::choose(d, &[options.run.grid(), defaults.run().grid()])?;
@@ -190,12 +201,9 @@ pub fn run(options: &Options) -> Result<Summary, String> {
             d.model_name
         ));
     }
-    let config: Option<Isolation> = match &held {
-        Held::Loaded(_) => None,
-        Held::Described(_) => {
-            Some(workers::isolation(timeout, options.worker_memory.unwrap_or_else(|| workers::default_memory_mib(threads)), once)?)
-        }
-    };
+    if let Some(pool) = &mut pool {
+        pool.one_instance_per_process(once);
+    }
 
     let (out_path, plot_path) = output_paths(options, defaults);
     if let Some(plot) = &plot_path {
@@ -321,12 +329,10 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         progress.inc(1);
         Ok(())
     };
-    let written = match (&held, &config) {
+    let written = match (&held, pool) {
         (Held::Loaded(fmu), _) => plan.execute_range(fmu, first..n, threads, &interrupt::requested, &mut deliver),
-        (Held::Described(_), Some(config)) => {
-            isolation::execute_sweep(&plan, &spec, &source, config, first..n, threads, &interrupt::requested, &mut deliver)
-        }
-        (Held::Described(_), None) => unreachable!("workers have a configuration"),
+        (Held::Described(_), Some(pool)) => isolation::execute_sweep(&plan, &spec, pool, first..n, &interrupt::requested, &mut deliver),
+        (Held::Described(_), None) => unreachable!("workers were started"),
     };
     drop(progress);
     let delivered = kept.len() / m.max(1);

@@ -16,6 +16,18 @@ fn rows_by_point(path: &std::path::Path, key: usize) -> Vec<(Vec<String>, Vec<St
     rows.into_iter().map(|r| (r[..key].to_vec(), r[key..].to_vec())).collect()
 }
 
+/// The worker processes among the children of process `pid`.
+fn worker_children(pid: u32) -> usize {
+    let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).map(|d| d.flatten().collect::<Vec<_>>()).unwrap_or_default();
+    tasks
+        .iter()
+        .flat_map(|t| {
+            std::fs::read_to_string(t.path().join("children")).unwrap_or_default().split_whitespace().map(str::to_owned).collect::<Vec<_>>()
+        })
+        .filter(|child| std::fs::read(format!("/proc/{child}/cmdline")).is_ok_and(|c| c.split(|&b| b == 0).nth(1) == Some(b"worker")))
+        .count()
+}
+
 #[test]
 fn crashing_and_hanging_points_are_recorded_and_the_rest_equal_an_in_process_run() {
     let dir = tempfile::tempdir().unwrap();
@@ -65,7 +77,16 @@ fn leaking_points_get_fresh_workers_and_a_runaway_leak_fails_its_point_only() {
     let metrics = ["--metric", "end=final(x)", "--metric", "pid=final(pid)"];
     let mut args = vec!["sweep", f, "--param", "x0=1:8:1", "--param", "fault=6", "--threads", "1", "--out", "leak.csv"];
     args.extend_from_slice(&metrics);
-    ok(runner(dir.path(), &[&args[..], &["--worker-memory", "256"]].concat()));
+    // While it runs, a replaced worker must be gone at once (with its memory), not wait for the
+    // end of the sweep: at most the running worker and one exiting are alive.
+    let mut child = spawn_runner(dir.path(), &[&args[..], &["--worker-memory", "256"]].concat());
+    let mut most = 0;
+    while child.try_wait().unwrap().is_none() {
+        most = most.max(worker_children(child.id()));
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    assert!(child.wait().unwrap().success());
+    assert!(most <= 2, "{most} workers alive at once on 1 thread");
     let leaky = rows_by_point(&dir.path().join("leak.csv"), 2);
     assert!(leaky.iter().all(|(_, v)| v[2] == "ok"), "{leaky:?}");
     let pids: BTreeSet<&str> = leaky.iter().map(|(_, v)| v[1].as_str()).collect();

@@ -382,7 +382,12 @@ pub fn execute_sweep(
                             waiting.insert(index as usize, result);
                             lane.busy = None;
                             if pool.worn_out(resident) {
-                                retired.extend(lane.worker.take());
+                                // Closing its requests makes it exit now, returning its memory;
+                                // it is reaped when its pipe closes.
+                                if let Some(mut worker) = lane.worker.take() {
+                                    worker.requests = None;
+                                    retired.push(worker);
+                                }
                             }
                         }
                     }

@@ -17,7 +17,9 @@ benchmark that compares different work is worthless.
 
 Then: 2 threads against 1 on a 1000-point sweep, and the peak RSS of a 100-point and a
 10,000-point sweep (stop time 1 s: memory does not depend on the run's length, and it keeps the
-big sweep short).
+big sweep short). `runner sweep` runs its points in worker processes by default; the isolation
+section measures that default against `--in-process` (threads) on 99 and 1,000 points, and the
+peak RSS of the supervisor and of its workers apart.
 """
 
 import argparse
@@ -63,10 +65,10 @@ def peak_rss_kib(cmd, cwd=None):
     return timed(cmd, cwd)[2].ru_maxrss
 
 
-def runner_sweep(speeds_arg, threads, workdir, cpu=None):
+def runner_sweep(speeds_arg, threads, workdir, cpu=None, extra=()):
     """One `runner sweep`: (seconds, {speed: transmissibility}); appends its CPU seconds to `cpu`."""
     out_csv = Path(workdir) / f"sweep_{threads}.csv"
-    cmd = [RUNNER, "sweep", FMU, "--param", f"speed={speeds_arg}", *EX4, "--threads", str(threads), "--out", out_csv]
+    cmd = [RUNNER, "sweep", FMU, "--param", f"speed={speeds_arg}", *EX4, "--threads", str(threads), "--out", out_csv, *extra]
     wall, _, usage = timed(cmd)
     if cpu is not None:
         cpu.append((wall, usage.ru_utime + usage.ru_stime))
@@ -86,6 +88,26 @@ def json_tool(cmd, own_clock):
     result = json.loads(out)
     result["transmissibility"] = {float(k): v for k, v in result["transmissibility"].items()}
     return (result["wall_seconds"] if own_clock else wall), result
+
+
+def vm_hwm_kib(pid):
+    """Peak resident memory so far of process `pid` (KiB; 0 once it is gone)."""
+    try:
+        for line in open(f"/proc/{pid}/status"):
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+def children(pid):
+    """The child processes of `pid`."""
+    try:
+        return [int(c) for t in os.listdir(f"/proc/{pid}/task")
+                for c in open(f"/proc/{pid}/task/{t}/children").read().split()]
+    except OSError:
+        return []
 
 
 def largest_difference(values, reference):
@@ -183,6 +205,40 @@ def main():
                                  *EX4[4:], "--threads", "2", "--out", Path(work) / f"rss_{points}.csv"])
         rss_small, rss_big = rss(100), rss(10_000)
 
+        # Isolation: the default (worker processes) against --in-process, on 2 threads, in
+        # interleaved rounds (at least 5: the 99-point sweep takes a tenth of a second, so a
+        # single slow spell moves its ratio), fastest kept; both must give the same numbers.
+        # CPU time (the workers' included: the supervisor reaps them) is printed beside the wall
+        # time, as it moves less with the machine's other tenants.
+        isolation = {}
+        for _ in range(max(args.repeats, 5)):
+            for points, speeds in ((99, all_speeds), (1000, many)):
+                for mode, extra in (("workers", ()), ("in-process", ("--in-process",))):
+                    cpu = []
+                    sec, values = runner_sweep(speeds, 2, work, cpu, extra=extra)
+                    best_sec, _, best_cpu = isolation.get((points, mode), (float("inf"), None, float("inf")))
+                    isolation[(points, mode)] = (min(sec, best_sec), values, min(cpu[0][1], best_cpu))
+        for points in (99, 1000):
+            if isolation[(points, "workers")][1] != isolation[(points, "in-process")][1]:
+                sys.exit(f"worker processes and --in-process disagree on {points} points")
+
+        # Peak RSS of the supervisor alone and of its workers, 10,000 points: the supervisor's
+        # from /proc/PID/status (VmHWM) just before it exits is not reachable, so sample both
+        # while it runs.
+        def sampled_peaks(points, extra=()):
+            step = 49 / (points - 1)
+            cmd = [RUNNER, "sweep", FMU, "--param", f"speed=1:50:{step!r}", *EX4[:2], "--stop-time", "1", *EX4[4:],
+                   "--threads", "2", "--out", Path(work) / f"peaks_{points}.csv", *extra]
+            proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            supervisor = workers = 0
+            while proc.poll() is None:
+                supervisor = max(supervisor, vm_hwm_kib(proc.pid))
+                for child in children(proc.pid):
+                    workers = max(workers, vm_hwm_kib(child))
+                time.sleep(0.02)
+            return supervisor, workers
+        peaks = {points: sampled_peaks(points) for points in (100, 10_000)}
+
     per = {label: per_run for label, _, per_run, _ in rows}
     r1 = per["runner sweep, 1 thread"]
     checks = [
@@ -191,12 +247,25 @@ def main():
         ("scipy RK45 per run / runner (1 thread)", per["scipy solve_ivp RK45 (Python port)"] / r1, ">=", 300),
         ("2 threads against 1 on 1000 points", one / two, ">=", 1.8),
         ("peak RSS, 10,000 points / 100 points", rss_big / rss_small, "<=", 1.1),
+        ("worker processes / --in-process, 99 points, 2 threads",
+         isolation[(99, "workers")][0] / isolation[(99, "in-process")][0], "<=", 1.1),
+        ("worker processes / --in-process, 1,000 points, 2 threads",
+         isolation[(1000, "workers")][0] / isolation[(1000, "in-process")][0], "<=", 1.1),
+        ("supervisor peak RSS, 10,000 points / 100 points", peaks[10_000][0] / max(peaks[100][0], 1), "<=", 1.1),
+        ("worker peak RSS, 10,000 points / 100 points", peaks[10_000][1] / max(peaks[100][1], 1), "<=", 1.1),
         ("largest transmissibility difference", disagreement, "<=", 1e-6),
     ]
     print(f"\n1000 points: {one:.2f} s on 1 thread, {two:.2f} s on 2 threads (fastest of {args.repeats}); CPU time "
           f"{one_cpu:.2f} s and {two_cpu:.2f} s: the cores were busy {two_cpu / (2 * two):.0%} of the 2-thread run, "
           f"whose work took {two_cpu / one_cpu:.2f}x the CPU time of the 1-thread run")
-    print(f"peak RSS: {rss_small / 1024:.1f} MiB for 100 points, {rss_big / 1024:.1f} MiB for 10,000 points\n")
+    print(f"peak RSS: {rss_small / 1024:.1f} MiB for 100 points, {rss_big / 1024:.1f} MiB for 10,000 points")
+    for points in (99, 1000):
+        (w, _, wc), (i, _, ic) = isolation[(points, "workers")], isolation[(points, "in-process")]
+        print(f"{points} points on 2 threads: worker processes {w:.3f} s, --in-process {i:.3f} s ({w / i:.3f}x; "
+              f"fastest of {max(args.repeats, 5)}); CPU time {wc:.3f} s and {ic:.3f} s ({wc / ic:.3f}x)")
+    print(f"peak RSS sampled while running: supervisor {peaks[100][0] / 1024:.1f} / {peaks[10_000][0] / 1024:.1f} MiB, "
+          f"largest worker {peaks[100][1] / 1024:.1f} / {peaks[10_000][1] / 1024:.1f} MiB (100 / 10,000 points)")
+    print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}\n")
     missed = 0
     for what, value, op, target in checks:
         met = value <= target if op == "<=" else value >= target

@@ -93,7 +93,9 @@ enum Cmd {
     /// tan, atan, abs. The CSV has one row per point: parameters,
     /// metrics, status (`ok` or the error). Failed points are recorded and the others still
     /// run; the exit code is 1 if any failed. With a model name and no options, the model's
-    /// experiment.toml gives the sweep.
+    /// experiment.toml gives the sweep. Points run in worker processes, so a crash or hang of the
+    /// FMU costs only its point; to a file the rows go to <out>.partial as points finish, and a
+    /// killed or interrupted sweep continues with --resume.
     ///
     /// Example: `runner sweep quarter_car` (handbook Ex. 4: transmissibility against speed)
     ///

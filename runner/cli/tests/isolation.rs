@@ -33,11 +33,14 @@ fn crashing_and_hanging_points_are_recorded_and_the_rest_equal_an_in_process_run
     let dir = tempfile::tempdir().unwrap();
     let fmu = faulty_fmu(dir.path(), "faulty.fmu", false, &[]);
     let f = fmu.to_str().unwrap();
+    // Temporary files go to a directory of the test's: crashed workers must leave none there.
+    let tmp = dir.path().join("tmp");
+    std::fs::create_dir(&tmp).unwrap();
     let sweep = |faults: &str, out: &str, extra: &[&str]| {
         let mut args = vec!["sweep", f, "--param", "k=0.5,1", "--param", faults, "--metric", "end=final(x)", "--metric", "mean=mean(x)"];
         args.extend_from_slice(&["--threads", "2", "--out", out]);
         args.extend_from_slice(extra);
-        runner(dir.path(), &args)
+        std::process::Command::new(env!("CARGO_BIN_EXE_runner")).current_dir(dir.path()).env("TMPDIR", &tmp).args(&args).output().unwrap()
     };
     // fault 0 runs normally; 1 SIGSEGV, 2 abort(), 3 a busy loop, 4 exit(3), all in fmi2DoStep
     // from t = 0.31 (the 32nd step of 0.01 s).
@@ -59,6 +62,8 @@ fn crashing_and_hanging_points_are_recorded_and_the_rest_equal_an_in_process_run
             assert_eq!((values[0].as_str(), values[1].as_str()), ("", ""), "no metrics for a failed point");
         }
     }
+    let left: Vec<_> = std::fs::read_dir(&tmp).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert!(left.is_empty(), "workers load the supervisor's unpacked copy, so dead ones leave nothing: {left:?}");
     // The healthy points, in-process on threads (where a crash would take everything down).
     ok(sweep("fault=0", "in_process.csv", &["--in-process"]));
     let healthy: Vec<_> = isolated.iter().filter(|(_, v)| v[2] == "ok").cloned().collect();

@@ -179,17 +179,18 @@ impl Worker {
         self.child.wait().unwrap_or_else(|_| ExitStatus::from_raw(libc::SIGKILL))
     }
 
-    /// Asks an idle worker to exit (closing its requests), waits a moment, then kills it.
-    fn retire(mut self) {
-        self.requests = None;
-        let deadline = Instant::now() + Duration::from_secs(2);
-        while Instant::now() < deadline {
-            if let Ok(Some(_)) = self.child.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(2));
-        }
-        self.kill();
+    /// Lets an idle worker go: it drops its parent-death signal (an alarm of its own ends it within
+    /// seconds should the FMU hang on unloading), acknowledges, and exits, unloading the FMU (and
+    /// removing its unpacked copy, if it made one) while the runner goes on; a thread reaps it.
+    /// Returns its id, for [`Pool::await_released`]: until the acknowledgement the worker still
+    /// dies with the runner.
+    fn release(mut self) -> u64 {
+        self.send(&Request::Release);
+        let Worker { id, mut child, .. } = self;
+        std::thread::spawn(move || {
+            let _ = child.wait();
+        });
+        id
     }
 }
 
@@ -270,6 +271,21 @@ impl<'a> Pool<'a> {
         self.events.recv_timeout(wait).ok()
     }
 
+    /// Waits (a second at most) until the released workers `ids` acknowledged, so that none is
+    /// killed half-way through its cleanup when this process exits.
+    fn await_released(&self, ids: &mut Vec<u64>) {
+        let deadline = Instant::now() + Duration::from_secs(1);
+        while !ids.is_empty() {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.next(left) {
+                Some((id, Event::Reply(Reply::Released) | Event::Gone)) => ids.retain(|&i| i != id),
+                Some((_, Event::Reply(Reply::Log(line)))) => fmi_importer::print_line(&line),
+                Some(_) => {}
+                None => return,
+            }
+        }
+    }
+
     /// True if a worker that reported `resident` bytes should be replaced before its next job.
     fn worn_out(&self, resident: u64) -> bool {
         self.once_per_process || self.config.memory_limit.is_some_and(|limit| resident > limit / 2)
@@ -312,9 +328,8 @@ impl<'a> Workers<'a> {
 
 impl Drop for Workers<'_> {
     fn drop(&mut self) {
-        for worker in self.ready.drain(..) {
-            worker.retire();
-        }
+        let mut released: Vec<u64> = self.ready.drain(..).map(Worker::release).collect();
+        self.pool.await_released(&mut released);
     }
 }
 
@@ -339,7 +354,7 @@ pub fn execute_sweep(
     }
     let config = workers.pool.config;
     let pool = &mut workers.pool;
-    let mut retired: Vec<Worker> = Vec::new();
+    let mut released: Vec<u64> = Vec::new();
     let mut next = points.start;
     let mut row = points.start;
     let mut waiting: BTreeMap<usize, PointResult> = BTreeMap::new();
@@ -382,12 +397,8 @@ pub fn execute_sweep(
                             waiting.insert(index as usize, result);
                             lane.busy = None;
                             if pool.worn_out(resident) {
-                                // Closing its requests makes it exit now, returning its memory;
-                                // it is reaped when its pipe closes.
-                                if let Some(mut worker) = lane.worker.take() {
-                                    worker.requests = None;
-                                    retired.push(worker);
-                                }
+                                // It exits now, returning its memory.
+                                released.extend(lane.worker.take().map(Worker::release));
                             }
                         }
                     }
@@ -400,11 +411,7 @@ pub fn execute_sweep(
                             waiting.insert(i, PointResult { metrics: None, status: death(status, at) });
                         }
                     }
-                    (None, Event::Gone) => {
-                        if let Some(k) = retired.iter().position(|w| w.id == id) {
-                            retired.swap_remove(k).retire();
-                        }
-                    }
+                    (None, Event::Gone | Event::Reply(Reply::Released)) => released.retain(|&i| i != id),
                     (_, Event::Reply(_)) => {} // Ready, or a late word from a worker already replaced
                 }
             }
@@ -432,13 +439,11 @@ pub fn execute_sweep(
             if lane.busy.is_some() {
                 worker.kill();
             } else {
-                worker.retire();
+                released.push(worker.release());
             }
         }
     }
-    for worker in retired {
-        worker.retire();
-    }
+    pool.await_released(&mut released);
     outcome
 }
 
@@ -447,6 +452,8 @@ pub fn execute_sweep(
 pub struct Runs<'a> {
     pool: Pool<'a>,
     worker: Option<Worker>,
+    /// Workers let go, until they acknowledge.
+    released: Vec<u64>,
 }
 
 impl<'a> Runs<'a> {
@@ -454,7 +461,7 @@ impl<'a> Runs<'a> {
     pub fn new(config: &'a Isolation, source: &'a FmuSource, one_instance_per_process: bool) -> Runs<'a> {
         let mut pool = Pool::new(config, source);
         pool.once_per_process = one_instance_per_process;
-        Runs { pool, worker: None }
+        Runs { pool, worker: None, released: Vec::new() }
     }
 
     /// Runs `job` in a worker, calling `sample(t, values)` at every communication point as
@@ -508,7 +515,7 @@ impl<'a> Runs<'a> {
                 }
                 Event::Reply(Reply::RunDone { result, resident }) => {
                     if self.pool.worn_out(resident) {
-                        worker.retire();
+                        self.released.push(worker.release());
                     } else {
                         self.worker = Some(worker);
                     }
@@ -528,8 +535,9 @@ impl<'a> Runs<'a> {
 impl Drop for Runs<'_> {
     fn drop(&mut self) {
         if let Some(worker) = self.worker.take() {
-            worker.retire();
+            self.released.push(worker.release());
         }
+        self.pool.await_released(&mut self.released);
     }
 }
 

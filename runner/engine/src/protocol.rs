@@ -4,7 +4,7 @@
 //! worker rebuilds the same run from it).
 
 use std::io::{Read, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use fmi_importer::{Description, Fmu, Value, Variable};
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
@@ -22,18 +22,32 @@ const MAX_FRAME: usize = 256 << 20;
 pub struct FmuSource {
     /// The `.fmu` file.
     pub path: PathBuf,
+    /// Where the supervisor unpacked it, for its workers to load from (it deletes it).
+    pub unpacked: Option<PathBuf>,
 }
 
 impl FmuSource {
-    /// Unpacks and loads the FMU (runs its binary's initializers).
+    /// The FMU at `path`.
+    pub fn new(path: &Path) -> FmuSource {
+        FmuSource { path: path.to_path_buf(), unpacked: None }
+    }
+
+    /// Loads the FMU (running its binary's initializers): from the supervisor's copy when there is
+    /// one, else unpacking it.
     pub fn load(&self) -> Result<Fmu, String> {
-        Fmu::load(&self.path)
+        match &self.unpacked {
+            Some(dir) => Fmu::load_unpacked(&self.path, dir),
+            None => Fmu::load(&self.path),
+        }
     }
 
     /// Unpacks the FMU and reads its description without loading its binary (what a supervisor
-    /// needs, so an FMU's initializers never run in it).
-    pub fn open(&self) -> Result<fmi_importer::Unpacked, String> {
-        fmi_importer::Unpacked::open(&self.path)
+    /// needs, so an FMU's initializers never run in it); returns the source its workers load,
+    /// from that copy.
+    pub fn open(&self) -> Result<(fmi_importer::Unpacked, FmuSource), String> {
+        let unpacked = fmi_importer::Unpacked::open(&self.path)?;
+        let for_workers = FmuSource { path: self.path.clone(), unpacked: Some(unpacked.dir.path().to_path_buf()) };
+        Ok((unpacked, for_workers))
     }
 }
 
@@ -115,6 +129,8 @@ pub enum Request {
     Point(u64),
     /// Run this and stream its samples.
     Run(RunJob),
+    /// Acknowledge, then exit; the worker may outlive the runner from now on.
+    Release,
 }
 
 /// What a worker answers.
@@ -132,6 +148,8 @@ pub enum Reply {
     Samples(Vec<f64>),
     /// The run ended: `Ok(Some(reason))` if the model ended it early, or the error.
     RunDone { result: Result<Option<String>, String>, resident: u64 },
+    /// The `Release` request is taken: the worker exits and no longer dies with the runner.
+    Released,
 }
 
 /// Writes one frame.

@@ -109,6 +109,18 @@ pub fn serve() -> Result<(), String> {
         slot.clear();
         match request {
             Request::Load(_) => return Err("the FMU is loaded once per worker".to_owned()),
+            Request::Release => {
+                // From now on the runner may exit first: the parent-death signal would kill this
+                // process while it unloads the FMU (and removes its copy, if it unpacked one). An
+                // alarm bounds an FMU that hangs in being unloaded.
+                // SAFETY: prctl and alarm on this process.
+                unsafe {
+                    libc::prctl(libc::PR_SET_PDEATHSIG, 0);
+                    libc::alarm(10);
+                }
+                reply(&Reply::Released)?;
+                break;
+            }
             Request::Sweep(spec) => match spec.plan(&fmu.description, &fmu.identifier) {
                 Ok(p) => {
                     plan = Some(p);

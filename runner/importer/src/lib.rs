@@ -42,31 +42,37 @@ impl Unpacked {
         let dir =
             tempfile::Builder::new().prefix("runner-fmu-").tempdir().map_err(|e| format!("cannot create a temporary directory: {e}"))?;
         archive::extract_zip(path, dir.path())?;
-        let xml_path = dir.path().join("modelDescription.xml");
-        let xml = std::fs::read_to_string(&xml_path).map_err(|e| format!("{}: no readable modelDescription.xml: {e}", path.display()))?;
-        let raw =
-            fmi_schema::fmi2::ModelDescription::from_xml(&xml).map_err(|e| format!("{}: modelDescription.xml: {e}", path.display()))?;
-        let description = fmi2::describe(&raw);
-        let interface = Interface::CoSimulation;
-        let identifier = match description.interface(interface) {
-            Some(caps) => caps.model_identifier.clone(),
-            None => return Err(format!("{}: this FMU does not support Co-Simulation", path.display())),
-        };
-        // The identifier names the binary to load: with a '/' it could name any library on disk.
-        if identifier.is_empty() || identifier.contains(['/', '\0']) {
-            return Err(format!("{}: modelIdentifier {identifier:?} is not a file name (FMI requires a C identifier)", path.display()));
-        }
-        let platform = fmi2::PLATFORM;
-        let binary = dir.path().join("binaries").join(platform).join(format!("{identifier}.so"));
-        if !binary.is_file() {
-            return Err(format!(
-                "{}: no binary for this platform: binaries/{platform}/{identifier}.so is missing (the FMU has binaries for: {})",
-                path.display(),
-                platforms(&dir.path().join("binaries"))
-            ));
-        }
+        let (description, raw, interface, identifier, binary) = inspect(path, dir.path())?;
         Ok(Unpacked { description, fmi2: Some(raw), interface, identifier, binary, dir })
     }
+}
+
+/// What [`Unpacked::open`] reads from the directory `dir` that the FMU `path` was unpacked into.
+#[allow(clippy::type_complexity)]
+fn inspect(path: &Path, dir: &Path) -> Result<(Description, fmi_schema::fmi2::ModelDescription, Interface, String, PathBuf), String> {
+    let xml_path = dir.join("modelDescription.xml");
+    let xml = std::fs::read_to_string(&xml_path).map_err(|e| format!("{}: no readable modelDescription.xml: {e}", path.display()))?;
+    let raw = fmi_schema::fmi2::ModelDescription::from_xml(&xml).map_err(|e| format!("{}: modelDescription.xml: {e}", path.display()))?;
+    let description = fmi2::describe(&raw);
+    let interface = Interface::CoSimulation;
+    let identifier = match description.interface(interface) {
+        Some(caps) => caps.model_identifier.clone(),
+        None => return Err(format!("{}: this FMU does not support Co-Simulation", path.display())),
+    };
+    // The identifier names the binary to load: with a '/' it could name any library on disk.
+    if identifier.is_empty() || identifier.contains(['/', '\0']) {
+        return Err(format!("{}: modelIdentifier {identifier:?} is not a file name (FMI requires a C identifier)", path.display()));
+    }
+    let platform = fmi2::PLATFORM;
+    let binary = dir.join("binaries").join(platform).join(format!("{identifier}.so"));
+    if !binary.is_file() {
+        return Err(format!(
+            "{}: no binary for this platform: binaries/{platform}/{identifier}.so is missing (the FMU has binaries for: {})",
+            path.display(),
+            platforms(&dir.join("binaries"))
+        ));
+    }
+    Ok((description, raw, interface, identifier, binary))
 }
 
 fn platforms(binaries: &Path) -> String {
@@ -87,7 +93,8 @@ enum Binding {
 }
 
 /// A loaded FMU: its description, its open binary and the directory it was unpacked into
-/// (deleted when the `Fmu` is dropped, after the binary is closed).
+/// (deleted when the `Fmu` is dropped, after the binary is closed, unless someone else unpacked it:
+/// [`Fmu::load_unpacked`]).
 pub struct Fmu {
     /// The description, in the importer's model.
     pub description: Description,
@@ -100,19 +107,41 @@ pub struct Fmu {
     pub(crate) token: CString,
     // Field order is drop order: close the library before deleting the files it came from.
     binding: Binding,
-    _dir: tempfile::TempDir,
+    _dir: Option<tempfile::TempDir>,
 }
 
 impl Fmu {
     /// Unpacks and loads the `.fmu` at `path`.
     pub fn load(path: &Path) -> Result<Fmu, String> {
         let Unpacked { description, interface, identifier, binary, dir, .. } = Unpacked::open(path)?;
-        let loaded = fmi2::Binary::load(&binary, interface == Interface::CoSimulation).map_err(|e| format!("{}: {e}", path.display()))?;
-        let resource_uri = CString::new(format!("file://{}/", dir.path().join("resources").display()))
+        let root = dir.path().to_path_buf();
+        Fmu::assemble(path, description, interface, identifier, &binary, &root, Some(dir))
+    }
+
+    /// Loads the FMU `path` from `dir`, where [`Unpacked::open`] unpacked it (possibly in another
+    /// process, which keeps and deletes the directory: this `Fmu` never does). A worker process
+    /// loads its supervisor's copy so: it unpacks nothing and, if it dies, leaves nothing behind.
+    pub fn load_unpacked(path: &Path, dir: &Path) -> Result<Fmu, String> {
+        let (description, _, interface, identifier, binary) = inspect(path, dir)?;
+        Fmu::assemble(path, description, interface, identifier, &binary, dir, None)
+    }
+
+    /// Loads `binary` of the FMU `path` unpacked in `dir` (deleted with the `Fmu` if `owned`).
+    fn assemble(
+        path: &Path,
+        description: Description,
+        interface: Interface,
+        identifier: String,
+        binary: &Path,
+        dir: &Path,
+        owned: Option<tempfile::TempDir>,
+    ) -> Result<Fmu, String> {
+        let loaded = fmi2::Binary::load(binary, interface == Interface::CoSimulation).map_err(|e| format!("{}: {e}", path.display()))?;
+        let resource_uri = CString::new(format!("file://{}/", dir.join("resources").display()))
             .map_err(|_| "temporary path contains a NUL byte".to_owned())?;
         let token = CString::new(description.instantiation_token.clone())
             .map_err(|_| format!("{}: the GUID contains a NUL byte", path.display()))?;
-        Ok(Fmu { description, identifier, interface, resource_uri, token, binding: Binding::Fmi2(loaded), _dir: dir })
+        Ok(Fmu { description, identifier, interface, resource_uri, token, binding: Binding::Fmi2(loaded), _dir: owned })
     }
 
     /// A new instance named `name`; `debug_logging` turns the FMU's debug logging on.

@@ -210,9 +210,12 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
         return Err("--point-timeout needs worker processes (a run in this process cannot be stopped): drop --in-process".to_owned());
     }
     let target = experiment::resolve(&options.fmu)?;
-    let source = FmuSource { path: target.path.clone() };
+    let source = FmuSource::new(&target.path);
     // With workers, only the description is read here: the FMU's binary runs in them alone.
-    let (fmu, unpacked) = if options.in_process { (Some(source.load()?), None) } else { (None, Some(source.open()?)) };
+    let (fmu, unpacked, source) = match options.in_process {
+        true => (Some(source.load()?), None, source),
+        false => source.open().map(|(unpacked, for_workers)| (None, Some(unpacked), for_workers))?,
+    };
     let (md, interface) = match (&fmu, &unpacked) {
         (Some(f), _) => (&f.description, f.interface),
         (None, Some(u)) => (&u.description, u.interface),

@@ -173,19 +173,22 @@ pub fn run(options: &Options) -> Result<Summary, String> {
     if options.in_process && options.worker_memory.is_some() {
         return Err("--worker-memory limits worker processes: drop --in-process".to_owned());
     }
-    let source = FmuSource { path: target.path.clone() };
-    // Workers start first: they load the FMU while this process reads its description, checks
-    // the plan and opens the files.
+    let source = FmuSource::new(&target.path);
     let config: Option<Isolation> = match options.in_process {
         true => None,
         false => Some(workers::isolation(timeout, options.worker_memory.unwrap_or_else(|| workers::default_memory_mib(threads)))?),
     };
+    let (held, source) = match options.in_process {
+        true => (Held::Loaded(source.load()?), source),
+        false => source.open().map(|(unpacked, for_workers)| (Held::Described(unpacked), for_workers))?,
+    };
+    // Workers start now: they load the FMU (from this process's unpacked copy) while this process
+    // checks the plan and opens its files.
     let points = ranges.iter().fold(1usize, |n, (_, v)| n.saturating_mul(v.len()));
     let mut pool = match &config {
         Some(config) => Some(Workers::start(config, &source, threads.min(points))?),
         None => None,
     };
-    let held = if options.in_process { Held::Loaded(source.load()?) } else { Held::Described(source.open()?) };
     let d = held.description();
     let grid = Grid::choose(d, &[options.run.grid(), defaults.run().grid()])?;
     let mut set_texts = defaults.set.clone();

@@ -184,8 +184,9 @@ fn simulate_reports_the_signal_and_the_call_and_takes_a_timeout() {
     assert!(err.contains("--timeout needs a worker process"), "{err}");
 }
 
-/// `compare` runs in a worker: the Euler runs crash (fault_solver = 0), each is recorded in its
-/// row and the RK4 runs and the reference still run.
+/// `compare` runs in a worker: the Euler runs crash (fault_solver = 0), or the RK4 runs hang
+/// (fault_solver = 1) past --point-timeout; each is recorded in its row and the other solver's
+/// runs and the reference still run.
 #[test]
 fn compare_records_crashed_runs_and_goes_on() {
     let dir = tempfile::tempdir().unwrap();
@@ -206,4 +207,30 @@ fn compare_records_crashed_runs_and_goes_on() {
         }
     }
     assert!(rows.iter().filter(|r| r[0] == "euler").count() >= 2, "a new worker after each crash");
+
+    let o = runner(
+        dir.path(),
+        &[
+            "compare",
+            f,
+            "--solvers",
+            "euler,rk4",
+            "--set",
+            "fault=3",
+            "--set",
+            "fault_solver=1",
+            "--point-timeout",
+            "0.3",
+            "--out",
+            "h.csv",
+            "--plot",
+            "h.svg",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, rows) = read_csv(&dir.path().join("h.csv"));
+    for row in &rows {
+        let expected = if row[0] == "rk4" { "compare: timed out after 0.3 s in fmi2DoStep at t = 0.31" } else { "ok" };
+        assert_eq!(row[status], expected, "{row:?}");
+    }
 }

@@ -45,14 +45,39 @@ EX4 = ["--tolerance", "1e-9", "--stop-time", "10", "--output-interval", "1e-3",
        "--metric", "transmissibility=max(z_s)/max(z_r)"]
 
 
+class Usage:
+    """CPU time and peak RSS of a command: `ru_utime` and `ru_stime` summed over the command and
+    the processes it left to finish on their own (released sweep workers, reaped here), `ru_maxrss`
+    the command's own."""
+    def __init__(self, usage, orphans):
+        self.ru_utime = usage.ru_utime + sum(u.ru_utime for u in orphans)
+        self.ru_stime = usage.ru_stime + sum(u.ru_stime for u in orphans)
+        self.ru_maxrss = usage.ru_maxrss
+
+
+def become_subreaper():
+    """Processes orphaned by a command (a sweep's released workers) become this one's children,
+    so their CPU time is counted."""
+    import ctypes
+    PR_SET_CHILD_SUBREAPER = 36
+    ctypes.CDLL(None, use_errno=True).prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+
+
 def timed(cmd, cwd=None):
-    """Runs `cmd`; returns (wall seconds, stdout, the kernel's resource usage of that child:
-    CPU time, peak RSS). Fails loudly."""
+    """Runs `cmd`; returns (wall seconds, stdout, the kernel's resource usage of that child and of
+    what it left running: CPU time, peak RSS). Fails loudly."""
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         start = time.perf_counter()
         proc = subprocess.Popen(cmd, cwd=cwd, stdout=out, stderr=err)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - start
+        orphans = []
+        while True:
+            try:
+                orphans.append(os.wait4(-1, 0)[2])
+            except ChildProcessError:
+                break
+        usage = Usage(usage, orphans)
         out.seek(0)
         err.seek(0)
         if os.waitstatus_to_exitcode(status) != 0:
@@ -135,6 +160,7 @@ def main():
     parser.add_argument("--fmpy-speeds", type=int, default=10, help="speeds run by fmpy (spread over 1..50 m/s)")
     parser.add_argument("--scipy-speeds", type=int, default=5, help="speeds run by scipy")
     args = parser.parse_args()
+    become_subreaper()
 
     all_speeds = "1:50:0.5"
     pick = lambda n: [SPEEDS[round(i * (len(SPEEDS) - 1) / max(n - 1, 1))] for i in range(n)]
@@ -236,6 +262,11 @@ def main():
                 for child in children(proc.pid):
                     workers = max(workers, vm_hwm_kib(child))
                 time.sleep(0.02)
+            while True:  # reap the released workers
+                try:
+                    os.wait4(-1, 0)
+                except ChildProcessError:
+                    break
             return supervisor, workers
         peaks = {points: sampled_peaks(points) for points in (100, 10_000)}
 

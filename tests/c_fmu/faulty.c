@@ -8,7 +8,7 @@
  * modelDescription then declares canBeInstantiatedOnlyOncePerProcess). It also has the solver
  * controls `runner compare` sets (solver, fixed_step, abs_tol; n_steps and n_rhs count steps),
  * and fault_solver >= 0 confines the fault to runs with that `solver`. Exports every fmi2
- * function the runner resolves; the FMI types are declared here so only libc is needed. */
+ * function the runner resolves; the FMI types are in fmi2_types.h, so only libc is needed. */
 
 #include <math.h>
 #include <stddef.h>
@@ -16,26 +16,8 @@
 #include <string.h>
 #include <unistd.h>
 
-typedef void *fmi2Component;
-typedef void *fmi2ComponentEnvironment;
-typedef unsigned int fmi2ValueReference;
-typedef double fmi2Real;
-typedef int fmi2Integer;
-typedef int fmi2Boolean;
-typedef const char *fmi2String;
-typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending } fmi2Status;
-typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
-typedef enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated } fmi2StatusKind;
-typedef void (*fmi2CallbackLogger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, ...);
-typedef struct {
-    fmi2CallbackLogger logger;
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void (*stepFinished)(fmi2ComponentEnvironment, fmi2Status);
-    fmi2ComponentEnvironment componentEnvironment;
-} fmi2CallbackFunctions;
+#include "fmi2_types.h"
 
-#define EXPORT __attribute__((visibility("default")))
 #define GUID "{5a1f0b7e-3c1d-4e55-9a0e-faulty000001}"
 
 enum { VR_X, VR_K, VR_X0, VR_FAULT, VR_FAULT_TIME, VR_LEAK_MB, VR_PID, VR_SOLVER, VR_FIXED_STEP, VR_ABS_TOL, VR_N_STEPS, VR_N_RHS, VR_FAULT_SOLVER };

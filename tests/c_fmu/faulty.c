@@ -5,7 +5,8 @@
  * fault 6 leaks leak_mb MB once per instance, at fmi2Instantiate. The output `pid` is the process
  * the instance runs in, so tests can count the processes a sweep used. Compiled with
  * -DONCE_PER_PROCESS, fmi2Instantiate refuses a second instance in one process (its
- * modelDescription then declares canBeInstantiatedOnlyOncePerProcess). It also has the solver
+ * modelDescription then declares canBeInstantiatedOnlyOncePerProcess); with -DSLOW_LOAD, loading
+ * the binary takes a second (an initializer that sleeps). It also has the solver
  * controls `runner compare` sets (solver, fixed_step, abs_tol; n_steps and n_rhs count steps),
  * and fault_solver >= 0 confines the fault to runs with that `solver`. Exports every fmi2
  * function the runner resolves; the FMI types are in fmi2_types.h, so only libc is needed. */
@@ -34,6 +35,10 @@ typedef struct {
 
 #ifdef ONCE_PER_PROCESS
 static int instances_made;
+#endif
+
+#ifdef SLOW_LOAD
+__attribute__((constructor)) static void slow_load(void) { sleep(1); }
 #endif
 
 /* Memory this FMU allocates and never frees, touched so that it is resident, and chained to a

@@ -156,6 +156,19 @@ fn fmus_instantiable_once_per_process_get_a_process_per_point() {
     assert!(rows.iter().any(|(_, v)| v[1].contains("only once per process")), "workers reused for undeclared FMUs: {rows:?}");
 }
 
+/// A point's time limit counts from when its worker is ready: an FMU whose binary takes a second
+/// to load (its initializer sleeps) runs its points within a limit of half a second.
+#[test]
+fn the_time_limit_does_not_count_the_start_of_a_worker() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "slow.fmu", false, &["-DSLOW_LOAD"]);
+    let f = fmu.to_str().unwrap();
+    ok(runner(dir.path(), &["sweep", f, "--param", "k=0.5,1,1.5", "--metric", "end=final(x)", "--point-timeout", "0.5", "--out", "s.csv"]));
+    let rows = rows_by_point(&dir.path().join("s.csv"), 1);
+    assert!(rows.iter().all(|(_, v)| v[1] == "ok"), "{rows:?}");
+    ok(runner(dir.path(), &["simulate", f, "--timeout", "0.5", "--out", "x.csv"]));
+}
+
 #[test]
 fn simulate_reports_the_signal_and_the_call_and_takes_a_timeout() {
     let dir = tempfile::tempdir().unwrap();

@@ -158,6 +158,9 @@ struct Worker {
     /// `None` once closed (the worker then exits when idle).
     requests: Option<ChildStdin>,
     slot: SharedSlot,
+    /// Ready replies still to come (to Load and Sweep): until then the worker is starting, and a
+    /// point's time limit restarts when it is ready, so that a slow start is not the point's.
+    unready: u8,
 }
 
 impl Worker {
@@ -261,7 +264,7 @@ impl<'a> Pool<'a> {
             }
         });
         let requests = child.stdin.take();
-        let mut worker = Worker { id, child, requests, slot };
+        let mut worker = Worker { id, child, requests, slot, unready: 1 };
         worker.send(&Request::Load(self.source.clone()));
         Ok(worker)
     }
@@ -294,6 +297,19 @@ impl<'a> Pool<'a> {
 
 /// How long the supervisor waits for an event before it looks at the clock and Ctrl-C again.
 const TICK: Duration = Duration::from_millis(50);
+
+/// How long a worker may take to start (to load the FMU's binary, running its initializers) when
+/// the time limit is shorter: a point's limit counts from when its worker is ready.
+pub const START_LIMIT: Duration = Duration::from_secs(60);
+
+/// The time limit of a job on `worker`, given the configured `limit`.
+fn limit_for(worker: Option<&Worker>, limit: Duration) -> Duration {
+    if worker.is_some_and(|w| w.unready > 0) {
+        limit.max(START_LIMIT)
+    } else {
+        limit
+    }
+}
 
 /// One thread's worker and the point it runs.
 #[derive(Default)]
@@ -350,6 +366,7 @@ pub fn execute_sweep(
     let mut lanes: Vec<Lane> = (0..lane_count).map(|_| Lane::default()).collect();
     for (lane, mut worker) in lanes.iter_mut().zip(workers.ready.drain(..lane_count)) {
         worker.send(&Request::Sweep(spec.clone()));
+        worker.unready += 1;
         lane.worker = Some(worker);
     }
     let config = workers.pool.config;
@@ -370,6 +387,7 @@ pub fn execute_sweep(
                 if lane.worker.is_none() {
                     let mut worker = pool.spawn()?;
                     worker.send(&Request::Sweep(spec.clone()));
+                    worker.unready += 1;
                     lane.worker = Some(worker);
                 }
                 let worker = lane.worker.as_mut().expect("started above");
@@ -385,13 +403,26 @@ pub fn execute_sweep(
             let now = Instant::now();
             let wait = lanes
                 .iter()
-                .filter_map(|l| l.busy.zip(config.timeout).map(|((_, started), limit)| (started + limit).saturating_duration_since(now)))
+                .filter_map(|l| {
+                    l.busy
+                        .zip(config.timeout)
+                        .map(|((_, started), limit)| (started + limit_for(l.worker.as_ref(), limit)).saturating_duration_since(now))
+                })
                 .fold(TICK, Duration::min);
             if let Some((id, event)) = pool.next(wait) {
                 let lane = lanes.iter_mut().find(|l| l.worker.as_ref().is_some_and(|w| w.id == id));
                 match (lane, event) {
                     (_, Event::Reply(Reply::Log(line))) => fmi_importer::print_line(&line),
                     (Some(_), Event::Reply(Reply::Failed(e))) => return Err(e),
+                    (Some(lane), Event::Reply(Reply::Ready)) => {
+                        let worker = lane.worker.as_mut().expect("matched by id");
+                        worker.unready = worker.unready.saturating_sub(1);
+                        if worker.unready == 0 {
+                            if let Some((_, started)) = lane.busy.as_mut() {
+                                *started = Instant::now();
+                            }
+                        }
+                    }
                     (Some(lane), Event::Reply(Reply::Point { index, result, resident })) => {
                         if lane.busy.map(|(i, _)| i as u64) == Some(index) {
                             waiting.insert(index as usize, result);
@@ -418,6 +449,7 @@ pub fn execute_sweep(
             if let Some(limit) = config.timeout {
                 for lane in lanes.iter_mut() {
                     if let Some((i, started)) = lane.busy {
+                        let limit = limit_for(lane.worker.as_ref(), limit);
                         if started.elapsed() >= limit {
                             let worker = lane.worker.take().expect("a busy lane has a worker");
                             let at = worker.slot.slot().read();
@@ -477,16 +509,18 @@ impl<'a> Runs<'a> {
             Some(w) => w,
             None => self.pool.spawn()?,
         };
+        worker.unready = worker.unready.min(1);
         worker.slot.slot().clear();
         worker.send(&Request::Run(job.clone()));
         let width = 1 + job.recorded.len();
-        let started = Instant::now();
+        let mut started = Instant::now();
         let timeout = self.pool.config.timeout;
         loop {
             if stop() {
                 worker.kill();
                 return Err("interrupted".to_owned());
             }
+            let timeout = timeout.map(|limit| limit_for(Some(&worker), limit));
             if let Some(limit) = timeout {
                 if started.elapsed() >= limit {
                     let at = worker.slot.slot().read();
@@ -501,6 +535,11 @@ impl<'a> Runs<'a> {
             }
             match event {
                 Event::Reply(Reply::Log(line)) => fmi_importer::print_line(&line),
+                // The worker has loaded the FMU: the run's time starts now.
+                Event::Reply(Reply::Ready) => {
+                    worker.unready = 0;
+                    started = Instant::now();
+                }
                 Event::Reply(Reply::Failed(e)) => {
                     worker.kill();
                     return Err(e);

@@ -21,7 +21,9 @@ benchmark that compares different work is worthless.
 
 Then: 2 threads against 1 on a 1000-point sweep, and the peak RSS of a 100-point and a
 10,000-point sweep (stop time 1 s: memory does not depend on the run's length, and it keeps the
-big sweep short).
+big sweep short). `runner sweep` runs its points in worker processes by default; the isolation
+section measures that default against `--in-process` (threads) on 99 and 1,000 points, and the
+peak RSS of the supervisor and of its workers apart.
 """
 
 import argparse
@@ -48,14 +50,39 @@ EX4 = ["--tolerance", "1e-9", "--stop-time", "10", "--output-interval", "1e-3",
        "--metric", "transmissibility=max(z_s)/max(z_r)"]
 
 
+class Usage:
+    """CPU time and peak RSS of a command: `ru_utime` and `ru_stime` summed over the command and
+    the processes it left to finish on their own (released sweep workers, reaped here), `ru_maxrss`
+    the command's own."""
+    def __init__(self, usage, orphans):
+        self.ru_utime = usage.ru_utime + sum(u.ru_utime for u in orphans)
+        self.ru_stime = usage.ru_stime + sum(u.ru_stime for u in orphans)
+        self.ru_maxrss = usage.ru_maxrss
+
+
+def become_subreaper():
+    """Processes orphaned by a command (a sweep's released workers) become this one's children,
+    so their CPU time is counted."""
+    import ctypes
+    PR_SET_CHILD_SUBREAPER = 36
+    ctypes.CDLL(None, use_errno=True).prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+
+
 def timed(cmd, cwd=None):
-    """Runs `cmd`; returns (wall seconds, stdout, the kernel's resource usage of that child:
-    CPU time, peak RSS). Fails loudly."""
+    """Runs `cmd`; returns (wall seconds, stdout, the kernel's resource usage of that child and of
+    what it left running: CPU time, peak RSS). Fails loudly."""
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         start = time.perf_counter()
         proc = subprocess.Popen(cmd, cwd=cwd, stdout=out, stderr=err)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - start
+        orphans = []
+        while True:
+            try:
+                orphans.append(os.wait4(-1, 0)[2])
+            except ChildProcessError:
+                break
+        usage = Usage(usage, orphans)
         out.seek(0)
         err.seek(0)
         if os.waitstatus_to_exitcode(status) != 0:
@@ -94,6 +121,26 @@ def json_tool(cmd, own_clock):
     return (result["wall_seconds"] if own_clock else wall), result
 
 
+def vm_hwm_kib(pid):
+    """Peak resident memory so far of process `pid` (KiB; 0 once it is gone)."""
+    try:
+        for line in open(f"/proc/{pid}/status"):
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+def children(pid):
+    """The child processes of `pid`."""
+    try:
+        return [int(c) for t in os.listdir(f"/proc/{pid}/task")
+                for c in open(f"/proc/{pid}/task/{t}/children").read().split()]
+    except OSError:
+        return []
+
+
 def largest_difference(values, reference):
     """Largest relative difference over the speeds both have."""
     return max(abs(v / reference[s] - 1) for s, v in values.items())
@@ -120,6 +167,7 @@ def main():
     parser.add_argument("--scipy-speeds", type=int, default=5, help="speeds run by scipy")
     parser.add_argument("--cvode-speeds", type=int, default=3, help="speeds run by fmpy's CVODE on Model Exchange")
     args = parser.parse_args()
+    become_subreaper()
 
     all_speeds = "1:50:0.5"
     pick = lambda n: [SPEEDS[round(i * (len(SPEEDS) - 1) / max(n - 1, 1))] for i in range(n)]
@@ -195,6 +243,45 @@ def main():
                                  *EX4[4:], "--threads", "2", "--out", Path(work) / f"rss_{points}.csv"])
         rss_small, rss_big = rss(100), rss(10_000)
 
+        # Isolation: the default (worker processes) against --in-process, on 2 threads, in
+        # interleaved rounds (at least 5: the 99-point sweep takes a tenth of a second, so a
+        # single slow spell moves its ratio), fastest kept; both must give the same numbers.
+        # CPU time (the workers' included: the supervisor reaps them) is printed beside the wall
+        # time, as it moves less with the machine's other tenants.
+        isolation = {}
+        for _ in range(max(args.repeats, 5)):
+            for points, speeds in ((99, all_speeds), (1000, many)):
+                for mode, extra in (("workers", ()), ("in-process", ("--in-process",))):
+                    cpu = []
+                    sec, values = runner_sweep(speeds, 2, work, cpu, extra=extra)
+                    best_sec, _, best_cpu = isolation.get((points, mode), (float("inf"), None, float("inf")))
+                    isolation[(points, mode)] = (min(sec, best_sec), values, min(cpu[0][1], best_cpu))
+        for points in (99, 1000):
+            if isolation[(points, "workers")][1] != isolation[(points, "in-process")][1]:
+                sys.exit(f"worker processes and --in-process disagree on {points} points")
+
+        # Peak RSS of the supervisor alone and of its workers, 10,000 points: the supervisor's
+        # from /proc/PID/status (VmHWM) just before it exits is not reachable, so sample both
+        # while it runs.
+        def sampled_peaks(points, extra=()):
+            step = 49 / (points - 1)
+            cmd = [RUNNER, "sweep", FMU, "--param", f"speed=1:50:{step!r}", *EX4[:2], "--stop-time", "1", *EX4[4:],
+                   "--threads", "2", "--out", Path(work) / f"peaks_{points}.csv", *extra]
+            proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            supervisor = workers = 0
+            while proc.poll() is None:
+                supervisor = max(supervisor, vm_hwm_kib(proc.pid))
+                for child in children(proc.pid):
+                    workers = max(workers, vm_hwm_kib(child))
+                time.sleep(0.02)
+            while True:  # reap the released workers
+                try:
+                    os.wait4(-1, 0)
+                except ChildProcessError:
+                    break
+            return supervisor, workers
+        peaks = {points: sampled_peaks(points) for points in (100, 10_000)}
+
     per = {label: per_run for label, _, per_run, _ in rows}
     r1 = per["runner sweep, 1 thread"]
     checks = [
@@ -204,12 +291,25 @@ def main():
         ("scipy RK45 per run / runner (1 thread)", per["scipy solve_ivp RK45 (Python port)"] / r1, ">=", 300),
         ("2 threads against 1 on 1000 points", one / two, ">=", 1.8),
         ("peak RSS, 10,000 points / 100 points", rss_big / rss_small, "<=", 1.1),
+        ("worker processes / --in-process, 99 points, 2 threads",
+         isolation[(99, "workers")][0] / isolation[(99, "in-process")][0], "<=", 1.1),
+        ("worker processes / --in-process, 1,000 points, 2 threads",
+         isolation[(1000, "workers")][0] / isolation[(1000, "in-process")][0], "<=", 1.1),
+        ("supervisor peak RSS, 10,000 points / 100 points", peaks[10_000][0] / max(peaks[100][0], 1), "<=", 1.1),
+        ("worker peak RSS, 10,000 points / 100 points", peaks[10_000][1] / max(peaks[100][1], 1), "<=", 1.1),
         ("largest transmissibility difference", disagreement, "<=", 1e-6),
     ]
     print(f"\n1000 points: {one:.2f} s on 1 thread, {two:.2f} s on 2 threads (fastest of {args.repeats}); CPU time "
           f"{one_cpu:.2f} s and {two_cpu:.2f} s: the cores were busy {two_cpu / (2 * two):.0%} of the 2-thread run, "
           f"whose work took {two_cpu / one_cpu:.2f}x the CPU time of the 1-thread run")
-    print(f"peak RSS: {rss_small / 1024:.1f} MiB for 100 points, {rss_big / 1024:.1f} MiB for 10,000 points\n")
+    print(f"peak RSS: {rss_small / 1024:.1f} MiB for 100 points, {rss_big / 1024:.1f} MiB for 10,000 points")
+    for points in (99, 1000):
+        (w, _, wc), (i, _, ic) = isolation[(points, "workers")], isolation[(points, "in-process")]
+        print(f"{points} points on 2 threads: worker processes {w:.3f} s, --in-process {i:.3f} s ({w / i:.3f}x; "
+              f"fastest of {max(args.repeats, 5)}); CPU time {wc:.3f} s and {ic:.3f} s ({wc / ic:.3f}x)")
+    print(f"peak RSS sampled while running: supervisor {peaks[100][0] / 1024:.1f} / {peaks[10_000][0] / 1024:.1f} MiB, "
+          f"largest worker {peaks[100][1] / 1024:.1f} / {peaks[10_000][1] / 1024:.1f} MiB (100 / 10,000 points)")
+    print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}\n")
     missed = 0
     for what, value, op, target in checks:
         met = value <= target if op == "<=" else value >= target

@@ -4,8 +4,8 @@
  * If x_min > 0 the model ends the run when x falls below x_min, returning fmi2Discard with
  * fmi2Terminated and the crossing time as fmi2LastSuccessfulTime (the importer's early-end path).
  * It exports all 34 fmi2 functions of a Co-Simulation FMU; compile with -DOMIT_DO_STEP to leave
- * fmi2DoStep out (the importer's missing-symbol path). The FMI types are declared here so the
- * file needs no headers beyond libc's. */
+ * fmi2DoStep out (the importer's missing-symbol path). The FMI types are in fmi2_types.h beside it,
+ * so the file needs no headers beyond libc's. */
 
 #include <math.h>
 #include <stdarg.h>
@@ -13,29 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef void *fmi2Component;
-typedef void *fmi2ComponentEnvironment;
-typedef void *fmi2FMUstate;
-typedef unsigned int fmi2ValueReference;
-typedef double fmi2Real;
-typedef int fmi2Integer;
-typedef int fmi2Boolean;
-typedef char fmi2Char;
-typedef const fmi2Char *fmi2String;
-typedef char fmi2Byte;
-typedef enum { fmi2OK, fmi2Warning, fmi2Discard, fmi2Error, fmi2Fatal, fmi2Pending } fmi2Status;
-typedef enum { fmi2ModelExchange, fmi2CoSimulation } fmi2Type;
-typedef enum { fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated } fmi2StatusKind;
-typedef void (*fmi2CallbackLogger)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, ...);
-typedef struct {
-    fmi2CallbackLogger logger;
-    void *(*allocateMemory)(size_t, size_t);
-    void (*freeMemory)(void *);
-    void (*stepFinished)(fmi2ComponentEnvironment, fmi2Status);
-    fmi2ComponentEnvironment componentEnvironment;
-} fmi2CallbackFunctions;
+#include "fmi2_types.h"
 
-#define EXPORT __attribute__((visibility("default")))
 #define GUID "{8c4e810f-3df3-4a00-8276-176fa3c9f000}"
 
 enum { VR_X, VR_K, VR_X0, VR_X_MIN, VR_STEPS, VR_ENDED };

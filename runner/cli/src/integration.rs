@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use fmi_importer::{Fmu, Interface, Method, Solver};
+use fmi_importer::{Description, Fmu, Interface, Method, Solver};
 
 /// The interface and integrator options of `simulate`, `sweep` and `compare`.
 #[derive(Debug, Clone, Default)]
@@ -42,19 +42,24 @@ impl Integration {
     /// for a Co-Simulation run, where they would silently do nothing.
     pub fn load(&self, path: &Path) -> Result<Fmu, String> {
         let fmu = Fmu::load_as(path, self.interface)?;
-        if fmu.interface == Interface::CoSimulation && self.sets_solver() {
-            let offers_me = fmu.description.model_exchange.is_some();
+        self.check(&fmu.description, &fmu.identifier, fmu.interface)?;
+        Ok(fmu)
+    }
+
+    /// Refuses the integrator's options for an FMU that runs as Co-Simulation (`interface`),
+    /// where they would silently do nothing.
+    pub fn check(&self, description: &Description, identifier: &str, interface: Interface) -> Result<(), String> {
+        if interface == Interface::CoSimulation && self.sets_solver() {
             return Err(format!(
-                "--solver, --fixed-step and --abs-tolerance set the runner's integrator, which only Model Exchange uses; {} runs as Co-Simulation here, where the FMU integrates itself ({})",
-                fmu.identifier,
-                if offers_me {
+                "--solver, --fixed-step and --abs-tolerance set the runner's integrator, which only Model Exchange uses; {identifier} runs as Co-Simulation here, where the FMU integrates itself ({})",
+                if description.model_exchange.is_some() {
                     "add --interface model-exchange, or for this toolkit's FMUs set their own solver with --set solver=N"
                 } else {
                     "it offers no Model Exchange interface"
                 }
             ));
         }
-        Ok(fmu)
+        Ok(())
     }
 
     /// The runner's integrator from the options, checked (defaults: the toolkit's FMUs' own

@@ -1,5 +1,6 @@
-//! Ctrl-C: the first one asks long commands to stop (workers finish their current point, no
-//! result file is committed); a second one quits at once, deleting unfinished result files.
+//! Ctrl-C: the first one asks long commands to stop (the runs in progress are abandoned, no
+//! result file is committed, a sweep keeps its finished points in its `.partial` file); a second
+//! one quits at once, deleting unfinished temporary result files (not a sweep's `.partial`).
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -20,7 +21,7 @@ pub fn install() {
         let installed = ctrlc::set_handler(|| {
             if SIGNALS.fetch_add(1, Ordering::SeqCst) == 0 {
                 REQUESTED.store(true, Ordering::SeqCst);
-                eprintln!("\ninterrupted: stopping after the runs in progress (Ctrl-C again to quit at once)");
+                eprintln!("\ninterrupted: stopping, keeping what has finished (Ctrl-C again to quit at once)");
             } else {
                 for path in PARTIAL.lock().map(|p| p.clone()).unwrap_or_default() {
                     let _ = std::fs::remove_file(path);

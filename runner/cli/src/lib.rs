@@ -8,4 +8,5 @@ pub mod integration;
 pub mod interrupt;
 pub mod report;
 pub mod trace;
+pub mod workers;
 pub mod workspace;

@@ -140,6 +140,8 @@ enum Cmd {
         /// before the event is handled), besides the rows at the communication points.
         #[arg(long)]
         record_events: bool,
+        #[command(flatten)]
+        isolation: SimulateIsolation,
     },
     /// Run a parameter sweep: one FMU instance per point, in parallel; metrics per point as CSV.
     ///
@@ -150,7 +152,9 @@ enum Cmd {
     /// tan, atan, abs. The CSV has one row per point: parameters,
     /// metrics, status (`ok` or the error). Failed points are recorded and the others still
     /// run; the exit code is 1 if any failed. With a model name and no options, the model's
-    /// experiment.toml gives the sweep.
+    /// experiment.toml gives the sweep. Points run in worker processes, so a crash or hang of the
+    /// FMU costs only its point; to a file the rows go to <out>.partial as points finish, and a
+    /// killed or interrupted sweep continues with --resume.
     ///
     /// Example: `runner sweep quarter_car` (handbook Ex. 4: transmissibility against speed)
     ///
@@ -164,7 +168,8 @@ enum Cmd {
         /// A metric NAME=EXPR, e.g. 'transmissibility=max(z_s)/max(z_r)'; repeatable.
         #[arg(long = "metric", value_name = "NAME=EXPR")]
         metrics: Vec<String>,
-        /// Worker threads (default: one per core); results do not depend on it.
+        /// Worker processes, or threads with --in-process (default: one per core); results do
+        /// not depend on it.
         #[arg(long, value_name = "N", allow_negative_numbers = true)]
         threads: Option<usize>,
         #[command(flatten)]
@@ -180,6 +185,8 @@ enum Cmd {
         /// (default: experiment.toml's, unless --out names the CSV).
         #[arg(long, value_name = "FILE.svg")]
         plot: Option<PathBuf>,
+        #[command(flatten)]
+        isolation: SweepIsolation,
     },
     /// Compare solvers: steps, rhs evaluations and time each needs to reach a target error.
     ///
@@ -222,6 +229,39 @@ enum Cmd {
         #[arg(long, value_name = "N")]
         threads: Option<usize>,
     },
+    /// A worker process of sweep, simulate and compare (started by the runner itself).
+    #[command(hide = true)]
+    Worker,
+}
+
+/// How `runner sweep` isolates its points, and resumes.
+#[derive(Args)]
+struct SweepIsolation {
+    /// Run the points on threads of this process instead of worker processes (for trusted FMUs:
+    /// a crash then ends the sweep).
+    #[arg(long)]
+    in_process: bool,
+    /// Record a point that runs longer than this as timed out and replace its worker.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    point_timeout: Option<f64>,
+    /// Memory limit of each worker process in MiB (default: three quarters of the machine's,
+    /// shared among the workers); a worker that grows past half of it is replaced.
+    #[arg(long, value_name = "MIB")]
+    worker_memory: Option<u64>,
+    /// Continue the interrupted or killed sweep whose finished rows are in <out>.partial.
+    #[arg(long)]
+    resume: bool,
+}
+
+/// How `runner simulate` isolates its run.
+#[derive(Args)]
+struct SimulateIsolation {
+    /// Stop the run (and fail) if it takes longer than this.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    timeout: Option<f64>,
+    /// Run the FMU in this process instead of a worker process (for trusted FMUs).
+    #[arg(long)]
+    in_process: bool,
 }
 
 /// Arguments of `runner animate`.
@@ -270,10 +310,23 @@ struct CompareArgs {
     /// Work-precision plot (default <MODEL>_compare.svg).
     #[arg(long, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
+    /// Run in this process instead of a worker process (for trusted FMUs).
+    #[arg(long)]
+    in_process: bool,
+    /// Record a run that takes longer than this as timed out and replace its worker.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    point_timeout: Option<f64>,
 }
 
 fn main() {
     let cli = Cli::parse();
+    if let Cmd::Worker = cli.command {
+        if let Err(e) = runner_engine::worker::serve() {
+            eprintln!("runner worker: {e}");
+            std::process::exit(1);
+        }
+        return;
+    }
     interrupt::install();
     // FMU log lines go above the progress bar, when one is drawn.
     fmi_importer::set_log_printer(progress::eprint_line);
@@ -286,7 +339,7 @@ fn main() {
         Cmd::Info { fmu } => {
             experiment::resolve(&fmu).and_then(|t| fmi_importer::Fmu::load(&t.path)).map(|f| print!("{}", info::report(&f.description)))
         }
-        Cmd::Simulate { fmu, run, interface, solver, out, plot, log, plot_vars, plot_x, overlay, record_events } => {
+        Cmd::Simulate { fmu, run, interface, solver, out, plot, log, plot_vars, plot_x, overlay, record_events, isolation } => {
             simulate::run(&simulate::Options {
                 fmu,
                 run: run.defaults(),
@@ -298,11 +351,26 @@ fn main() {
                 overlay,
                 record_events,
                 integration: integration(interface, Some(solver)),
+                timeout: isolation.timeout,
+                in_process: isolation.in_process,
             })
         }
-        Cmd::Sweep { fmu, params, metrics, threads, run, interface, solver, out, plot } => {
-            let integration = integration(interface, Some(solver));
-            match sweep::run(&sweep::Options { fmu, params, metrics, threads, run: run.defaults(), out, plot, integration }) {
+        Cmd::Sweep { fmu, params, metrics, threads, run, interface, solver, out, plot, isolation } => {
+            match sweep::run(&sweep::Options {
+                fmu,
+                params,
+                metrics,
+                threads,
+                run: run.defaults(),
+                out,
+                plot,
+                integration: integration(interface, Some(solver)),
+                in_process: isolation.in_process,
+                point_timeout: isolation.point_timeout,
+                worker_memory: isolation.worker_memory,
+                resume: isolation.resume,
+                command_line: std::env::args().collect(),
+            }) {
                 Ok(s) if s.failed == 0 => Ok(()),
                 Ok(s) => Err(format!("{} of {} sweep point(s) failed; see the status column", s.failed, s.points)),
                 Err(e) => Err(e),
@@ -321,6 +389,8 @@ fn main() {
                 out,
                 plot,
                 integration: integration(a.interface, None),
+                in_process: a.in_process,
+                point_timeout: a.point_timeout,
             })
             .map(|_| ())
         }
@@ -340,6 +410,7 @@ fn main() {
             other => Err(format!("--format {other}: use svg or png")),
         }
         .and_then(|format| handbook::run(&handbook::Options { out, format, threads }).map(|_| ())),
+        Cmd::Worker => unreachable!("served above"),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

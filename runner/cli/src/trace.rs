@@ -2,8 +2,8 @@
 //! point, looked up by name, and the events found in it (changes of discrete outputs such as
 //! the bumper's `in_contact` or the trebuchet's `regime`). Plots and animations are drawn from it.
 
-use fmi_importer::{Causality, Description, Fmu, Kind, Reader, Value, Variability, Variable};
-use runner_engine::run::{self as sim, Grid, Recording};
+use fmi_importer::{Causality, Description, Fmu, Kind, Value, Variability, Variable};
+use runner_engine::run::{self as sim, Grid, Recording, Texts};
 use runner_engine::variables;
 use solvers::controls::CONTROLS;
 
@@ -55,22 +55,29 @@ impl Trace {
         assignments: &[(&Variable, Value)],
         recording: &Recording,
         debug_logging: bool,
-        mut sample: impl FnMut(f64, &[f64], &Reader) -> Result<(), String>,
+        mut sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
     ) -> Result<Trace, String> {
-        let mut trace = Trace {
-            names: recording.names.clone(),
-            columns: vec![Vec::with_capacity(grid.steps() + 1); recording.names.len()],
-            ..Trace::default()
-        };
-        let outcome = sim::run_recording(fmu, instance_name, grid, assignments, recording, debug_logging, |t, values, reader| {
-            trace.time.push(t);
-            for (column, &v) in trace.columns.iter_mut().zip(values) {
-                column.push(v);
-            }
-            sample(t, values, reader)
+        let mut trace = Trace::empty(recording, grid);
+        let outcome = sim::run_recording(fmu, instance_name, grid, assignments, recording, debug_logging, |t, values, texts| {
+            trace.push(t, values);
+            sample(t, values, texts)
         })?;
         trace.ended_early = outcome.ended_early;
         Ok(trace)
+    }
+
+    /// A trace of `recording`'s columns with no samples yet, sized for `grid`.
+    pub fn empty(recording: &Recording, grid: &Grid) -> Trace {
+        let rows = grid.steps().saturating_add(1).min(1 << 16);
+        Trace { names: recording.names.clone(), columns: vec![Vec::with_capacity(rows); recording.names.len()], ..Trace::default() }
+    }
+
+    /// Appends the sample at `t`.
+    pub fn push(&mut self, t: f64, values: &[f64]) {
+        self.time.push(t);
+        for (column, &v) in self.columns.iter_mut().zip(values) {
+            column.push(v);
+        }
     }
 
     /// The column of `name`, if recorded.

@@ -184,48 +184,47 @@ fn a_missing_function_is_named() {
     assert!(err.contains("does not export the function fmi2DoStep"), "{err}");
 }
 
-/// Ctrl-C during a long sweep: the workers stop, the exit code is 130, the previous result
-/// file is left untouched and no temporary `.partial` file remains.
+/// Ctrl-C during a long sweep, in worker processes and in-process: the sweep stops, the exit
+/// code is 130, the previous result file is left untouched, and the finished points stay in the
+/// visible `big.csv.partial` (header and complete rows, in point order), with a message that says
+/// where they are and how to continue.
 #[test]
-fn an_interrupted_sweep_leaves_the_previous_file_and_no_partial_one() {
-    let dir = tempfile::tempdir().unwrap();
-    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
-    let out = dir.path().join("big.csv");
-    std::fs::write(&out, "the previous, complete result\n").unwrap();
-    // 500,001 points: minutes of work, so the interrupt lands mid-sweep.
-    let child = std::process::Command::new(env!("CARGO_BIN_EXE_runner"))
-        .current_dir(dir.path())
-        .args([
-            "sweep",
-            fmu.to_str().unwrap(),
-            "--param",
-            "k=0.5:1:0.000001",
-            "--metric",
-            "end=final(x)",
-            "--threads",
-            "2",
-            "--out",
-            "big.csv",
-        ])
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let partial =
-        || std::fs::read_dir(dir.path()).unwrap().filter_map(|e| e.ok()).any(|e| e.file_name().to_string_lossy().ends_with(".partial"));
-    let started = std::time::Instant::now();
-    while !partial() {
-        assert!(started.elapsed().as_secs() < 60, "the sweep never started writing");
-        std::thread::sleep(std::time::Duration::from_millis(20));
+fn an_interrupted_sweep_keeps_its_finished_points_and_says_how_to_continue() {
+    for mode in ["--threads=2", "--in-process"] {
+        let dir = tempfile::tempdir().unwrap();
+        let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+        let out = dir.path().join("big.csv");
+        std::fs::write(&out, "the previous, complete result\n").unwrap();
+        // 500,001 points: minutes of work, so the interrupt lands mid-sweep.
+        let child = std::process::Command::new(env!("CARGO_BIN_EXE_runner"))
+            .current_dir(dir.path())
+            .args(["sweep", fmu.to_str().unwrap(), "--param", "k=0.5:1:0.000001", "--metric", "end=final(x)", mode, "--out", "big.csv"])
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let partial = dir.path().join("big.csv.partial");
+        let started = std::time::Instant::now();
+        while std::fs::metadata(&partial).map_or(0, |m| m.len()) < 200 {
+            assert!(started.elapsed().as_secs() < 60, "the sweep never started writing");
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        // SAFETY: signalling our own child process.
+        assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+        let o = child.wait_with_output().unwrap();
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(130), "{mode}: exit code of an interrupted command: {err}");
+        assert_eq!(std::fs::read_to_string(&out).unwrap(), "the previous, complete result\n", "the old file is untouched");
+        let (header, rows) = read_csv(&partial);
+        assert_eq!(header, ["k", "end", "status"]);
+        assert!(!rows.is_empty());
+        for (i, row) in rows.iter().enumerate() {
+            assert_eq!(row[0].parse::<f64>().unwrap(), 0.5 + i as f64 * 0.000001, "{mode}: rows in point order");
+            assert_eq!(row[2], "ok");
+        }
+        let said =
+            format!("interrupted after {} of 500001 points; the finished points are in big.csv.partial; continue with: ", rows.len());
+        assert!(err.contains(&said) && err.contains(&format!("{mode} --out big.csv --resume")), "{mode}: {err}");
     }
-    std::thread::sleep(std::time::Duration::from_millis(300));
-    // SAFETY: signalling our own child process.
-    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
-    let o = child.wait_with_output().unwrap();
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(130), "exit code of an interrupted command: {err}");
-    assert!(err.contains("interrupted after") && err.contains("of 500001 points; no file written"), "{err}");
-    assert_eq!(std::fs::read_to_string(&out).unwrap(), "the previous, complete result\n", "the old file is untouched");
-    assert!(!partial(), "the temporary file was removed");
 }
 
 /// Without --out the CSV streams to stdout, and nothing else goes there: the peak summary moves

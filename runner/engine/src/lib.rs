@@ -1,12 +1,16 @@
 //! The runner's engine: one simulation run ([`run`]), parameter sweeps on a thread pool
-//! ([`sweep`]), per-run metrics and closed-form formulas ([`metrics`]), and the lookup of
-//! variables by name with values parsed to their types ([`variables`]). It drives FMUs through
-//! the importer and knows nothing of our models.
+//! ([`sweep`]) or in worker processes ([`isolation`], with the worker's side in [`worker`] and
+//! their messages in [`protocol`]), per-run metrics and closed-form formulas ([`metrics`]), and
+//! the lookup of variables by name with values parsed to their types ([`variables`]). It drives
+//! FMUs through the importer and knows nothing of our models.
 
+pub mod isolation;
 pub mod metrics;
+pub mod protocol;
 pub mod run;
 pub mod sweep;
 pub mod variables;
+pub mod worker;
 
 /// Prints a note for the user (a point that ended early) where FMU log lines go.
 pub(crate) fn note(line: &str) {

@@ -9,7 +9,7 @@ use fmi_importer::{Description, Fmu, Reader, Solver, Step, Value, Variable};
 pub const MAX_STEPS: usize = 1_000_000_000;
 
 /// The time grid and tolerance of a run.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Grid {
     /// Start time (s).
     pub start: f64,
@@ -181,8 +181,27 @@ pub fn run(
     run_recording(fmu, name, grid, assignments, &recording, debug_logging, |t, values, _| sample(t, values))
 }
 
-/// [`run`] for the columns of a [`Recording`], arrays included; `sample` also gets the reader,
-/// whose `text` gives each column exactly (strings, binary, wide integers).
+/// The exact text of each column of a sample (strings, binary, wide integers): the [`Reader`]
+/// that read it, or in a supervisor the numbers and the texts its worker sent.
+pub trait Texts {
+    /// Column `c` of the sample whose numbers are `values`.
+    fn text(&self, c: usize, values: &[f64]) -> String;
+    /// True when column `c`'s number alone does not give its text.
+    fn needs_text(&self, c: usize) -> bool;
+}
+
+impl Texts for Reader {
+    fn text(&self, c: usize, values: &[f64]) -> String {
+        Reader::text(self, c, values)
+    }
+
+    fn needs_text(&self, c: usize) -> bool {
+        Reader::needs_text(self, c)
+    }
+}
+
+/// [`run`] for the columns of a [`Recording`], arrays included; `sample` also gets the texts
+/// that give each column exactly.
 pub fn run_recording(
     fmu: &Fmu,
     name: &str,
@@ -190,7 +209,7 @@ pub fn run_recording(
     assignments: &[(&Variable, Value)],
     recording: &Recording,
     debug_logging: bool,
-    mut sample: impl FnMut(f64, &[f64], &Reader) -> Result<(), String>,
+    mut sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
 ) -> Result<Outcome, String> {
     let mut reader = Reader::with_sizes(fmu.description.fmi_version, &recording.variables, &recording.sizes)?;
     let mut values = vec![0.0; reader.len()];

@@ -1,12 +1,15 @@
 //! Sweeps: the cartesian product of parameter ranges, one FMU instance per point, run in
 //! parallel on a rayon pool (one loaded FMU for the whole sweep), with metrics per point and
-//! the results handed back in point order as they finish.
+//! the results handed back in point order as they finish. [`crate::isolation`] runs the same
+//! points in worker processes instead.
 
 use std::collections::BTreeMap;
+use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc;
 
-use fmi_importer::{Fmu, Value, Variable};
+use fmi_importer::{Description, Fmu, Value, Variable};
+use serde::{Deserialize, Serialize};
 
 use crate::metrics::Metrics;
 use crate::run::{self, Grid};
@@ -82,14 +85,41 @@ impl Space {
 }
 
 /// Result of one point: its metric values (when it ran) and `ok` or the error.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PointResult {
     pub metrics: Option<Vec<f64>>,
     pub status: String,
 }
 
+/// A sweep as data: what the command line asked for, before it is checked against an FMU.
+/// Worker processes receive it and build the same [`Plan`], so a point runs identically there.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepSpec {
+    /// The grid of every run.
+    pub grid: Grid,
+    /// `NAME=VALUE` assignments common to every point, in order (a later one wins).
+    pub sets: Vec<String>,
+    /// Each swept parameter's name and values, in `--param` order.
+    pub ranges: Vec<(String, Vec<f64>)>,
+    /// `NAME=EXPR` metrics.
+    pub metrics: Vec<String>,
+}
+
+impl SweepSpec {
+    /// The checked plan of this sweep over the FMU `description` (modelIdentifier `identifier`).
+    pub fn plan<'a>(&self, description: &'a Description, identifier: &'a str) -> Result<Plan<'a>, String> {
+        let fixed = variables::parse_sets(description, &self.sets)?;
+        let metrics = Metrics::parse(&self.metrics)?;
+        Plan::new(description, identifier, self.grid, fixed, self.ranges.clone(), metrics)
+    }
+}
+
 /// Everything a sweep runs, checked before the first point.
 pub struct Plan<'a> {
-    pub fmu: &'a Fmu,
+    /// The FMU's description (the plan's variables point into it).
+    pub description: &'a Description,
+    /// The modelIdentifier, which names every point's instance.
+    pub identifier: &'a str,
     pub grid: Grid,
     /// Assignments common to every point.
     pub fixed: Vec<(&'a Variable, Value)>,
@@ -104,13 +134,14 @@ pub struct Plan<'a> {
 impl<'a> Plan<'a> {
     /// Checks every name and value before the first run, so a typo costs nothing.
     pub fn new(
-        fmu: &'a Fmu,
+        description: &'a Description,
+        identifier: &'a str,
         grid: Grid,
         fixed: Vec<(&'a Variable, Value)>,
         ranges: Vec<(String, Vec<f64>)>,
         metrics: Metrics,
     ) -> Result<Plan<'a>, String> {
-        let d = &fmu.description;
+        let d = description;
         let mut swept: Vec<&Variable> = Vec::new();
         for (name, values) in &ranges {
             let v = variables::find(d, name)?;
@@ -135,7 +166,7 @@ impl<'a> Plan<'a> {
             })
             .collect::<Result<Vec<_>, String>>()?;
         let space = Space::new(ranges)?;
-        Ok(Plan { fmu, grid, fixed, swept, space, metrics, sources })
+        Ok(Plan { description, identifier, grid, fixed, swept, space, metrics, sources })
     }
 
     /// The instance name of point `i`, e.g. `quarter_car[speed=4.0]`.
@@ -143,11 +174,11 @@ impl<'a> Plan<'a> {
         // The shortest form that reads back as x, as in the CSV: Display would spell 1e308
         // with 309 digits.
         let label: Vec<String> = self.swept.iter().zip(point).map(|(v, x)| format!("{}={x:?}", v.name)).collect();
-        format!("{}[{}]", self.fmu.identifier, label.join(","))
+        format!("{}[{}]", self.identifier, label.join(","))
     }
 
-    /// Runs point `i` in its own instance.
-    pub fn run_point(&self, i: usize, point: &mut Vec<f64>, stop: &dyn Fn() -> bool) -> PointResult {
+    /// Runs point `i` in its own instance of `fmu` (the FMU the plan's description is of).
+    pub fn run_point(&self, fmu: &Fmu, i: usize, point: &mut Vec<f64>, stop: &dyn Fn() -> bool) -> PointResult {
         self.space.point(i, point);
         let mut assignments = self.fixed.clone();
         for (v, &x) in self.swept.iter().zip(point.iter()) {
@@ -156,7 +187,7 @@ impl<'a> Plan<'a> {
         }
         let name = self.instance_name(point);
         let mut acc = self.metrics.accumulators();
-        let result = run::run(self.fmu, &name, &self.grid, &assignments, &self.sources, false, |t, values| {
+        let result = run::run(fmu, &name, &self.grid, &assignments, &self.sources, false, |t, values| {
             if stop() {
                 return Err("interrupted".to_owned());
             }
@@ -186,11 +217,24 @@ impl<'a> Plan<'a> {
         }
     }
 
-    /// Runs every point on `threads` threads and calls `deliver(i, result)` in point order as
-    /// results arrive. Stops early when `stop()` turns true or `deliver` fails (its error is
-    /// returned); the points in progress then finish first.
+    /// Runs every point on `threads` threads of this process and calls `deliver(i, result)` in
+    /// point order as results arrive. Stops early when `stop()` turns true (the points in
+    /// progress are abandoned) or `deliver` fails (its error is returned).
     pub fn execute(
         &self,
+        fmu: &Fmu,
+        threads: usize,
+        stop: &(dyn Fn() -> bool + Sync),
+        deliver: impl FnMut(usize, PointResult) -> Result<(), String>,
+    ) -> Result<(), String> {
+        self.execute_range(fmu, 0..self.space.len, threads, stop, deliver)
+    }
+
+    /// [`Plan::execute`] for the points `points` only (a resumed sweep's missing ones).
+    pub fn execute_range(
+        &self,
+        fmu: &Fmu,
+        points: Range<usize>,
         threads: usize,
         stop: &(dyn Fn() -> bool + Sync),
         mut deliver: impl FnMut(usize, PointResult) -> Result<(), String>,
@@ -200,11 +244,11 @@ impl<'a> Plan<'a> {
         }
         let pool =
             rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("cannot start {threads} threads: {e}"))?;
-        let n = self.space.len;
+        let n = points.end.min(self.space.len);
         // Workers take points in order from a shared counter (dynamic scheduling: points differ
         // in cost), so results arrive nearly in order and the reorder buffer stays a few rows
         // long whatever the sweep's size.
-        let next = AtomicUsize::new(0);
+        let next = AtomicUsize::new(points.start);
         let failed = AtomicBool::new(false);
         let halted = || failed.load(Ordering::Relaxed) || stop();
         let (sender, receiver) = mpsc::sync_channel::<(usize, PointResult)>(4 * threads);
@@ -221,7 +265,7 @@ impl<'a> Plan<'a> {
                         if i >= n {
                             break;
                         }
-                        let result = self.run_point(i, &mut point, stop);
+                        let result = self.run_point(fmu, i, &mut point, stop);
                         if sender.send((i, result)).is_err() {
                             break;
                         }
@@ -230,7 +274,7 @@ impl<'a> Plan<'a> {
                 drop(sender);
             });
             let mut waiting: BTreeMap<usize, PointResult> = BTreeMap::new();
-            let mut row = 0;
+            let mut row = points.start;
             let mut outcome = Ok(());
             for (i, result) in receiver.iter() {
                 if outcome.is_err() || stop() {

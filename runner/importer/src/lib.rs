@@ -9,6 +9,7 @@ pub mod fmi3;
 mod logging;
 pub mod model;
 mod reader;
+pub mod trace;
 
 use std::ffi::CString;
 use std::path::{Path, PathBuf};
@@ -20,7 +21,7 @@ pub use solvers::Method;
 
 /// How the runner integrates a Model Exchange FMU (a Co-Simulation FMU integrates itself); the
 /// relative tolerance is the run's (`fmi2SetupExperiment`'s).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Solver {
     /// The method: Euler, RK4 or DOPRI5 (the toolkit's solvers).
     pub method: Method,
@@ -74,59 +75,84 @@ impl Unpacked {
         let dir =
             tempfile::Builder::new().prefix("runner-fmu-").tempdir().map_err(|e| format!("cannot create a temporary directory: {e}"))?;
         archive::extract_zip(path, dir.path())?;
-        let xml_path = dir.path().join("modelDescription.xml");
-        let xml = std::fs::read_to_string(&xml_path).map_err(|e| format!("{}: no readable modelDescription.xml: {e}", path.display()))?;
-        let at = |e: &dyn std::fmt::Display| format!("{}: modelDescription.xml: {e}", path.display());
-        let version = fmi_schema::fmi_version(&xml).map_err(|e| at(&e))?;
-        let (description, raw2, raw3) = if version.starts_with("3.") {
-            let raw = fmi_schema::fmi3::ModelDescription::from_xml(&xml).map_err(|e| at(&e))?;
-            refuse_unsupported_fmi3(&raw).map_err(|e| format!("{}: {e}", path.display()))?;
-            (fmi3::describe(&raw), None, Some(raw))
-        } else {
-            let raw = fmi_schema::fmi2::ModelDescription::from_xml(&xml).map_err(|e| at(&e))?;
-            (fmi2::describe(&raw), Some(raw), None)
-        };
-        let offered: Vec<Interface> =
-            [Interface::CoSimulation, Interface::ModelExchange].into_iter().filter(|&i| description.interface(i).is_some()).collect();
-        let interface = match interface {
-            Some(asked) if offered.contains(&asked) => asked,
-            Some(asked) => {
-                let has = match offered.first() {
-                    Some(other) => format!("it offers {other} only (--interface {})", other.name()),
-                    None => "it declares neither interface".to_owned(),
-                };
-                return Err(format!("{}: this FMU does not support {asked}: {has}", path.display()));
-            }
-            None => {
-                *offered.first().ok_or_else(|| format!("{}: this FMU declares neither Co-Simulation nor Model Exchange", path.display()))?
-            }
-        };
-        let caps = description.interface(interface).expect("offered");
-        if interface == Interface::ModelExchange && caps.needs_execution_tool {
-            return Err(format!(
-                "{}: this Model Exchange FMU needs an external simulation tool (needsExecutionTool=\"true\"): its binary only talks to that tool, which the runner cannot provide",
-                path.display()
-            ));
-        }
-        let identifier = caps.model_identifier.clone();
-        // The identifier names the binary to load: with a '/' it could name any library on disk.
-        if identifier.is_empty() || identifier.contains(['/', '\0']) {
-            return Err(format!("{}: modelIdentifier {identifier:?} is not a file name (FMI requires a C identifier)", path.display()));
-        }
-        let platform = match description.fmi_version {
-            FmiVersion::Fmi2 => fmi2::PLATFORM,
-            FmiVersion::Fmi3 => fmi3::PLATFORM,
-        };
-        let binary = dir.path().join("binaries").join(platform).join(format!("{identifier}.so"));
-        if !binary.is_file() {
-            return Err(format!(
-                "{}: no binary for this platform: binaries/{platform}/{identifier}.so is missing (the FMU has binaries for: {})",
-                path.display(),
-                platforms(&dir.path().join("binaries"))
-            ));
-        }
-        Ok(Unpacked { description, fmi2: raw2, fmi3: raw3, interface, identifier, binary, dir })
+        let found = inspect(path, dir.path(), interface)?;
+        Ok(Unpacked {
+            description: found.description,
+            fmi2: found.fmi2,
+            fmi3: found.fmi3,
+            interface: found.interface,
+            identifier: found.identifier,
+            binary: found.binary,
+            dir,
+        })
     }
+}
+
+/// What [`inspect`] reads of an unpacked FMU.
+struct Inspected {
+    description: Description,
+    fmi2: Option<fmi_schema::fmi2::ModelDescription>,
+    fmi3: Option<fmi_schema::fmi3::ModelDescription>,
+    interface: Interface,
+    identifier: String,
+    binary: PathBuf,
+}
+
+/// Reads the description of the FMU `path` unpacked in `dir`, chooses `interface` (`None`:
+/// Co-Simulation when offered, else Model Exchange) and finds the binary for this platform.
+fn inspect(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Inspected, String> {
+    let xml_path = dir.join("modelDescription.xml");
+    let xml = std::fs::read_to_string(&xml_path).map_err(|e| format!("{}: no readable modelDescription.xml: {e}", path.display()))?;
+    let at = |e: &dyn std::fmt::Display| format!("{}: modelDescription.xml: {e}", path.display());
+    let version = fmi_schema::fmi_version(&xml).map_err(|e| at(&e))?;
+    let (description, fmi2, fmi3) = if version.starts_with("3.") {
+        let raw = fmi_schema::fmi3::ModelDescription::from_xml(&xml).map_err(|e| at(&e))?;
+        refuse_unsupported_fmi3(&raw).map_err(|e| format!("{}: {e}", path.display()))?;
+        (fmi3::describe(&raw), None, Some(raw))
+    } else {
+        let raw = fmi_schema::fmi2::ModelDescription::from_xml(&xml).map_err(|e| at(&e))?;
+        (fmi2::describe(&raw), Some(raw), None)
+    };
+    let offered: Vec<Interface> =
+        [Interface::CoSimulation, Interface::ModelExchange].into_iter().filter(|&i| description.interface(i).is_some()).collect();
+    let interface = match interface {
+        Some(asked) if offered.contains(&asked) => asked,
+        Some(asked) => {
+            let has = match offered.first() {
+                Some(other) => format!("it offers {other} only (--interface {})", other.name()),
+                None => "it declares neither interface".to_owned(),
+            };
+            return Err(format!("{}: this FMU does not support {asked}: {has}", path.display()));
+        }
+        None => {
+            *offered.first().ok_or_else(|| format!("{}: this FMU declares neither Co-Simulation nor Model Exchange", path.display()))?
+        }
+    };
+    let caps = description.interface(interface).expect("offered");
+    if interface == Interface::ModelExchange && caps.needs_execution_tool {
+        return Err(format!(
+            "{}: this Model Exchange FMU needs an external simulation tool (needsExecutionTool=\"true\"): its binary only talks to that tool, which the runner cannot provide",
+            path.display()
+        ));
+    }
+    let identifier = caps.model_identifier.clone();
+    // The identifier names the binary to load: with a '/' it could name any library on disk.
+    if identifier.is_empty() || identifier.contains(['/', '\0']) {
+        return Err(format!("{}: modelIdentifier {identifier:?} is not a file name (FMI requires a C identifier)", path.display()));
+    }
+    let platform = match description.fmi_version {
+        FmiVersion::Fmi2 => fmi2::PLATFORM,
+        FmiVersion::Fmi3 => fmi3::PLATFORM,
+    };
+    let binary = dir.join("binaries").join(platform).join(format!("{identifier}.so"));
+    if !binary.is_file() {
+        return Err(format!(
+            "{}: no binary for this platform: binaries/{platform}/{identifier}.so is missing (the FMU has binaries for: {})",
+            path.display(),
+            platforms(&dir.join("binaries"))
+        ));
+    }
+    Ok(Inspected { description, fmi2, fmi3, interface, identifier, binary })
 }
 
 /// Refuses the FMI 3.0 features the runner does not simulate, naming them: Scheduled Execution
@@ -163,7 +189,8 @@ enum Binding {
 }
 
 /// A loaded FMU: its description, its open binary and the directory it was unpacked into
-/// (deleted when the `Fmu` is dropped, after the binary is closed).
+/// (deleted when the `Fmu` is dropped, after the binary is closed, unless someone else unpacked it:
+/// [`Fmu::load_unpacked`]).
 pub struct Fmu {
     /// The description, in the importer's model.
     pub description: Description,
@@ -178,7 +205,7 @@ pub struct Fmu {
     pub(crate) token: CString,
     // Field order is drop order: close the library before deleting the files it came from.
     binding: Binding,
-    _dir: tempfile::TempDir,
+    _dir: Option<tempfile::TempDir>,
 }
 
 impl Fmu {
@@ -191,14 +218,37 @@ impl Fmu {
     /// offered, else Model Exchange).
     pub fn load_as(path: &Path, interface: Option<Interface>) -> Result<Fmu, String> {
         let Unpacked { description, interface, identifier, binary, dir, .. } = Unpacked::open_as(path, interface)?;
+        let root = dir.path().to_path_buf();
+        Fmu::assemble(path, description, interface, identifier, &binary, &root, Some(dir))
+    }
+
+    /// Loads the FMU `path` from `dir`, where [`Unpacked::open_as`] unpacked it (possibly in
+    /// another process, which keeps and deletes the directory: this `Fmu` never does), for
+    /// `interface`. A worker process loads its supervisor's copy so: it unpacks nothing and, if
+    /// it dies, leaves nothing behind.
+    pub fn load_unpacked(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Fmu, String> {
+        let found = inspect(path, dir, interface)?;
+        Fmu::assemble(path, found.description, found.interface, found.identifier, &found.binary, dir, None)
+    }
+
+    /// Loads `binary` of the FMU `path` unpacked in `dir` (deleted with the `Fmu` if `owned`).
+    fn assemble(
+        path: &Path,
+        description: Description,
+        interface: Interface,
+        identifier: String,
+        binary: &Path,
+        dir: &Path,
+        owned: Option<tempfile::TempDir>,
+    ) -> Result<Fmu, String> {
         let loaded = match description.fmi_version {
-            FmiVersion::Fmi2 => Binding::Fmi2(fmi2::Binary::load(&binary, interface).map_err(|e| format!("{}: {e}", path.display()))?),
+            FmiVersion::Fmi2 => Binding::Fmi2(fmi2::Binary::load(binary, interface).map_err(|e| format!("{}: {e}", path.display()))?),
             FmiVersion::Fmi3 if interface == Interface::ModelExchange => {
                 return Err(format!("{}: FMI 3.0 Model Exchange is not supported yet: run it as Co-Simulation", path.display()))
             }
-            FmiVersion::Fmi3 => Binding::Fmi3(fmi3::Binary::load(&binary).map_err(|e| format!("{}: {e}", path.display()))?),
+            FmiVersion::Fmi3 => Binding::Fmi3(fmi3::Binary::load(binary).map_err(|e| format!("{}: {e}", path.display()))?),
         };
-        let resources = dir.path().join("resources");
+        let resources = dir.join("resources");
         let resource_uri = match description.fmi_version {
             FmiVersion::Fmi2 => format!("file://{}/", resources.display()),
             FmiVersion::Fmi3 => format!("{}/", resources.display()),
@@ -206,7 +256,7 @@ impl Fmu {
         let resource_uri = CString::new(resource_uri).map_err(|_| "temporary path contains a NUL byte".to_owned())?;
         let token = CString::new(description.instantiation_token.clone())
             .map_err(|_| format!("{}: the GUID contains a NUL byte", path.display()))?;
-        Ok(Fmu { description, identifier, interface, resource_uri, token, binding: loaded, _dir: dir })
+        Ok(Fmu { description, identifier, interface, resource_uri, token, binding: loaded, _dir: owned })
     }
 
     /// A new instance named `name`; `debug_logging` turns the FMU's debug logging on.

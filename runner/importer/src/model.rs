@@ -12,7 +12,7 @@ pub enum FmiVersion {
 }
 
 /// An FMI interface.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum Interface {
     CoSimulation,
     ModelExchange,

@@ -70,24 +70,33 @@ impl Buffer {
         }
     }
 
-    /// Element `i` exactly, as text: integers in full, Float32 in its own shortest form,
-    /// Binary as hexadecimal; Float64 as its f64 is printed, and with `as_f64` (FMI 2.0's
-    /// result files, as they always were) Int32 and Booleans too.
-    fn text(&self, i: usize, as_f64: bool) -> String {
+    /// True when an element's number does not give its text: 64-bit integers (beyond an
+    /// f64's 53 bits), strings and binary.
+    fn needs_text(&self) -> bool {
+        matches!(self, Buffer::I64(_) | Buffer::U64(_) | Buffer::Text(_) | Buffer::Bytes(_))
+    }
+
+    /// Element `i` exactly, as text, for the kinds that [`Buffer::needs_text`]: integers in
+    /// full, Binary as hexadecimal.
+    fn text(&self, i: usize) -> String {
         match self {
-            Buffer::I32(v) if !as_f64 => v[i].to_string(),
-            Buffer::Bool(v) if !as_f64 => u8::from(v[i]).to_string(),
-            Buffer::F32(v) => format!("{:?}", v[i]),
-            Buffer::I8(v) => v[i].to_string(),
-            Buffer::U8(v) => v[i].to_string(),
-            Buffer::I16(v) => v[i].to_string(),
-            Buffer::U16(v) => v[i].to_string(),
-            Buffer::U32(v) => v[i].to_string(),
             Buffer::I64(v) => v[i].to_string(),
             Buffer::U64(v) => v[i].to_string(),
             Buffer::Text(v) => v[i].clone(),
             Buffer::Bytes(v) => v[i].iter().map(|b| format!("{b:02x}")).collect(),
-            Buffer::F64(_) | Buffer::I32(_) | Buffer::IntBool(_) | Buffer::Bool(_) => format!("{:?}", self.number(i)),
+            _ => format!("{:?}", self.number(i)),
+        }
+    }
+
+    /// The text of an element whose number is `x`, for the kinds a number gives exactly:
+    /// integers in full, Float32 in its own shortest form, Float64 as its f64 is printed, and
+    /// with `as_f64` (FMI 2.0's result files, as they always were) Int32 and Booleans too.
+    fn text_of_number(&self, x: f64, as_f64: bool) -> String {
+        match self {
+            Buffer::I32(_) | Buffer::Bool(_) if !as_f64 => (x as i64).to_string(),
+            Buffer::F32(_) => format!("{:?}", x as f32),
+            Buffer::I8(_) | Buffer::U8(_) | Buffer::I16(_) | Buffer::U16(_) | Buffer::U32(_) => (x as i64).to_string(),
+            _ => format!("{x:?}"),
         }
     }
 }
@@ -175,11 +184,26 @@ impl Reader {
     /// 2.0's Integers and Booleans as f64s, `3.0`, as its result files always had them),
     /// Float32 in its own shortest form, Binary in hexadecimal.
     pub fn text(&self, c: usize, values: &[f64]) -> String {
+        if self.needs_text(c) {
+            let (g, i) = self.columns[c];
+            return self.groups[g].buffer.text(i);
+        }
+        self.text_of_number(c, values[c])
+    }
+
+    /// True when column `c`'s number does not give its text (64-bit integers, String, Binary):
+    /// a process that only has the numbers needs the text too.
+    pub fn needs_text(&self, c: usize) -> bool {
+        !self.direct && self.groups[self.columns[c].0].buffer.needs_text()
+    }
+
+    /// Column `c`'s text from its number `x`, for a column that does not [`Reader::needs_text`];
+    /// needs no read (a layout of the same variables gives it).
+    pub fn text_of_number(&self, c: usize, x: f64) -> String {
         if self.direct {
             // Read straight into `values`, not into the buffers.
-            return format!("{:?}", values[c]);
+            return format!("{x:?}");
         }
-        let (g, i) = self.columns[c];
-        self.groups[g].buffer.text(i, self.integers_as_f64)
+        self.groups[self.columns[c].0].buffer.text_of_number(x, self.integers_as_f64)
     }
 }

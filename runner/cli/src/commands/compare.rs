@@ -10,9 +10,10 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use fmi_importer::{Causality, Description, Fmu, Interface, Kind, Solver, Value, Variability, Variable};
+use fmi_importer::{Causality, Description, Interface, Kind, Solver, Value, Variability, Variable};
+use runner_engine::isolation;
 use runner_engine::metrics::Formula;
-use runner_engine::run::{self as sim, Grid};
+use runner_engine::run::{Grid, Recording};
 use runner_engine::variables;
 use solvers::controls::Control;
 use solvers::Method;
@@ -23,6 +24,7 @@ use crate::interrupt;
 use crate::report::output;
 use crate::report::plot::{self, Mark, Series};
 use crate::report::progress::Progress;
+use crate::workers::{self, Executor, Held};
 
 /// Relative tolerance of the reference run (DOPRI5): far below any error the table reports.
 pub const REFERENCE_RTOL: f64 = 1e-12;
@@ -43,6 +45,10 @@ pub struct Options {
     pub plot: PathBuf,
     /// The interface (the runner's integrator settings are the table's, not given here).
     pub integration: Integration,
+    /// Runs in this process instead of a worker process.
+    pub in_process: bool,
+    /// A run taking longer (seconds) is recorded as timed out (needs a worker process).
+    pub point_timeout: Option<f64>,
 }
 
 /// One run of the work-precision table.
@@ -96,7 +102,8 @@ fn control(description: &Description, control: Control) -> Result<&Variable, Str
 /// `counters` (`n_steps`, `n_rhs`) under Co-Simulation, the runner's integrator's when
 /// `counters` is empty (Model Exchange).
 fn run_once(
-    fmu: &Fmu,
+    executor: &mut Executor,
+    md: &Description,
     grid: &Grid,
     base: &[(&Variable, Value)],
     extra: &[(&Variable, Value)],
@@ -110,7 +117,8 @@ fn run_once(
     let mut samples = Vec::with_capacity(grid.steps() + 1);
     let mut last = (0.0, 0.0);
     let n = compared.len();
-    let outcome = sim::run(fmu, "compare", grid, &assignments, &recorded, false, |_, values| {
+    let recording = Recording::new(md, &recorded, &assignments)?;
+    let outcome = executor.run(md, "compare", grid, &assignments, &recording, false, |_, values, _| {
         samples.push(values[..n].to_vec());
         if !counters.is_empty() {
             last = (values[n], values[n + 1]);
@@ -212,9 +220,22 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
                 .to_owned(),
         );
     }
+    let timeout = workers::timeout("--point-timeout", options.point_timeout)?;
+    if options.in_process && timeout.is_some() {
+        return Err("--point-timeout needs worker processes (a run in this process cannot be stopped): drop --in-process".to_owned());
+    }
     let target = experiment::resolve(&options.fmu)?;
-    let fmu: Fmu = options.integration.load(&target.path)?;
-    let md = &fmu.description;
+    // With workers, only the description is read here: the FMU's binary runs in them alone.
+    let (held, source) = Held::open(&target.path, &options.integration, options.in_process)?;
+    let md = held.description();
+    if options.in_process && isolation::once_per_process(md, held.interface()) {
+        return Err(format!(
+            "{} declares canBeInstantiatedOnlyOncePerProcess, so its runs cannot share a process: drop --in-process",
+            md.model_name
+        ));
+    }
+    let config = workers::isolation(timeout, workers::default_memory_mib(1))?;
+    let mut executor = Executor::new(&held, &config, &source);
     let grid = Grid::choose(md, &[options.run.grid(), target.experiment.simulate.grid()])?;
     let mut set_texts = target.experiment.simulate.set.clone();
     set_texts.extend(target.experiment.compare.set.iter().cloned());
@@ -222,7 +243,7 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
     let base = variables::parse_sets(md, &set_texts)?;
     // Co-Simulation: the FMU's own solver controls and counters, which only this toolkit's
     // FMUs have. Model Exchange: the runner's integrator, for any FMU.
-    let exchange = fmu.interface == Interface::ModelExchange;
+    let exchange = held.interface() == Interface::ModelExchange;
     let controls = if exchange {
         None
     } else {
@@ -249,7 +270,7 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
             }
             None => Vec::new(),
         };
-        let (reference, _, _) = run_once(&fmu, &reference_grid, &base, &reference_settings, &compared, &counters)
+        let (reference, _, _) = run_once(&mut executor, md, &reference_grid, &base, &reference_settings, &compared, &counters)
             .map_err(|e| format!("the reference run (DOPRI5 at rtol {REFERENCE_RTOL}) failed: {e}"))?;
         (compared, reference, format!("DOPRI5 at rtol {REFERENCE_RTOL:e}"))
     } else {
@@ -278,7 +299,7 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
                 }
             };
             let started = Instant::now();
-            let result = run_once(&fmu, &run_grid, &base, &extra, &compared, &counters);
+            let result = run_once(&mut executor, md, &run_grid, &base, &extra, &compared, &counters);
             let seconds = started.elapsed().as_secs_f64();
             rows.push(match result {
                 Ok((samples, n_steps, n_rhs)) => Row {

@@ -591,11 +591,11 @@ fn exercise_4(ctx: &Context) -> Result<Section, String> {
     let metrics = Metrics::parse(&metric_texts)?;
     let grid = Grid::choose(&fmu.description, &[sweep.run().grid(), experiment.simulate.grid()])?;
     let fixed = variables::parse_sets(&fmu.description, &sweep.set)?;
-    let plan = Plan::new(fmu, grid, fixed, ranges, metrics)?;
+    let plan = Plan::new(&fmu.description, &fmu.identifier, grid, fixed, ranges, metrics)?;
     let names: Vec<String> = plan.metrics.metrics.iter().map(|(n, _)| n.clone()).collect();
     let mut rows: Vec<(f64, Vec<f64>)> = Vec::new();
     let mut point = Vec::new();
-    plan.execute(ctx.threads, &interrupt::requested, |i, r| {
+    plan.execute(fmu, ctx.threads, &interrupt::requested, |i, r| {
         plan.space.point(i, &mut point);
         match r.metrics {
             Some(m) => rows.push((point[0], m)),

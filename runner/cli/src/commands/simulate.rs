@@ -1,11 +1,12 @@
 //! `runner simulate`: one run, written as CSV in fmpy's layout (`time`, then the outputs), and
 //! optionally a plot: one panel per variable on a shared time axis (or against `--plot-x`), in
 //! the FMU's display units, events marked; `--overlay` repeats the run for several values of
-//! one parameter and draws them over each other.
+//! one parameter and draws them over each other. The FMU runs in a worker process by default, so
+//! that a crash is reported with its signal and call.
 
 use std::path::{Path, PathBuf};
 
-use fmi_importer::{Causality, Description, FmiVersion, Fmu, Kind, Value, Variable};
+use fmi_importer::{Causality, Description, FmiVersion, Kind, Value, Variable};
 use runner_engine::run::{Grid, Recording};
 use runner_engine::variables::{self, UnitConversion};
 
@@ -14,6 +15,7 @@ use crate::integration::Integration;
 use crate::report::figure::{self, Curve, Figure, Format, Note, Panel, VLine};
 use crate::report::output;
 use crate::trace::{self, Event, Trace};
+use crate::workers::{self, Executor, Held};
 
 /// Options of `runner simulate`.
 #[derive(Default)]
@@ -38,6 +40,10 @@ pub struct Options {
     pub record_events: bool,
     /// The interface, and the runner's integrator for Model Exchange.
     pub integration: Integration,
+    /// Each run fails if it takes longer (seconds; needs a worker process).
+    pub timeout: Option<f64>,
+    /// Runs the FMU in this process.
+    pub in_process: bool,
 }
 
 /// One run of an overlay: its label and the assignment that makes it.
@@ -179,9 +185,16 @@ pub fn run(options: &Options) -> Result<(), String> {
     } else if !options.plot_vars.is_empty() || options.plot_x.is_some() {
         return Err("--plot-vars and --plot-x choose what --plot FILE draws: give --plot too".to_owned());
     }
+    let timeout = workers::timeout("--timeout", options.timeout)?;
+    if options.in_process && timeout.is_some() {
+        return Err("--timeout needs a worker process (a run in this process cannot be stopped): drop --in-process".to_owned());
+    }
     let target = experiment::resolve(&options.fmu)?;
-    let fmu: Fmu = options.integration.load(&target.path)?;
-    let md = &fmu.description;
+    // In a worker, only the description is read here: the FMU's binary runs in the worker alone.
+    let (held, source) = Held::open(&target.path, &options.integration, options.in_process)?;
+    let config = workers::isolation(timeout, workers::default_memory_mib(1))?;
+    let mut executor = Executor::new(&held, &config, &source);
+    let (md, identifier) = (held.description(), held.identifier());
     let mut grid = Grid::choose(md, &[options.run.grid(), target.experiment.simulate.grid()])?;
     grid.solver = options.integration.solver()?;
     let mut set_texts = target.experiment.simulate.set.clone();
@@ -240,19 +253,25 @@ pub fn run(options: &Options) -> Result<(), String> {
         let mut case_assignments = assignments.clone();
         case_assignments.extend(case.assignment.clone());
         let recording = Trace::recording(md, &recorded, &case_assignments, options.record_events)?;
-        let trace = Trace::record_with(&fmu, &fmu.identifier, &grid, &case_assignments, &recording, options.log, |t, values, reader| {
+        let mut trace = Trace::empty(&recording, &grid);
+        let keep = options.plot.is_some();
+        let outcome = executor.run(md, identifier, &grid, &case_assignments, &recording, options.log, |t, values, texts| {
+            if keep {
+                trace.push(t, values);
+            }
             row.clear();
             if overlaid.is_some() {
                 row.push(format!("{:?}", case.si));
             }
             row.push(format!("{t:?}"));
             // Exactly as the FMU gave them: 64-bit integers in full, Binary in hexadecimal.
-            row.extend((0..output_columns.len()).map(|c| reader.text(c, values)));
+            row.extend((0..output_columns.len()).map(|c| texts.text(c, values)));
             writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
         })?;
+        trace.ended_early = outcome.ended_early;
         if let Some(reason) = &trace.ended_early {
             let which = case.label.as_ref().map(|l| format!(" ({l})")).unwrap_or_default();
-            eprintln!("{}{which}: stopped before the stop time {} s: {reason}", fmu.identifier, grid.stop);
+            eprintln!("{identifier}{which}: stopped before the stop time {} s: {reason}", grid.stop);
         }
         if options.plot.is_some() {
             traces.push(trace);

@@ -1,21 +1,25 @@
 //! `runner sweep`: the engine's sweep of a parameter space (one FMU instance per point, in
-//! parallel), one CSV row per point streamed in point order, the peaks and a plot.
+//! worker processes or, with `--in-process`, on threads), one CSV row per point streamed in
+//! point order to `<out>.partial` as points finish, renamed to `<out>` when complete; a killed or
+//! interrupted sweep continues with `--resume`. Then the peaks and a plot.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use fmi_importer::Fmu;
-use runner_engine::metrics::Metrics;
+use fmi_importer::Value;
+use runner_engine::isolation::{self, Isolation, Workers};
 use runner_engine::run::Grid;
-use runner_engine::sweep::{parse_range, Plan};
-use runner_engine::variables;
+use runner_engine::sweep::{parse_range, Plan, PointResult, SweepSpec};
+use sha2::{Digest, Sha256};
 
 use crate::experiment::{self, RunDefaults};
 use crate::integration::Integration;
 use crate::interrupt;
 use crate::report::output;
+use crate::report::partial::{self, PartialCsv, Record};
 use crate::report::plot::{self, Mark, Series};
 use crate::report::progress::Progress;
+use crate::workers::{self, Held};
 
 /// Options of `runner sweep`; empty lists and `None`s fall back to the model's experiment.toml.
 #[derive(Default)]
@@ -26,7 +30,7 @@ pub struct Options {
     pub params: Vec<String>,
     /// `NAME=EXPR`.
     pub metrics: Vec<String>,
-    /// Worker threads (default: the number of cores).
+    /// Worker threads or processes (default: the number of cores).
     pub threads: Option<usize>,
     /// Grid and fixed assignments.
     pub run: RunDefaults,
@@ -36,6 +40,16 @@ pub struct Options {
     pub plot: Option<PathBuf>,
     /// The interface, and the runner's integrator for Model Exchange.
     pub integration: Integration,
+    /// Run the points on threads of this process instead of worker processes.
+    pub in_process: bool,
+    /// A point running longer (seconds) is recorded as timed out and its worker replaced.
+    pub point_timeout: Option<f64>,
+    /// Memory limit of each worker in MiB (default: three quarters of the machine's, shared).
+    pub worker_memory: Option<u64>,
+    /// Continue the sweep whose finished rows are in `<out>.partial`.
+    pub resume: bool,
+    /// The command line as given, for the "continue with" message.
+    pub command_line: Vec<String>,
 }
 
 /// What a finished sweep reports.
@@ -55,8 +69,72 @@ fn output_paths(options: &Options, defaults: &experiment::SweepDefaults) -> (Opt
     (out, plot)
 }
 
-/// Runs `runner sweep`. The CSV is streamed in point order as points finish; it is renamed into
-/// place only when complete, and an interrupted sweep (Ctrl-C) commits nothing.
+fn value_text(value: &Value) -> String {
+    match value {
+        Value::Real(x) => format!("{x:?}"),
+        Value::Integer(i) => i.to_string(),
+        Value::Int(i) => i.to_string(),
+        Value::Boolean(b) => b.to_string(),
+        Value::String(s) => format!("{s:?}"),
+        Value::Binary(bytes) => bytes.iter().map(|b| format!("{b:02x}")).collect(),
+        Value::List(items) => format!("[{}]", items.iter().map(value_text).collect::<Vec<_>>().join(" ")),
+    }
+}
+
+/// The record of this sweep: what `--resume` compares (see [`partial`]).
+fn record(
+    path: &Path,
+    fmu_bytes: &[u8],
+    interface: fmi_importer::Interface,
+    plan: &Plan,
+    spec: &SweepSpec,
+    timeout: Option<f64>,
+) -> Record {
+    let mut entries: Vec<(String, String)> = Vec::new();
+    let mut put = |k: &str, v: String| entries.push((k.to_owned(), v));
+    put("fmu", path.display().to_string());
+    put("fmu_sha256", format!("{:x}", Sha256::digest(fmu_bytes)));
+    put("interface", interface.name().to_owned());
+    put("points", plan.space.len.to_string());
+    for (name, values) in &plan.space.ranges {
+        let mut hash = Sha256::new();
+        for x in values {
+            hash.update(x.to_bits().to_le_bytes());
+        }
+        let digest = format!("{:x}", hash.finalize());
+        let (first, last) = (values.first().copied().unwrap_or(f64::NAN), values.last().copied().unwrap_or(f64::NAN));
+        put("param", format!("{name}: {} values from {first:?} to {last:?} (sha256 {})", values.len(), &digest[..16]));
+    }
+    for text in &spec.metrics {
+        put("metric", text.clone());
+    }
+    for (variable, value) in &plan.fixed {
+        put("set", format!("{}={}", variable.name, value_text(value)));
+    }
+    let grid = &plan.grid;
+    put("start_time", format!("{:?}", grid.start));
+    put("stop_time", format!("{:?}", grid.stop));
+    put("output_interval", format!("{:?}", grid.interval));
+    put("tolerance", grid.tolerance.map_or("the FMU's default".to_owned(), |t| format!("{t:?}")));
+    if interface == fmi_importer::Interface::ModelExchange {
+        let s = &grid.solver;
+        put("solver", format!("{} (fixed step {:?} s, abs_tol {:?})", s.method.name(), s.fixed_step, s.abs_tol));
+    }
+    put("point_timeout", timeout.map_or("none".to_owned(), |t| format!("{t:?} s")));
+    Record { entries }
+}
+
+/// Where a durable sweep starts: the points already on file and their values.
+struct Start {
+    partial: PartialCsv,
+    first: usize,
+    kept: Vec<f64>,
+    failed: usize,
+}
+
+/// Runs `runner sweep`. To a file the CSV is streamed in point order to `<out>.partial` and
+/// renamed into place when complete; an interrupted or killed sweep keeps its finished rows
+/// there for `--resume`.
 pub fn run(options: &Options) -> Result<Summary, String> {
     let target = experiment::resolve(&options.fmu)?;
     let defaults = &target.experiment.sweep;
@@ -70,41 +148,152 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         return Err("no metric: give --metric NAME=EXPR, e.g. --metric 'amplitude=max(x)'".to_owned());
     }
     let ranges = param_texts.iter().map(|p| parse_range(p)).collect::<Result<Vec<_>, _>>()?;
-    let metrics = Metrics::parse(&metric_texts)?;
-    let fmu: Fmu = options.integration.load(&target.path)?;
-    let d = &fmu.description;
-    let mut grid = Grid::choose(d, &[options.run.grid(), defaults.run().grid()])?;
-    grid.solver = options.integration.solver()?;
-    let mut set_texts = defaults.set.clone();
-    set_texts.extend(options.run.set.iter().cloned());
-    let fixed = variables::parse_sets(d, &set_texts)?;
-    let plan = Plan::new(&fmu, grid, fixed, ranges, metrics)?;
-    let (space, metrics, swept) = (&plan.space, &plan.metrics, &plan.swept);
-    let n = space.len;
-
+    runner_engine::metrics::Metrics::parse(&metric_texts)?;
     let threads = options.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     if threads == 0 {
         return Err("--threads must be at least 1".to_owned());
     }
+    let timeout = workers::timeout("--point-timeout", options.point_timeout)?;
+    if options.in_process && timeout.is_some() {
+        return Err("--point-timeout needs worker processes (a thread cannot be stopped): drop --in-process".to_owned());
+    }
+    if options.in_process && options.worker_memory.is_some() {
+        return Err("--worker-memory limits worker processes: drop --in-process".to_owned());
+    }
+    let solver = options.integration.solver()?;
+    let config: Option<Isolation> = match options.in_process {
+        true => None,
+        false => Some(workers::isolation(timeout, options.worker_memory.unwrap_or_else(|| workers::default_memory_mib(threads)))?),
+    };
+    let (held, source) = Held::open(&target.path, &options.integration, options.in_process)?;
+    // Workers start now: they load the FMU (from this process's unpacked copy) while this process
+    // checks the plan and opens its files.
+    let points = ranges.iter().fold(1usize, |n, (_, v)| n.saturating_mul(v.len()));
+    let mut pool = match &config {
+        Some(config) => Some(Workers::start(config, &source, threads.min(points))?),
+        None => None,
+    };
+    let d = held.description();
+    let mut grid = Grid::choose(d, &[options.run.grid(), defaults.run().grid()])?;
+    grid.solver = solver;
+    let mut set_texts = defaults.set.clone();
+    set_texts.extend(options.run.set.iter().cloned());
+    let spec = SweepSpec { grid, sets: set_texts, ranges, metrics: metric_texts.clone() };
+    let plan = spec.plan(d, held.identifier())?;
+    let (space, metrics, swept) = (&plan.space, &plan.metrics, &plan.swept);
+    let n = space.len;
+    let once = isolation::once_per_process(d, held.interface());
+    if options.in_process && once && n > 1 {
+        return Err(format!(
+            "{} declares canBeInstantiatedOnlyOncePerProcess, so its points cannot share a process: drop --in-process (each point then gets a worker process of its own)",
+            d.model_name
+        ));
+    }
+    if let Some(pool) = &mut pool {
+        pool.one_instance_per_process(once);
+    }
+
     let (out_path, plot_path) = output_paths(options, defaults);
     if let Some(plot) = &plot_path {
         output::check_destination(plot)?;
     }
-    let mut writer = output::csv_writer(out_path.as_deref())?;
     let mut header: Vec<String> = space.ranges.iter().map(|(n, _)| n.clone()).collect();
     header.extend(metrics.metrics.iter().map(|(n, _)| n.clone()));
     header.push("status".to_owned());
-    writer.write_record(&header).map_err(|e| format!("cannot write CSV: {e}"))?;
+    let m = metrics.metrics.len();
+    let spell = |i: usize| -> Vec<String> {
+        let mut point = Vec::new();
+        space.point(i, &mut point);
+        point.iter().map(|x| format!("{x:?}")).collect()
+    };
+
+    // To a file: the finished rows so far (a resumed sweep's) and the partial file to extend.
+    let mut start: Option<Start> = None;
+    if let Some(out) = &out_path {
+        output::check_destination(out)?;
+        let fmu_bytes = std::fs::read(&target.path).map_err(|e| format!("cannot read {}: {e}", target.path.display()))?;
+        let current = record(&target.path, &fmu_bytes, held.interface(), &plan, &spec, options.point_timeout);
+        let (partial_path, record_path) = (partial::partial_path(out), partial::record_path(out));
+        let earlier = || -> Result<Record, String> {
+            let text = std::fs::read_to_string(&record_path).map_err(|e| {
+                format!("cannot read {}, the record of the sweep that wrote {}: {e}", record_path.display(), partial_path.display())
+            })?;
+            let earlier = Record::parse(&text).map_err(|e| format!("{}: {e}", record_path.display()))?;
+            match earlier.difference(&current) {
+                None => Ok(earlier),
+                Some(diff) => Err(format!(
+                    "{} is not from this sweep, so it cannot be resumed:\n{diff}\nrun the earlier sweep's command with --resume, or delete {} to start this one",
+                    partial_path.display(),
+                    partial_path.display()
+                )),
+            }
+        };
+        let mut spell_some = |i: usize| (i < n).then(|| spell(i));
+        if options.resume && partial_path.exists() {
+            earlier()?;
+            let finished = partial::read_finished(&partial_path, &header, m, &mut spell_some)?;
+            eprintln!(
+                "resuming: {} of {n} points are in {}; running the other {}",
+                finished.rows,
+                partial_path.display(),
+                n - finished.rows
+            );
+            // A kill before the header reached the file leaves it empty: start it again.
+            let file = if finished.valid == 0 {
+                PartialCsv::create(out, &header)?
+            } else {
+                PartialCsv::resume(out, finished.valid, finished.rows)?
+            };
+            start = Some(Start { partial: file, first: finished.rows, kept: finished.metrics, failed: finished.failed });
+        } else if options.resume && out.exists() && record_path.exists() {
+            earlier()?;
+            let finished = partial::read_finished(out, &header, m, &mut spell_some)?;
+            if finished.rows != n {
+                return Err(format!(
+                    "{} has {} of this sweep's {n} rows and no partial file to continue; run without --resume to start again",
+                    out.display(),
+                    finished.rows
+                ));
+            }
+            eprintln!("{} is already complete: all {n} points of this sweep are there; nothing to do", out.display());
+            return Ok(Summary { points: n, failed: finished.failed });
+        } else {
+            if options.resume {
+                eprintln!("nothing to resume: there is no {}; starting from the first point", partial_path.display());
+            } else if partial_path.exists() {
+                return Err(format!(
+                    "{} holds the finished points of an earlier sweep: continue it with --resume, or delete it to start again",
+                    partial_path.display()
+                ));
+            }
+            output::write_file(&record_path, current.text().as_bytes())?;
+            start = Some(Start { partial: PartialCsv::create(out, &header)?, first: 0, kept: Vec::new(), failed: 0 });
+        }
+    } else if options.resume {
+        return Err("--resume needs --out FILE.csv: a sweep to standard output keeps no partial file".to_owned());
+    }
 
     // Only the metric values are kept, for the peaks and the plot.
     let progress = Progress::start(n as u64, "points");
     let clock = Instant::now();
-    let m = metrics.metrics.len();
-    let mut kept: Vec<f64> = Vec::with_capacity(n * m);
-    let mut failed = 0usize;
+    let (first, mut kept, mut failed) = match &mut start {
+        Some(s) => (s.first, std::mem::take(&mut s.kept), s.failed),
+        None => (0, Vec::new(), 0),
+    };
+    kept.reserve(n.saturating_sub(first) * m);
+    progress.inc(first as u64);
+    let mut partial = start.map(|s| s.partial);
+    let mut stdout_csv = match &partial {
+        Some(_) => None,
+        None => {
+            let mut writer = output::csv_writer(None)?;
+            writer.write_record(&header).map_err(|e| format!("cannot write CSV: {e}"))?;
+            Some(writer)
+        }
+    };
     let mut point = Vec::new();
     let mut row: Vec<String> = Vec::with_capacity(header.len());
-    let written = plan.execute(threads, &interrupt::requested, |i, r| {
+    let mut deliver = |i: usize, r: PointResult| -> Result<(), String> {
         space.point(i, &mut point);
         row.clear();
         row.extend(point.iter().map(|x| format!("{x:?}")));
@@ -120,22 +309,72 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         }
         failed += usize::from(r.status != "ok");
         row.push(r.status);
-        writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))?;
+        match (&mut partial, &mut stdout_csv) {
+            (Some(file), _) => file.append(&row)?,
+            (None, Some(writer)) => writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))?,
+            (None, None) => unreachable!("one destination is open"),
+        }
         progress.inc(1);
         Ok(())
-    });
+    };
+    let written = match (&held, pool) {
+        (Held::Loaded(fmu), _) => plan.execute_range(fmu, first..n, threads, &interrupt::requested, &mut deliver),
+        (Held::Described(_), Some(pool)) => isolation::execute_sweep(&plan, &spec, pool, first..n, &interrupt::requested, &mut deliver),
+        (Held::Described(_), None) => unreachable!("workers were started"),
+    };
     drop(progress);
-    written?;
-    let elapsed = clock.elapsed().as_secs_f64();
-    if interrupt::requested() {
-        let done = kept.len() / m.max(1);
-        return Err(format!("interrupted after {done} of {n} points{}", if out_path.is_some() { "; no file written" } else { "" }));
+    let delivered = kept.len() / m.max(1);
+    let continue_with = || {
+        let mut args = options.command_line.clone();
+        if !args.iter().any(|a| a == "--resume") {
+            args.push("--resume".to_owned());
+        }
+        workers::shell_line(&args)
+    };
+    if let Err(e) = written {
+        return Err(match partial {
+            Some(file) => {
+                let path = file.path().to_path_buf();
+                let _ = file.close();
+                // What reached the file, read back: rows a failed write did not reach are gone.
+                let kept = partial::read_finished(&path, &header, m, &mut |i| (i < n).then(|| spell(i))).map_or(0, |f| f.rows);
+                format!(
+                    "{e}\nthe {kept} points finished before are kept in {}; once it can be written, continue with: {}",
+                    path.display(),
+                    continue_with()
+                )
+            }
+            None => e,
+        });
     }
-    let destination = writer.get_ref().describe();
-    let csv_on_stdout = matches!(writer.get_ref(), output::Output::Stdout(_));
-    output::finish_csv(writer)?;
+    if interrupt::requested() {
+        return Err(match partial {
+            Some(file) => {
+                let path = file.path().to_path_buf();
+                let done = file.close()?;
+                format!(
+                    "interrupted after {done} of {n} points; the finished points are in {}; continue with: {}",
+                    path.display(),
+                    continue_with()
+                )
+            }
+            None => format!("interrupted after {delivered} of {n} points"),
+        });
+    }
+    let destination = match (&partial, &out_path) {
+        (Some(_), Some(out)) => out.display().to_string(),
+        _ => "standard output".to_owned(),
+    };
+    let csv_on_stdout = partial.is_none();
+    match (partial, stdout_csv) {
+        (Some(file), _) => file.finish()?,
+        (None, Some(writer)) => output::finish_csv(writer)?,
+        (None, None) => {}
+    }
+    let mode = if config.is_some() { "worker process(es)" } else { "thread(s), in-process" };
+    let elapsed = clock.elapsed().as_secs_f64();
 
-    eprintln!("{n} points in {elapsed:.2} s on {threads} thread(s); {failed} failed; wrote {destination}");
+    eprintln!("{n} points in {elapsed:.2} s on {threads} {mode}; {failed} failed; wrote {destination}");
     let metric_of = |i: usize, k: usize| kept[i * m + k];
     let mut point = Vec::new();
     for (k, (name, _)) in metrics.metrics.iter().enumerate() {

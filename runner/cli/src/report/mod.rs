@@ -5,6 +5,7 @@ pub mod figure;
 pub mod fonts;
 pub mod gif;
 pub mod output;
+pub mod partial;
 pub mod plot;
 pub mod progress;
 pub mod scene;

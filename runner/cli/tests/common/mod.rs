@@ -117,3 +117,38 @@ pub fn me_faults_fmu(dir: &Path, file: &str, edit: impl Fn(&str) -> String) -> P
     write_zip(&path, &[ZipItem::File("modelDescription.xml", xml.as_bytes()), ZipItem::File("binaries/linux64/me_faults.so", &binary)]);
     path
 }
+
+/// Builds tests/c_fmu/faulty.c, the FMU that crashes, aborts, hangs, exits or leaks on request,
+/// as `<dir>/<file>`; `once_per_process` is what its modelDescription declares as
+/// canBeInstantiatedOnlyOncePerProcess, `extra_flags` go to the compiler (-DONCE_PER_PROCESS).
+pub fn faulty_fmu(dir: &Path, file: &str, once_per_process: bool, extra_flags: &[&str]) -> PathBuf {
+    let source = c_fmu_dir().join("faulty.c");
+    let so = dir.join(format!("{file}.so"));
+    let status = Command::new("cc")
+        .args(["-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-o"])
+        .arg(&so)
+        .arg(&source)
+        .args(extra_flags)
+        .arg("-lm")
+        .status()
+        .expect("the C compiler `cc` runs");
+    assert!(status.success(), "cc failed to compile {}", source.display());
+    let xml = std::fs::read_to_string(c_fmu_dir().join("faulty.xml")).unwrap();
+    let xml = xml
+        .replace(r#"canBeInstantiatedOnlyOncePerProcess="false""#, &format!(r#"canBeInstantiatedOnlyOncePerProcess="{once_per_process}""#));
+    let path = dir.join(file);
+    let binary = std::fs::read(&so).unwrap();
+    write_zip(&path, &[ZipItem::File("modelDescription.xml", xml.as_bytes()), ZipItem::File("binaries/linux64/faulty.so", &binary)]);
+    path
+}
+
+/// Runs the runner with `args` in `dir` as a child process, for tests that signal it.
+pub fn spawn_runner(dir: &Path, args: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_runner"))
+        .current_dir(dir)
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("runner starts")
+}

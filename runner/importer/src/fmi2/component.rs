@@ -9,6 +9,7 @@ use fmi_c::fmi2 as c;
 use super::{Binary, Callbacks};
 use crate::model::{Kind, Variable};
 use crate::reader::Buffer;
+use crate::trace::{self, Call};
 use crate::{Fmu, Reader, Value};
 
 pub(crate) const OK: c_int = c::Status::Ok as c_int;
@@ -29,6 +30,8 @@ pub(crate) struct Component<'a> {
     /// has since returned fmi2Error, after which only fmi2Reset and fmi2FreeInstance are.
     pub(crate) terminate_allowed: bool,
     pub(crate) fatal: bool,
+    /// The model time reached (NaN before fmi2SetupExperiment), for [`trace`].
+    pub(crate) time: f64,
 }
 
 impl<'a> Component<'a> {
@@ -42,6 +45,7 @@ impl<'a> Component<'a> {
     ) -> Result<Component<'a>, String> {
         let callbacks = Callbacks::new();
         let c_name = CString::new(name).map_err(|_| format!("instance name {name:?} contains a NUL byte"))?;
+        trace::enter(Call::Instantiate, f64::NAN);
         // SAFETY: every pointer is valid for the call; the callbacks outlive the component.
         let raw = unsafe {
             (binary.api.instantiate)(
@@ -54,7 +58,7 @@ impl<'a> Component<'a> {
                 debug_logging as c::Boolean,
             )
         };
-        let component = Component { binary, name: name.to_owned(), raw, callbacks, terminate_allowed: false, fatal: false };
+        let component = Component { binary, name: name.to_owned(), raw, callbacks, terminate_allowed: false, fatal: false, time: f64::NAN };
         if raw.is_null() {
             return Err(component.failure("fmi2Instantiate", "returned NULL"));
         }
@@ -98,6 +102,8 @@ impl<'a> Component<'a> {
 
     /// fmi2SetupExperiment with an optional relative tolerance and a defined stop time.
     pub(crate) fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
+        self.time = start;
+        trace::enter(Call::SetupExperiment, start);
         let status =
             unsafe { (self.binary.api.setup_experiment)(self.raw, tolerance.is_some() as c_int, tolerance.unwrap_or(0.0), start, 1, stop) };
         self.check("fmi2SetupExperiment", status)
@@ -105,12 +111,14 @@ impl<'a> Component<'a> {
 
     /// fmi2EnterInitializationMode.
     pub(crate) fn enter_initialization_mode(&mut self) -> Result<(), String> {
+        trace::enter(Call::EnterInitializationMode, self.time);
         let status = unsafe { (self.binary.api.enter_initialization_mode)(self.raw) };
         self.check("fmi2EnterInitializationMode", status)
     }
 
     /// fmi2ExitInitializationMode.
     pub(crate) fn exit_initialization_mode(&mut self) -> Result<(), String> {
+        trace::enter(Call::ExitInitializationMode, self.time);
         let status = unsafe { (self.binary.api.exit_initialization_mode)(self.raw) };
         self.check("fmi2ExitInitializationMode", status)?;
         self.terminate_allowed = true;
@@ -122,13 +130,24 @@ impl<'a> Component<'a> {
         let vr = variable.value_reference;
         let comp = self.raw;
         let api = &self.binary.api;
+        let time = self.time;
         // SAFETY: one value reference and one value, both valid for the call.
         let status = unsafe {
             match value {
-                Value::Real(v) => (api.set_real)(comp, &vr, 1, v),
-                Value::Integer(v) => (api.set_integer)(comp, &vr, 1, v),
-                Value::Boolean(v) => (api.set_boolean)(comp, &vr, 1, &(*v as c_int)),
+                Value::Real(v) => {
+                    trace::enter(Call::SetReal, time);
+                    (api.set_real)(comp, &vr, 1, v)
+                }
+                Value::Integer(v) => {
+                    trace::enter(Call::SetInteger, time);
+                    (api.set_integer)(comp, &vr, 1, v)
+                }
+                Value::Boolean(v) => {
+                    trace::enter(Call::SetBoolean, time);
+                    (api.set_boolean)(comp, &vr, 1, &(*v as c_int))
+                }
                 Value::String(v) => {
+                    trace::enter(Call::SetString, time);
                     let s = CString::new(v.as_str()).map_err(|_| format!("the value of {} contains a NUL byte", variable.name))?;
                     (api.set_string)(comp, &vr, 1, &s.as_ptr())
                 }
@@ -152,6 +171,7 @@ impl<'a> Component<'a> {
         if reader.direct {
             // Only Reals (the usual sweep): they are in `out`'s order, so read straight into it.
             if let Some(group) = reader.groups.first() {
+                trace::enter(Call::GetReal, self.time);
                 let status = unsafe { (self.binary.api.get_real)(self.raw, group.vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
                 self.check("fmi2GetReal", status)?;
             }
@@ -169,11 +189,21 @@ impl<'a> Component<'a> {
             let (vrs, n) = (group.vrs.as_ptr(), group.vrs.len());
             let api = &self.binary.api;
             // SAFETY: each buffer holds one value per value reference of its group.
+            let time = self.time;
             let (call, status) = unsafe {
                 match &mut group.buffer {
-                    Buffer::F64(b) => ("fmi2GetReal", (api.get_real)(comp, vrs, n, b.as_mut_ptr())),
-                    Buffer::I32(b) => ("fmi2GetInteger", (api.get_integer)(comp, vrs, n, b.as_mut_ptr())),
-                    Buffer::IntBool(b) => ("fmi2GetBoolean", (api.get_boolean)(comp, vrs, n, b.as_mut_ptr())),
+                    Buffer::F64(b) => {
+                        trace::enter(Call::GetReal, time);
+                        ("fmi2GetReal", (api.get_real)(comp, vrs, n, b.as_mut_ptr()))
+                    }
+                    Buffer::I32(b) => {
+                        trace::enter(Call::GetInteger, time);
+                        ("fmi2GetInteger", (api.get_integer)(comp, vrs, n, b.as_mut_ptr()))
+                    }
+                    Buffer::IntBool(b) => {
+                        trace::enter(Call::GetBoolean, time);
+                        ("fmi2GetBoolean", (api.get_boolean)(comp, vrs, n, b.as_mut_ptr()))
+                    }
                     _ => return Err(format!("{}: a {} variable cannot be read from an FMI 2.0 FMU", self.name, group.kind)),
                 }
             };
@@ -194,8 +224,10 @@ impl Drop for Component<'_> {
         // last call.
         unsafe {
             if self.terminate_allowed {
+                trace::enter(Call::Terminate, self.time);
                 (self.binary.api.terminate)(self.raw);
             }
+            trace::enter(Call::FreeInstance, self.time);
             (self.binary.api.free_instance)(self.raw);
         }
     }

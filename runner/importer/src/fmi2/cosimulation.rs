@@ -7,6 +7,7 @@ use fmi_c::fmi2 as c;
 
 use super::component::{Component, DISCARD, OK, WARNING};
 use super::Binary;
+use crate::trace::{self, Call};
 use crate::{Fmu, Reader, Step, Value, Variable};
 
 /// One Co-Simulation instance of an FMI 2.0 FMU.
@@ -51,11 +52,13 @@ impl<'a> CoSimulation<'a> {
     #[inline]
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         let do_step = self.component.binary.api.do_step.expect("resolved for Co-Simulation");
+        trace::enter(Call::DoStep, t);
         let status = unsafe { do_step(self.component.raw, t, h, c::TRUE) };
         if status == DISCARD {
             return self.discarded(t);
         }
         self.component.check("fmi2DoStep", status)?;
+        self.component.time = t + h;
         Ok(Step::Done)
     }
 
@@ -66,6 +69,7 @@ impl<'a> CoSimulation<'a> {
         let (get_boolean_status, get_real_status) = (api.get_boolean_status.expect("resolved"), api.get_real_status.expect("resolved"));
         let raw = self.component.raw;
         let mut terminated: c_int = 0;
+        trace::enter(Call::GetBooleanStatus, t);
         let s = unsafe { get_boolean_status(raw, c::TERMINATED, &mut terminated) };
         self.component.check("fmi2GetBooleanStatus(fmi2Terminated)", s)?;
         let reason = self.component.callbacks.log.take_problem().unwrap_or_else(|| "no reason logged".to_owned());
@@ -73,6 +77,7 @@ impl<'a> CoSimulation<'a> {
             return Err(format!("{}: fmi2DoStep at t = {t} returned fmi2Discard without terminating: {reason}", self.component.name));
         }
         let mut last = f64::NAN;
+        trace::enter(Call::GetRealStatus, t);
         let s = unsafe { get_real_status(raw, c::LAST_SUCCESSFUL_TIME, &mut last) };
         let last_time = (s == OK || s == WARNING).then_some(last).filter(|t| t.is_finite());
         let when = match last_time {

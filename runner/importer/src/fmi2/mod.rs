@@ -114,6 +114,7 @@ impl Binary {
     pub fn load(path: &Path, interface: Interface) -> Result<Binary, String> {
         // SAFETY: loading runs the library's initializers: the price of running any FMU.
         // RTLD_LOCAL keeps two FMUs' fmi2* symbols apart.
+        crate::trace::enter(crate::trace::Call::Load, f64::NAN);
         let library =
             unsafe { Library::open(Some(path), RTLD_NOW | RTLD_LOCAL) }.map_err(|e| format!("cannot load {}: {e}", path.display()))?;
         let api = Api::resolve(&library, interface).map_err(|e| format!("{e} (FMI 2.0 requires it of a {interface} FMU)"))?;

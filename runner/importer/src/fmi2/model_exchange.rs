@@ -15,6 +15,7 @@ use solvers::{Advance, Integrator, OdeSystem, Settings};
 
 use super::component::{Component, DISCARD, ERROR, FATAL, OK, WARNING};
 use super::{Binary, ExchangeApi};
+use crate::trace::{self, Call};
 use crate::{Fmu, Reader, Solver, Step, Value, Variable};
 
 /// Most `fmi2NewDiscreteStates` calls one event may take before the run is stopped: an event
@@ -68,6 +69,7 @@ impl<const N: usize> System<'_, N> {
             return false;
         }
         if t != self.time_set.get() {
+            trace::enter(Call::SetTime, t);
             let status = unsafe { (self.api.set_time)(self.raw, t) };
             if !accepted(status) {
                 self.trouble("fmi2SetTime", t, status, false);
@@ -77,6 +79,7 @@ impl<const N: usize> System<'_, N> {
         }
         let nx = self.dim();
         if nx > 0 {
+            trace::enter(Call::SetContinuousStates, t);
             let status = unsafe { (self.api.set_continuous_states)(self.raw, x.as_ptr(), nx) };
             if !accepted(status) {
                 self.trouble("fmi2SetContinuousStates", t, status, false);
@@ -138,6 +141,7 @@ impl<const N: usize> OdeSystem for System<'_, N> {
             return;
         }
         let nx = self.dim();
+        trace::enter(Call::GetDerivatives, t);
         let status = unsafe { (self.api.get_derivatives)(self.raw, dx.as_mut_ptr(), nx) };
         if !accepted(status) {
             self.trouble("fmi2GetDerivatives", t, status, false);
@@ -156,6 +160,7 @@ impl<const N: usize> OdeSystem for System<'_, N> {
             z.fill(f64::NAN);
             return;
         }
+        trace::enter(Call::GetEventIndicators, t);
         let status = unsafe { (self.api.get_event_indicators)(self.raw, z.as_mut_ptr(), self.nz) };
         // A missed sign change would pass silently: indicators that cannot be evaluated stop
         // the run, even with fmi2Discard.
@@ -292,9 +297,11 @@ impl<'a> ModelExchange<'a> {
 
     /// Gives the FMU the time and states the integrator reached.
     fn place(&mut self) -> Result<(), String> {
+        trace::enter(Call::SetTime, self.t);
         let status = unsafe { (self.api.set_time)(self.component.raw, self.t) };
         self.check("fmi2SetTime", status)?;
         if self.nx > 0 {
+            trace::enter(Call::SetContinuousStates, self.t);
             let status = unsafe { (self.api.set_continuous_states)(self.component.raw, self.x.as_ptr(), self.nx) };
             self.check("fmi2SetContinuousStates", status)?;
         }
@@ -310,6 +317,7 @@ impl<'a> ModelExchange<'a> {
         let mut settled = false;
         for _ in 0..MAX_EVENT_ITERATIONS {
             info = c::EventInfo::default();
+            trace::enter(Call::NewDiscreteStates, self.t);
             let status = unsafe { (self.api.new_discrete_states)(raw, &mut info) };
             self.check("fmi2NewDiscreteStates", status)?;
             if info.terminate_simulation != 0 {
@@ -328,11 +336,13 @@ impl<'a> ModelExchange<'a> {
                 self.component.name, self.t
             ));
         }
+        trace::enter(Call::EnterContinuousTimeMode, self.t);
         let status = unsafe { (self.api.enter_continuous_time_mode)(raw) };
         self.check("fmi2EnterContinuousTimeMode", status)?;
         // Read back whatever valuesOfContinuousStatesChanged says: one call per event, and an
         // FMU that forgets the flag still continues from its own states.
         if self.nx > 0 {
+            trace::enter(Call::GetContinuousStates, self.t);
             let status = unsafe { (self.api.get_continuous_states)(raw, self.x.as_mut_ptr(), self.nx) };
             self.check("fmi2GetContinuousStates", status)?;
             if let Some(i) = self.x.iter().position(|v| !v.is_finite()) {
@@ -353,6 +363,7 @@ impl<'a> ModelExchange<'a> {
 
     /// Enters event mode at the current time and iterates the event.
     fn event(&mut self) -> Result<Option<String>, String> {
+        trace::enter(Call::EnterEventMode, self.t);
         let status = unsafe { (self.api.enter_event_mode)(self.component.raw) };
         self.check("fmi2EnterEventMode", status)?;
         self.event_iteration()
@@ -443,6 +454,7 @@ impl<'a> ModelExchange<'a> {
     /// fmi2CompletedIntegratorStep: (enterEventMode, terminateSimulation).
     fn completed_step(&mut self) -> Result<(bool, bool), String> {
         let (mut enter, mut terminate): (c_int, c_int) = (0, 0);
+        trace::enter(Call::CompletedIntegratorStep, self.t);
         let status = unsafe { (self.api.completed_integrator_step)(self.component.raw, c::TRUE, &mut enter, &mut terminate) };
         self.check("fmi2CompletedIntegratorStep", status)?;
         Ok((enter != 0, terminate != 0))

@@ -11,6 +11,7 @@ use super::{log_message, Binary, Environment};
 use crate::logging::LogContext;
 use crate::model::{Causality, Kind, Variable};
 use crate::reader::Buffer;
+use crate::trace::{self, Call};
 use crate::{Fmu, Reader, Step, Value};
 
 const OK: c_int = c::Status::Ok as c_int;
@@ -45,6 +46,7 @@ impl<'a> CoSimulation<'a> {
         let caps = fmu.description.co_simulation.clone().unwrap_or_default();
         let env = Box::new(Environment { name: name.to_owned(), log: LogContext::default() });
         let c_name = CString::new(name).map_err(|_| format!("instance name {name:?} contains a NUL byte"))?;
+        trace::enter(Call::Fmi3Instantiate, f64::NAN);
         // SAFETY: every pointer is valid for the call; the environment outlives the instance.
         let instance = unsafe {
             (binary.api.instantiate_co_simulation)(
@@ -115,6 +117,7 @@ impl<'a> CoSimulation<'a> {
     /// fmi3EnterInitializationMode with the experiment's tolerance, start and stop time.
     pub fn enter_initialization_mode(&mut self) -> Result<(), String> {
         let (tolerance, start, stop) = self.experiment;
+        trace::enter(Call::Fmi3EnterInitializationMode, start);
         let status = unsafe {
             (self.binary.api.enter_initialization_mode)(self.instance, tolerance.is_some(), tolerance.unwrap_or(0.0), start, true, stop)
         };
@@ -125,6 +128,7 @@ impl<'a> CoSimulation<'a> {
     /// fmi3ExitInitializationMode, then (with Event Mode) the initial event iteration and
     /// fmi3EnterStepMode.
     pub fn exit_initialization_mode(&mut self) -> Result<(), String> {
+        trace::enter(Call::Fmi3ExitInitializationMode, self.experiment.1);
         let status = unsafe { (self.binary.api.exit_initialization_mode)(self.instance) };
         self.check("fmi3ExitInitializationMode", status)?;
         self.terminate_allowed = true;
@@ -132,6 +136,8 @@ impl<'a> CoSimulation<'a> {
             if self.update_discrete_states("after initialization")? {
                 return Err(format!("{}: the FMU asked to terminate the simulation during initialization", self.name));
             }
+            trace::enter(Call::Fmi3EnterStepMode, f64::NAN);
+            trace::enter(Call::Fmi3EnterStepMode, f64::NAN);
             let status = unsafe { (self.binary.api.enter_step_mode)(self.instance) };
             self.check("fmi3EnterStepMode", status)?;
         }
@@ -143,6 +149,7 @@ impl<'a> CoSimulation<'a> {
     fn update_discrete_states(&mut self, when: &str) -> Result<bool, String> {
         for _ in 0..MAX_EVENT_ITERATIONS {
             let (mut again, mut terminate, mut nominals, mut values, mut next_defined, mut next) = (false, false, false, false, false, 0.0);
+            trace::enter(Call::Fmi3UpdateDiscreteStates, f64::NAN);
             let status = unsafe {
                 (self.binary.api.update_discrete_states)(
                     self.instance,
@@ -170,12 +177,14 @@ impl<'a> CoSimulation<'a> {
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
         let configure = self.instantiated && variable.causality == Causality::StructuralParameter;
         if configure {
+            trace::enter(Call::Fmi3EnterConfigurationMode, f64::NAN);
             let status = unsafe { (self.binary.api.enter_configuration_mode)(self.instance) };
             self.check("fmi3EnterConfigurationMode", status)?;
         }
         // A refused value is the error to report: after it the FMU may refuse leaving too.
         self.set_values(variable, value)?;
         if configure {
+            trace::enter(Call::Fmi3ExitConfigurationMode, f64::NAN);
             let status = unsafe { (self.binary.api.exit_configuration_mode)(self.instance) };
             self.check("fmi3ExitConfigurationMode", status)?;
         }
@@ -188,6 +197,7 @@ impl<'a> CoSimulation<'a> {
             single => vec![single],
         };
         let vr = [variable.value_reference];
+        trace::enter(Call::Fmi3Set, f64::NAN);
         let (inst, api, n) = (self.instance, &self.binary.api, items.len());
         let wrong = || format!("{}: {value:?} is not a value of its type {}", variable.name, variable.kind);
         macro_rules! set {
@@ -247,6 +257,7 @@ impl<'a> CoSimulation<'a> {
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         if reader.direct {
             if let Some(group) = reader.groups.first() {
+                trace::enter(Call::Fmi3Get, f64::NAN);
                 let status = unsafe {
                     (self.binary.api.get_float64)(self.instance, group.vrs.as_ptr(), group.vrs.len(), out.as_mut_ptr(), out.len())
                 };
@@ -261,6 +272,7 @@ impl<'a> CoSimulation<'a> {
 
     fn read_groups(&mut self, reader: &mut Reader) -> Result<(), String> {
         let inst = self.instance;
+        trace::enter(Call::Fmi3Get, f64::NAN);
         for group in &mut reader.groups {
             let (vrs, nvr) = (group.vrs.as_ptr(), group.vrs.len());
             let api = &self.binary.api;
@@ -320,6 +332,7 @@ impl<'a> CoSimulation<'a> {
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         let t_end = t + h;
         let (mut event, mut terminate, mut early, mut last) = (false, false, false, t);
+        trace::enter(Call::Fmi3DoStep, t);
         let status = unsafe { (self.binary.api.do_step)(self.instance, t, h, true, &mut event, &mut terminate, &mut early, &mut last) };
         self.check("fmi3DoStep", status)?;
         let reached = if early && self.early_return { last } else { t_end };
@@ -349,12 +362,14 @@ impl<'a> CoSimulation<'a> {
         if !self.event_mode {
             return Ok(None);
         }
+        trace::enter(Call::Fmi3EnterEventMode, time);
         let status = unsafe { (self.binary.api.enter_event_mode)(self.instance) };
         self.check("fmi3EnterEventMode", status)?;
         if self.update_discrete_states(&format!("at t = {time}"))? {
             let reason = self.env.log.take_problem().unwrap_or_else(|| "the FMU asked to terminate the simulation".to_owned());
             return Ok(Some(format!("the model ended the simulation at t = {time}: {reason}")));
         }
+        trace::enter(Call::Fmi3EnterStepMode, time);
         let status = unsafe { (self.binary.api.enter_step_mode)(self.instance) };
         self.check("fmi3EnterStepMode", status)?;
         Ok(None)
@@ -369,8 +384,10 @@ impl Drop for CoSimulation<'_> {
         // SAFETY: the instance is live; fmi3Terminate only where allowed; fmi3FreeInstance last.
         unsafe {
             if self.terminate_allowed {
+                trace::enter(Call::Fmi3Terminate, f64::NAN);
                 (self.binary.api.terminate)(self.instance);
             }
+            trace::enter(Call::Fmi3FreeInstance, f64::NAN);
             (self.binary.api.free_instance)(self.instance);
         }
     }

@@ -1,0 +1,249 @@
+//! Worker processes: sweeps, simulate and compare on tests/c_fmu/faulty.c, an FMU that
+//! segfaults, aborts, hangs, exits the process or leaks memory at chosen parameter values. Each
+//! misbehaving point must be recorded with the signal (or exit code, or timeout) and the FMI call
+//! and model time it happened at, while every other point equals an in-process run bit for bit
+//! (the same code runs the same point; only the process differs).
+
+mod common;
+
+use std::collections::BTreeSet;
+
+use common::*;
+
+/// Rows of a CSV keyed by their first `key` columns.
+fn rows_by_point(path: &std::path::Path, key: usize) -> Vec<(Vec<String>, Vec<String>)> {
+    let (_, rows) = read_csv(path);
+    rows.into_iter().map(|r| (r[..key].to_vec(), r[key..].to_vec())).collect()
+}
+
+/// The worker processes among the children of process `pid`.
+fn worker_children(pid: u32) -> usize {
+    let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).map(|d| d.flatten().collect::<Vec<_>>()).unwrap_or_default();
+    tasks
+        .iter()
+        .flat_map(|t| {
+            std::fs::read_to_string(t.path().join("children")).unwrap_or_default().split_whitespace().map(str::to_owned).collect::<Vec<_>>()
+        })
+        .filter(|child| std::fs::read(format!("/proc/{child}/cmdline")).is_ok_and(|c| c.split(|&b| b == 0).nth(1) == Some(b"worker")))
+        .count()
+}
+
+#[test]
+fn crashing_and_hanging_points_are_recorded_and_the_rest_equal_an_in_process_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "faulty.fmu", false, &[]);
+    let f = fmu.to_str().unwrap();
+    // Temporary files go to a directory of the test's: crashed workers must leave none there.
+    let tmp = dir.path().join("tmp");
+    std::fs::create_dir(&tmp).unwrap();
+    let sweep = |faults: &str, out: &str, extra: &[&str]| {
+        let mut args = vec!["sweep", f, "--param", "k=0.5,1", "--param", faults, "--metric", "end=final(x)", "--metric", "mean=mean(x)"];
+        args.extend_from_slice(&["--threads", "2", "--out", out]);
+        args.extend_from_slice(extra);
+        std::process::Command::new(env!("CARGO_BIN_EXE_runner")).current_dir(dir.path()).env("TMPDIR", &tmp).args(&args).output().unwrap()
+    };
+    // fault 0 runs normally; 1 SIGSEGV, 2 abort(), 3 a busy loop, 4 exit(3), all in fmi2DoStep
+    // from t = 0.31 (the 32nd step of 0.01 s).
+    let o = sweep("fault=0,1,2,3,4", "isolated.csv", &["--point-timeout", "1"]);
+    assert_eq!(o.status.code(), Some(1), "failed points make the exit code 1: {}", stderr(&o));
+    assert!(stderr(&o).contains("8 of 10 sweep point(s) failed"), "{}", stderr(&o));
+    let isolated = rows_by_point(&dir.path().join("isolated.csv"), 2);
+    let expected = [
+        "ok",
+        "crashed: SIGSEGV in fmi2DoStep at t = 0.31",
+        "crashed: SIGABRT in fmi2DoStep at t = 0.31",
+        "timed out after 1 s in fmi2DoStep at t = 0.31",
+        "exited: the worker process ended with code 3 in fmi2DoStep at t = 0.31",
+    ];
+    assert_eq!(isolated.len(), 10);
+    for (i, (point, values)) in isolated.iter().enumerate() {
+        assert_eq!(values[2], expected[i % 5], "point {point:?}");
+        if i % 5 != 0 {
+            assert_eq!((values[0].as_str(), values[1].as_str()), ("", ""), "no metrics for a failed point");
+        }
+    }
+    let left: Vec<_> = std::fs::read_dir(&tmp).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert!(left.is_empty(), "workers load the supervisor's unpacked copy, so dead ones leave nothing: {left:?}");
+    // The healthy points, in-process on threads (where a crash would take everything down).
+    ok(sweep("fault=0", "in_process.csv", &["--in-process"]));
+    let healthy: Vec<_> = isolated.iter().filter(|(_, v)| v[2] == "ok").cloned().collect();
+    assert_eq!(healthy, rows_by_point(&dir.path().join("in_process.csv"), 2), "the same digits, so the same bits");
+}
+
+/// An FMU that leaks 40 MB per instance: a worker whose memory passes half its limit is replaced
+/// after its point, so all eight points succeed (in one process they would need 320 MB of a
+/// 256 MB limit) and equal an in-process run; one that leaks 10 MB every step from t = 0.31
+/// exhausts the limit within its run, its malloc returns NULL and it crashes, that point alone.
+#[test]
+fn leaking_points_get_fresh_workers_and_a_runaway_leak_fails_its_point_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "faulty.fmu", false, &[]);
+    let f = fmu.to_str().unwrap();
+    let metrics = ["--metric", "end=final(x)", "--metric", "pid=final(pid)"];
+    let mut args = vec!["sweep", f, "--param", "x0=1:8:1", "--param", "fault=6", "--threads", "1", "--out", "leak.csv"];
+    args.extend_from_slice(&metrics);
+    // While it runs, a replaced worker must be gone at once (with its memory), not wait for the
+    // end of the sweep: at most the running worker and one exiting are alive.
+    let mut child = spawn_runner(dir.path(), &[&args[..], &["--worker-memory", "256"]].concat());
+    let mut most = 0;
+    while child.try_wait().unwrap().is_none() {
+        most = most.max(worker_children(child.id()));
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    assert!(child.wait().unwrap().success());
+    assert!(most <= 2, "{most} workers alive at once on 1 thread");
+    let leaky = rows_by_point(&dir.path().join("leak.csv"), 2);
+    assert!(leaky.iter().all(|(_, v)| v[2] == "ok"), "{leaky:?}");
+    let pids: BTreeSet<&str> = leaky.iter().map(|(_, v)| v[1].as_str()).collect();
+    assert!(pids.len() >= 3, "40 MB per point, replaced past 128 MB: a new worker every few points, got {pids:?}");
+    let out = args.iter().position(|a| *a == "leak.csv").unwrap();
+    args[out] = "in_process.csv";
+    ok(runner(dir.path(), &[&args[..], &["--in-process"]].concat()));
+    let in_process = rows_by_point(&dir.path().join("in_process.csv"), 2);
+    let end = |rows: &[(Vec<String>, Vec<String>)]| rows.iter().map(|(p, v)| (p.clone(), v[0].clone())).collect::<Vec<_>>();
+    assert_eq!(end(&leaky), end(&in_process));
+
+    let o = runner(
+        dir.path(),
+        &[
+            "sweep",
+            f,
+            "--param",
+            "fault=0,5",
+            "--set",
+            "leak_mb=10",
+            "--metric",
+            "end=final(x)",
+            "--worker-memory",
+            "256",
+            "--out",
+            "runaway.csv",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let rows = rows_by_point(&dir.path().join("runaway.csv"), 1);
+    assert_eq!(rows[0].1[1], "ok");
+    assert!(rows[1].1[1].starts_with("crashed: SIGSEGV in fmi2DoStep at t = "), "{rows:?}");
+}
+
+/// canBeInstantiatedOnlyOncePerProcess: every point gets a process of its own (the FMU refuses a
+/// second instance in a process, so sharing one would fail points), and --in-process is refused.
+/// The same binary with the flag left false shows that the check can fail.
+#[test]
+fn fmus_instantiable_once_per_process_get_a_process_per_point() {
+    let dir = tempfile::tempdir().unwrap();
+    let once = faulty_fmu(dir.path(), "once.fmu", true, &["-DONCE_PER_PROCESS"]);
+    let args = |fmu: &std::path::Path, out: &str| {
+        ["sweep", fmu.to_str().unwrap(), "--param", "k=0.5:2:0.5", "--metric", "pid=final(pid)", "--threads", "2", "--out", out]
+            .map(String::from)
+    };
+    let run = |a: &[String], extra: &[&str]| {
+        let mut all: Vec<&str> = a.iter().map(String::as_str).collect();
+        all.extend_from_slice(extra);
+        runner(dir.path(), &all)
+    };
+    ok(run(&args(&once, "once.csv"), &[]));
+    let rows = rows_by_point(&dir.path().join("once.csv"), 1);
+    assert!(rows.iter().all(|(_, v)| v[1] == "ok"), "{rows:?}");
+    assert_eq!(rows.iter().map(|(_, v)| &v[0]).collect::<BTreeSet<_>>().len(), 4, "four points, four processes");
+    let err = fails(run(&args(&once, "x.csv"), &["--in-process"]));
+    assert!(err.contains("canBeInstantiatedOnlyOncePerProcess") && err.contains("drop --in-process"), "{err}");
+
+    let undeclared = faulty_fmu(dir.path(), "undeclared.fmu", false, &["-DONCE_PER_PROCESS"]);
+    let o = run(&args(&undeclared, "shared.csv"), &[]);
+    assert_eq!(o.status.code(), Some(1));
+    let rows = rows_by_point(&dir.path().join("shared.csv"), 1);
+    assert!(rows.iter().any(|(_, v)| v[1].contains("only once per process")), "workers reused for undeclared FMUs: {rows:?}");
+}
+
+/// A point's time limit counts from when its worker is ready: an FMU whose binary takes a second
+/// to load (its initializer sleeps) runs its points within a limit of half a second.
+#[test]
+fn the_time_limit_does_not_count_the_start_of_a_worker() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "slow.fmu", false, &["-DSLOW_LOAD"]);
+    let f = fmu.to_str().unwrap();
+    ok(runner(dir.path(), &["sweep", f, "--param", "k=0.5,1,1.5", "--metric", "end=final(x)", "--point-timeout", "0.5", "--out", "s.csv"]));
+    let rows = rows_by_point(&dir.path().join("s.csv"), 1);
+    assert!(rows.iter().all(|(_, v)| v[1] == "ok"), "{rows:?}");
+    ok(runner(dir.path(), &["simulate", f, "--timeout", "0.5", "--out", "x.csv"]));
+}
+
+#[test]
+fn simulate_reports_the_signal_and_the_call_and_takes_a_timeout() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "faulty.fmu", false, &[]);
+    let f = fmu.to_str().unwrap();
+    ok(runner(dir.path(), &["simulate", f, "--out", "worker.csv"]));
+    ok(runner(dir.path(), &["simulate", f, "--out", "in_process.csv", "--in-process"]));
+    assert_eq!(
+        std::fs::read(dir.path().join("worker.csv")).unwrap().len(),
+        std::fs::read(dir.path().join("in_process.csv")).unwrap().len(),
+        "the same rows (only the pid column differs)"
+    );
+    let (header, a) = read_csv(&dir.path().join("worker.csv"));
+    let (_, b) = read_csv(&dir.path().join("in_process.csv"));
+    let x = header.iter().position(|h| h == "x").unwrap();
+    assert_eq!(a.iter().map(|r| &r[x]).collect::<Vec<_>>(), b.iter().map(|r| &r[x]).collect::<Vec<_>>(), "x bit for bit");
+
+    let o = runner(dir.path(), &["simulate", f, "--set", "fault=1", "--out", "crash.csv"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("faulty: crashed: SIGSEGV in fmi2DoStep at t = 0.31"), "{}", stderr(&o));
+    assert!(!dir.path().join("crash.csv").exists(), "no result file from a crashed run");
+    let o = runner(dir.path(), &["simulate", f, "--set", "fault=3", "--timeout", "0.5"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("faulty: timed out after 0.5 s in fmi2DoStep at t = 0.31"), "{}", stderr(&o));
+    let err = fails(runner(dir.path(), &["simulate", f, "--timeout", "1", "--in-process"]));
+    assert!(err.contains("--timeout needs a worker process"), "{err}");
+}
+
+/// `compare` runs in a worker: the Euler runs crash (fault_solver = 0), or the RK4 runs hang
+/// (fault_solver = 1) past --point-timeout; each is recorded in its row and the other solver's
+/// runs and the reference still run.
+#[test]
+fn compare_records_crashed_runs_and_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "faulty.fmu", false, &[]);
+    let f = fmu.to_str().unwrap();
+    let o = runner(
+        dir.path(),
+        &["compare", f, "--solvers", "euler,rk4", "--set", "fault=1", "--set", "fault_solver=0", "--out", "c.csv", "--plot", "c.svg"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (header, rows) = read_csv(&dir.path().join("c.csv"));
+    let status = header.iter().position(|h| h == "status").unwrap();
+    for row in &rows {
+        if row[0] == "euler" {
+            assert_eq!(row[status], "compare: crashed: SIGSEGV in fmi2DoStep at t = 0.31", "{row:?}");
+        } else {
+            assert_eq!(row[status], "ok", "{row:?}");
+        }
+    }
+    assert!(rows.iter().filter(|r| r[0] == "euler").count() >= 2, "a new worker after each crash");
+
+    let o = runner(
+        dir.path(),
+        &[
+            "compare",
+            f,
+            "--solvers",
+            "euler,rk4",
+            "--set",
+            "fault=3",
+            "--set",
+            "fault_solver=1",
+            "--point-timeout",
+            "0.3",
+            "--out",
+            "h.csv",
+            "--plot",
+            "h.svg",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, rows) = read_csv(&dir.path().join("h.csv"));
+    for row in &rows {
+        let expected = if row[0] == "rk4" { "compare: timed out after 0.3 s in fmi2DoStep at t = 0.31" } else { "ok" };
+        assert_eq!(row[status], expected, "{row:?}");
+    }
+}

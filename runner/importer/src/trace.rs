@@ -1,0 +1,207 @@
+//! Which FMI call the importer is in, and at what model time, for a supervisor that must say
+//! where an FMU crashed or hung. The runner's worker processes point [`set_slot`] at memory they
+//! share with their parent, which reads it after the worker died or was killed. Without a slot
+//! (in-process runs) each call costs one load of a pointer that nobody writes.
+
+use std::sync::atomic::{AtomicPtr, AtomicU32, AtomicU64, Ordering};
+
+/// An FMI function the importer calls (or the loading of the binary, which runs its
+/// initializers). Codes are stable within one build, which is all a worker and its parent share.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Call {
+    /// No call yet.
+    None = 0,
+    Load,
+    Instantiate,
+    SetupExperiment,
+    SetReal,
+    SetInteger,
+    SetBoolean,
+    SetString,
+    EnterInitializationMode,
+    ExitInitializationMode,
+    GetReal,
+    GetInteger,
+    GetBoolean,
+    DoStep,
+    GetBooleanStatus,
+    GetRealStatus,
+    Terminate,
+    FreeInstance,
+    // FMI 2.0 Model Exchange.
+    EnterEventMode,
+    NewDiscreteStates,
+    EnterContinuousTimeMode,
+    CompletedIntegratorStep,
+    SetTime,
+    SetContinuousStates,
+    GetDerivatives,
+    GetEventIndicators,
+    GetContinuousStates,
+    // FMI 3.0.
+    Fmi3Instantiate,
+    Fmi3EnterConfigurationMode,
+    Fmi3ExitConfigurationMode,
+    Fmi3Set,
+    Fmi3EnterInitializationMode,
+    Fmi3ExitInitializationMode,
+    Fmi3Get,
+    Fmi3DoStep,
+    Fmi3EnterEventMode,
+    Fmi3UpdateDiscreteStates,
+    Fmi3EnterStepMode,
+    Fmi3Terminate,
+    Fmi3FreeInstance,
+}
+
+const ALL: [Call; 40] = [
+    Call::None,
+    Call::Load,
+    Call::Instantiate,
+    Call::SetupExperiment,
+    Call::SetReal,
+    Call::SetInteger,
+    Call::SetBoolean,
+    Call::SetString,
+    Call::EnterInitializationMode,
+    Call::ExitInitializationMode,
+    Call::GetReal,
+    Call::GetInteger,
+    Call::GetBoolean,
+    Call::DoStep,
+    Call::GetBooleanStatus,
+    Call::GetRealStatus,
+    Call::Terminate,
+    Call::FreeInstance,
+    Call::EnterEventMode,
+    Call::NewDiscreteStates,
+    Call::EnterContinuousTimeMode,
+    Call::CompletedIntegratorStep,
+    Call::SetTime,
+    Call::SetContinuousStates,
+    Call::GetDerivatives,
+    Call::GetEventIndicators,
+    Call::GetContinuousStates,
+    Call::Fmi3Instantiate,
+    Call::Fmi3EnterConfigurationMode,
+    Call::Fmi3ExitConfigurationMode,
+    Call::Fmi3Set,
+    Call::Fmi3EnterInitializationMode,
+    Call::Fmi3ExitInitializationMode,
+    Call::Fmi3Get,
+    Call::Fmi3DoStep,
+    Call::Fmi3EnterEventMode,
+    Call::Fmi3UpdateDiscreteStates,
+    Call::Fmi3EnterStepMode,
+    Call::Fmi3Terminate,
+    Call::Fmi3FreeInstance,
+];
+
+impl Call {
+    /// The C function's name (`fmi2DoStep`), or what is happening.
+    pub fn name(self) -> &'static str {
+        match self {
+            Call::None => "no FMI call yet",
+            Call::Load => "loading the FMU's binary",
+            Call::Instantiate => "fmi2Instantiate",
+            Call::SetupExperiment => "fmi2SetupExperiment",
+            Call::SetReal => "fmi2SetReal",
+            Call::SetInteger => "fmi2SetInteger",
+            Call::SetBoolean => "fmi2SetBoolean",
+            Call::SetString => "fmi2SetString",
+            Call::EnterInitializationMode => "fmi2EnterInitializationMode",
+            Call::ExitInitializationMode => "fmi2ExitInitializationMode",
+            Call::GetReal => "fmi2GetReal",
+            Call::GetInteger => "fmi2GetInteger",
+            Call::GetBoolean => "fmi2GetBoolean",
+            Call::DoStep => "fmi2DoStep",
+            Call::GetBooleanStatus => "fmi2GetBooleanStatus",
+            Call::GetRealStatus => "fmi2GetRealStatus",
+            Call::Terminate => "fmi2Terminate",
+            Call::FreeInstance => "fmi2FreeInstance",
+            Call::EnterEventMode => "fmi2EnterEventMode",
+            Call::NewDiscreteStates => "fmi2NewDiscreteStates",
+            Call::EnterContinuousTimeMode => "fmi2EnterContinuousTimeMode",
+            Call::CompletedIntegratorStep => "fmi2CompletedIntegratorStep",
+            Call::SetTime => "fmi2SetTime",
+            Call::SetContinuousStates => "fmi2SetContinuousStates",
+            Call::GetDerivatives => "fmi2GetDerivatives",
+            Call::GetEventIndicators => "fmi2GetEventIndicators",
+            Call::GetContinuousStates => "fmi2GetContinuousStates",
+            Call::Fmi3Instantiate => "fmi3InstantiateCoSimulation",
+            Call::Fmi3EnterConfigurationMode => "fmi3EnterConfigurationMode",
+            Call::Fmi3ExitConfigurationMode => "fmi3ExitConfigurationMode",
+            Call::Fmi3Set => "fmi3Set (a value)",
+            Call::Fmi3EnterInitializationMode => "fmi3EnterInitializationMode",
+            Call::Fmi3ExitInitializationMode => "fmi3ExitInitializationMode",
+            Call::Fmi3Get => "fmi3Get (the outputs)",
+            Call::Fmi3DoStep => "fmi3DoStep",
+            Call::Fmi3EnterEventMode => "fmi3EnterEventMode",
+            Call::Fmi3UpdateDiscreteStates => "fmi3UpdateDiscreteStates",
+            Call::Fmi3EnterStepMode => "fmi3EnterStepMode",
+            Call::Fmi3Terminate => "fmi3Terminate",
+            Call::Fmi3FreeInstance => "fmi3FreeInstance",
+        }
+    }
+
+    /// The call of code `code` (as stored in a [`CallSlot`]).
+    pub fn from_code(code: u32) -> Option<Call> {
+        ALL.get(code as usize).copied()
+    }
+}
+
+/// The last call entered and the model time then (f64 bits; NaN before the time is known).
+#[repr(C)]
+pub struct CallSlot {
+    pub call: AtomicU32,
+    pub time: AtomicU64,
+}
+
+impl CallSlot {
+    /// The call and time recorded last (`None` for the time while it is unknown).
+    pub fn read(&self) -> (Call, Option<f64>) {
+        let call = Call::from_code(self.call.load(Ordering::Relaxed)).unwrap_or(Call::None);
+        let time = f64::from_bits(self.time.load(Ordering::Relaxed));
+        (call, Some(time).filter(|t| t.is_finite()))
+    }
+
+    /// Forgets the last call (a new run starts).
+    pub fn clear(&self) {
+        self.call.store(Call::None as u32, Ordering::Relaxed);
+        self.time.store(f64::NAN.to_bits(), Ordering::Relaxed);
+    }
+}
+
+static SLOT: AtomicPtr<CallSlot> = AtomicPtr::new(std::ptr::null_mut());
+
+/// Records every later FMI call of this process in `slot`.
+pub fn set_slot(slot: &'static CallSlot) {
+    SLOT.store(slot as *const CallSlot as *mut CallSlot, Ordering::Release);
+}
+
+/// Notes that `call` starts at model time `time` (NaN if none).
+#[inline]
+pub(crate) fn enter(call: Call, time: f64) {
+    let slot = SLOT.load(Ordering::Relaxed);
+    if !slot.is_null() {
+        // SAFETY: set_slot only takes slots that live for the rest of the process.
+        let slot = unsafe { &*slot };
+        slot.call.store(call as u32, Ordering::Relaxed);
+        slot.time.store(time.to_bits(), Ordering::Relaxed);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn codes_read_back_as_their_call() {
+        for (i, call) in ALL.iter().enumerate() {
+            assert_eq!(*call as u32, i as u32, "ALL is in code order");
+            assert_eq!(Call::from_code(i as u32), Some(*call));
+        }
+        assert_eq!(Call::from_code(ALL.len() as u32), None);
+    }
+}

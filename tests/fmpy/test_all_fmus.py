@@ -48,7 +48,7 @@ def test_description_declares_what_we_promise(any_fmu):
     assert float(md.defaultExperiment.stopTime) > 0
     assert float(md.defaultExperiment.tolerance) == 1e-6
     names = {v.name for v in md.modelVariables}
-    for control in ("solver", "fixed_step", "abs_tol", "n_steps", "n_rhs"):
+    for control in ("solver", "fixed_step", "abs_tol", "max_step", "n_steps", "n_rhs"):
         assert control in names
     # Every output is listed in ModelStructure/Outputs, in order.
     outputs = [v for v in md.modelVariables if v.causality == "output"]

@@ -10,9 +10,11 @@ use super::State;
 use crate::model::Model;
 
 const MAGIC: &[u8; 4] = b"RFMS";
-/// Version 2: the state-machine state is the front end's, after the core's state (version 1
-/// had FMI 2.0's inside the core).
-const FORMAT_VERSION: u16 = 2;
+/// Version 3: the solver's state holds its pending step (the step across the communication
+/// point, its dense output and the point last handed out) and the new solver settings
+/// (`max_step`, the stop time). Version 2: the state-machine state is the front end's, after
+/// the core's state (version 1 had FMI 2.0's inside the core).
+const FORMAT_VERSION: u16 = 3;
 const HEADER_LEN: usize = 4 + 2 + 8 + 8 + 4;
 
 /// Encodes `state` and the front end's `phase` with a header tying them to the model whose

@@ -68,7 +68,7 @@ fn settings(solver: &str, interval: f64) -> Result<Trials, String> {
     Ok(match method {
         Method::Euler => (method.code(), Control::FixedStep.name(), (0..8).map(|k| interval / 4f64.powi(k)).collect()),
         Method::Rk4 => (method.code(), Control::FixedStep.name(), (0..6).map(|k| interval / 2f64.powi(k)).collect()),
-        Method::Dopri5 => (method.code(), "tolerance", (3..=11).map(|k| 10f64.powi(-k)).collect()),
+        Method::Dopri5 | Method::Bs23 | Method::Dop853 => (method.code(), "tolerance", (3..=11).map(|k| 10f64.powi(-k)).collect()),
     })
 }
 

@@ -34,7 +34,7 @@ fn transmissibility(speed: f64, rtol: f64) -> f64 {
     // right-hand side needs of them, and gives the initial state.
     let mut x = [0.0; QuarterCar::N_STATES];
     system.initial_state(&mut x).expect("the handbook's parameters are valid");
-    let settings = Settings { method: Method::Dopri5, fixed_step: INTERVAL, rtol, atol: ATOL };
+    let settings = Settings { method: Method::Dopri5, fixed_step: INTERVAL, rtol, atol: ATOL, max_step: 0.0 };
     let mut integrator = Integrator::new(settings, QuarterCar::N_STATES, 0);
     let (mut max_zs, mut max_zr) = (0.0f64, 0.0f64);
     let steps = (STOP / INTERVAL).round() as usize;

@@ -121,34 +121,37 @@ enum Cmd {
     /// Compare solvers: steps, rhs evaluations and time each needs to reach a target error.
     ///
     /// Runs the FMU with forward Euler and RK4 over fixed steps from the output interval down,
-    /// and DOPRI5 over tolerances 1e-3..1e-11, measures each run's error against a reference
-    /// (max over the compared outputs of |y - y_ref| / max|y_ref|): the closed-form solution of
-    /// the model's experiment.toml `[compare.reference]` when it has one and no --set changes
-    /// its parameters, else DOPRI5 at rtol 1e-12 over the continuous outputs. Prints the cheapest
-    /// setting that reaches --target-error per solver, and writes the work-precision table
-    /// (CSV) and plot (SVG). Answers Ex. 4's question on solver effort, for any of our models.
+    /// and the adaptive DOPRI5, BS23 and DOP853 over tolerances from 1e-2 down (they step
+    /// across communication points: their natural work), measures each run's error against a
+    /// reference (max over the compared outputs of |y - y_ref| / max|y_ref|): the closed-form
+    /// solution of the model's experiment.toml `[compare.reference]` when it has one and no
+    /// --set changes its parameters, else DOP853 at rtol 1e-13 over the continuous outputs.
+    /// Prints the cheapest setting that reaches --target-error per solver, and writes the
+    /// work-precision table (CSV) and plot (SVG) of each model. With several models it also
+    /// prints their step counts side by side: Ex. 4's discussion question 1.
     ///
-    /// Example: `runner compare quarter_car --solvers euler,rk4,dopri5 --target-error 1e-6`
+    /// Example: `runner compare quarter_car second_order --target-error 1e-6`
     Compare(CompareArgs),
 }
 
 /// Arguments of `runner compare`.
 #[derive(clap::Args)]
 struct CompareArgs {
-    /// Model name or path to a .fmu file of this toolkit (it needs the solver controls).
-    fmu: String,
+    /// Model names or paths to .fmu files of this toolkit (they need the solver controls).
+    #[arg(required = true, value_name = "MODEL")]
+    models: Vec<String>,
     /// Solvers to compare, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "euler,rk4,dopri5")]
+    #[arg(long, value_delimiter = ',', default_value = "euler,rk4,dopri5,bs23,dop853")]
     solvers: Vec<String>,
     /// Error to reach: max over outputs of |y - y_ref| / max|y_ref|.
     #[arg(long, value_name = "E", default_value_t = 1e-6, allow_negative_numbers = true)]
     target_error: f64,
     #[command(flatten)]
     run: RunArgs,
-    /// Work-precision table (default <MODEL>_compare.csv).
+    /// Work-precision table of a single model (default <MODEL>_compare.csv for each).
     #[arg(long, value_name = "FILE.csv")]
     out: Option<PathBuf>,
-    /// Work-precision plot (default <MODEL>_compare.svg).
+    /// Work-precision plot of a single model (default <MODEL>_compare.svg for each).
     #[arg(long, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
 }
@@ -175,21 +178,15 @@ fn main() {
                 Err(e) => Err(e),
             }
         }
-        Cmd::Compare(a) => {
-            let stem =
-                std::path::Path::new(&a.fmu).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "compare".into());
-            let out = a.out.unwrap_or_else(|| PathBuf::from(format!("{stem}_compare.csv")));
-            let plot = a.plot.unwrap_or_else(|| PathBuf::from(format!("{stem}_compare.svg")));
-            compare::run(&compare::Options {
-                fmu: a.fmu,
-                solvers: a.solvers,
-                target_error: a.target_error,
-                run: a.run.defaults(),
-                out,
-                plot,
-            })
-            .map(|_| ())
-        }
+        Cmd::Compare(a) => compare::run(&compare::Options {
+            models: a.models,
+            solvers: a.solvers,
+            target_error: a.target_error,
+            run: a.run.defaults(),
+            out: a.out,
+            plot: a.plot,
+        })
+        .map(|_| ()),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

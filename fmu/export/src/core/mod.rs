@@ -5,6 +5,8 @@
 //! the operations below; a [`Failure`] says whether the instance is still usable.
 
 pub mod snapshot;
+#[cfg(test)]
+mod tests;
 
 use ref_cast::RefCast;
 use serde::{Deserialize, Serialize};

@@ -1,5 +1,6 @@
-//! The adaptive methods' common loop: embedded Runge–Kutta pairs with error control (Hairer's
-//! PI controller), FSAL, the initial-step heuristic, dense output and event location on it.
+//! The adaptive methods' common loop: embedded Runge–Kutta pairs with error control (the
+//! classical controller, h_new = h (0.9 / err)^(1/q)), FSAL, the initial-step heuristic, dense
+//! output and event location on it.
 //! Each method (dopri5.rs, bs23.rs, dop853.rs) supplies its tableau as a [`Scheme`].
 //!
 //! Steps go where the error control takes them, across the `t_end` of `advance`: a step that
@@ -12,8 +13,6 @@ use super::{all_finite, Integrator, OdeSystem, SolverError, EVENT_TOL, STAGE_BUF
 
 /// Safety factor: aim a little below the tolerance so the next step is likely accepted.
 const SAFE: f64 = 0.9;
-/// Initial PI memory, as in Hairer's codes.
-pub(super) const ERR_OLD_INIT: f64 = 1e-4;
 /// After a NaN/inf trial, retry with this fraction of the step, at most `MAX_NONFINITE` times in a row.
 const NONFINITE_SHRINK: f64 = 0.2;
 const MAX_NONFINITE: u32 = 40;
@@ -29,9 +28,9 @@ pub(super) trait Scheme {
     const LAST: usize;
     /// The initial step is (0.01 / |x''|)^(1/ORDER): the local order of the error estimate.
     const ORDER: i32;
-    /// Controller exponents: h_new = h / (err^EXPO1 / err_old^BETA / SAFE), clamped.
+    /// Controller exponent: h_new = h / (err^EXPO1 / SAFE), clamped; 1/q for an error estimate
+    /// of local order q.
     const EXPO1: f64;
-    const BETA: f64;
     /// Largest shrink (h_new >= SHRINK h) and growth (h_new <= GROWTH h) per step.
     const SHRINK: f64;
     const GROWTH: f64;
@@ -83,9 +82,8 @@ pub(super) fn interpolate<M: Scheme>(th: f64, n: usize, dense: &[f64], out: &mut
 
 /// The controller's divisor for the next step (h_next = h / factor) after an accepted step.
 #[inline]
-fn step_factor<M: Scheme>(err: f64, err_old: f64) -> f64 {
-    let memory = if M::BETA == 0.0 { 1.0 } else { err_old.powf(M::BETA) };
-    (err.powf(M::EXPO1) / memory / SAFE).clamp(1.0 / M::GROWTH, 1.0 / M::SHRINK)
+fn step_factor<M: Scheme>(err: f64) -> f64 {
+    (err.powf(M::EXPO1) / SAFE).clamp(1.0 / M::GROWTH, 1.0 / M::SHRINK)
 }
 
 impl Integrator {
@@ -148,18 +146,13 @@ impl Integrator {
                 self.n_rejected += 1;
                 continue;
             }
-            let mut h_new = hs / step_factor::<M>(err, self.err_old);
+            let mut h_new = hs / step_factor::<M>(err);
             if self.last_rejected {
                 h_new = h_new.min(hs);
             }
-            if hs < h_prop {
-                // Clipped to land on the stop time: the short step says nothing about the step
-                // the solution allows, so it neither shrinks the proposal nor enters the memory.
-                self.h = self.h.max(h_new);
-            } else {
-                self.h = h_new;
-                self.err_old = err.max(ERR_OLD_INIT);
-            }
+            // A step clipped to land on the stop time says nothing about the step the solution
+            // allows: it does not shrink the proposal.
+            self.h = if hs < h_prop { self.h.max(h_new) } else { h_new };
             self.last_rejected = false;
             self.n_steps += 1;
             // The crossing search runs from `ta`, where the indicators are `w.za`.

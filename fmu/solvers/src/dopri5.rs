@@ -1,5 +1,5 @@
-//! Dormand–Prince 5(4) (MATLAB's ode45, Hairer's DOPRI5): FSAL, the PI controller of
-//! Hairer's code, and the 4th-order continuous extension of Dormand & Prince / Shampine.
+//! Dormand–Prince 5(4) (MATLAB's ode45, Hairer's DOPRI5, scipy's RK45): FSAL, the classical
+//! step-size controller, and the 4th-order continuous extension of Dormand & Prince / Shampine.
 
 use super::adaptive::{Scheme, Stages};
 use super::OdeSystem;
@@ -52,10 +52,11 @@ impl Scheme for Dopri5 {
     const STAGES: u64 = 6;
     const LAST: usize = 5;
     const ORDER: i32 = 5;
-    // Hairer's DOPRI5: beta 0.04 (Gustafsson's PI memory damps step-size oscillation on mildly
-    // stiff problems), shrink at most to 1/5, grow at most 10x.
-    const EXPO1: f64 = 0.2 - 0.75 * 0.04;
-    const BETA: f64 = 0.04;
+    // The classical controller of scipy's RK45 (and of Hairer's DOPRI5 with beta = 0): exponent
+    // 1/5, shrink at most to 1/5, grow at most 10x. It settles where err = 0.9^5 = 0.59; the PI
+    // memory of Hairer's default (beta = 0.04) settles at 0.9^(1/0.13) = 0.45, which on the Ex. 4
+    // sweep takes 5.8 % more steps for a result 1.4x as accurate: no better per evaluation.
+    const EXPO1: f64 = 0.2;
     const SHRINK: f64 = 0.2;
     const GROWTH: f64 = 10.0;
     const DENSE_RHS: u64 = 0;
@@ -122,7 +123,7 @@ impl Scheme for Dopri5 {
 
     /// The coefficients of the continuous extension (Hairer's rcont1..5): x0, x1 - x0, the
     /// cubic Hermite corrections and the quartic term.
-    #[inline]
+    #[inline(always)]
     fn fill_dense<S: OdeSystem>(
         sys: &S,
         _t: f64,
@@ -154,7 +155,8 @@ impl Scheme for Dopri5 {
         }
     }
 
-    #[inline]
+    // Inlined where `n` is the model's constant: unrolled, no bounds checks (one per communication point).
+    #[inline(always)]
     fn eval(th: f64, n: usize, dense: &[f64], out: &mut [f64]) {
         let th1 = 1.0 - th;
         let (r0, r1, r2, r3, r4) = (&dense[..n], &dense[n..2 * n], &dense[2 * n..3 * n], &dense[3 * n..4 * n], &dense[4 * n..5 * n]);

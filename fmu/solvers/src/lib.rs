@@ -299,8 +299,6 @@ pub struct Integrator {
     n_ind: usize,
     /// Step-size proposal of the adaptive methods, carried across `advance` calls (0 = not chosen yet).
     h: f64,
-    /// Previous accepted error norm, the memory of the PI step-size controller.
-    err_old: f64,
     /// A rejection happened since the last accepted step: the next step may not grow.
     last_rejected: bool,
     n_steps: u64,
@@ -350,7 +348,6 @@ impl Integrator {
             dim,
             n_ind: n_event_indicators,
             h: 0.0,
-            err_old: adaptive::ERR_OLD_INIT,
             last_rejected: false,
             n_steps: 0,
             n_rhs: 0,
@@ -387,7 +384,6 @@ impl Integrator {
             self.settings = settings;
             self.settings_checked = false;
             self.h = 0.0;
-            self.err_old = adaptive::ERR_OLD_INIT;
             self.last_rejected = false;
             self.invalidate();
         }
@@ -467,8 +463,7 @@ impl Integrator {
     }
 
     /// Integration starts again from (t, x): no pending step, no cached derivative or signs.
-    /// The step-size proposal and the controller's memory are kept (the solution's scale has
-    /// not changed).
+    /// The step-size proposal is kept (the solution's scale has not changed).
     fn restart(&mut self, t: f64, x: &[f64], n: usize) {
         self.t_int = t;
         self.t_out = t;
@@ -489,14 +484,34 @@ impl Integrator {
     /// The adaptive methods may evaluate the right-hand side past `t_end` (up to the stop time),
     /// inside the step that covers it.
     pub fn advance<S: OdeSystem>(&mut self, sys: &S, t: &mut f64, x: &mut [f64], t_end: f64) -> Result<Advance, SolverError> {
+        // The usual call when steps are longer than communication intervals: the caller comes
+        // back with the point handed out and asks for one inside the pending step, which only
+        // interpolates. The tests below are the slow path's, in the order that rules out most
+        // (t_end < t_int is false for fixed-step methods, whose t_int is always t_out).
+        let n = sys.dim();
+        if t_end < self.t_int
+            && t_end > *t
+            && self.resume
+            && *t == self.t_out
+            && x.len() == n
+            && n == self.dim
+            && sys.n_event_indicators() == self.n_ind
+            && self.settings_checked
+            && self.work.ready
+            && same_bits(&x[..n], &self.x_out[..n])
+        {
+            self.interpolate_at(t_end, n);
+            x[..n].copy_from_slice(&self.x_out[..n]);
+            *t = t_end;
+            return Ok(Advance::Reached);
+        }
         self.check_call(sys, *t, x, t_end)?;
         if !self.settings_checked {
             self.settings.validate()?;
             self.settings_checked = true;
         }
-        // `check_call` made sure x has `sys.dim()` elements, a constant for a given model: the
+        // `check_call` made sure x has `sys.dim()` elements (n), a constant for a given model: the
         // comparison and the copies become a few moves instead of loops and calls to memcpy.
-        let n = sys.dim();
         if !self.work.ready {
             // First use after deserialization: everything else was serialized.
             self.work = Work::new(self.dim, self.n_ind);
@@ -535,19 +550,26 @@ impl Integrator {
         if self.t_int == t_end {
             self.hand_out_end(t, x, n);
         } else {
-            // Inside the pending step: its dense output.
-            let th = (t_end - self.dense_t0) / self.dense_h;
-            match self.settings.method {
-                Method::Dopri5 => adaptive::interpolate::<dopri5::Dopri5>(th, n, &self.dense, &mut self.x_out),
-                Method::Bs23 => adaptive::interpolate::<bs23::Bs23>(th, n, &self.dense, &mut self.x_out),
-                Method::Dop853 => adaptive::interpolate::<dop853::Dop853>(th, n, &self.dense, &mut self.x_out),
-                Method::Euler | Method::Rk4 => unreachable!("fixed-step methods returned above"),
-            }
-            self.t_out = t_end;
+            self.interpolate_at(t_end, n);
             x[..n].copy_from_slice(&self.x_out[..n]);
             *t = t_end;
         }
         Ok(Advance::Reached)
+    }
+
+    /// Hands out the pending step's dense output at `t_end` (inside it): into `x_out`. Inlined
+    /// into `advance`, where `n` is the model's constant (the loops unroll).
+    #[inline(always)]
+    fn interpolate_at(&mut self, t_end: f64, n: usize) {
+        let th = (t_end - self.dense_t0) / self.dense_h;
+        match self.settings.method {
+            Method::Dopri5 => adaptive::interpolate::<dopri5::Dopri5>(th, n, &self.dense, &mut self.x_out),
+            Method::Bs23 => adaptive::interpolate::<bs23::Bs23>(th, n, &self.dense, &mut self.x_out),
+            Method::Dop853 => adaptive::interpolate::<dop853::Dop853>(th, n, &self.dense, &mut self.x_out),
+            // Never pending: they land on every point they are asked for.
+            Method::Euler | Method::Rk4 => unreachable!("a fixed-step method has no pending step"),
+        }
+        self.t_out = t_end;
     }
 
     /// Hands out the point integration has got to (no pending step is left).

@@ -31,6 +31,12 @@ pub(super) trait Scheme {
     /// Controller exponent: h_new = h / (err^EXPO1 / SAFE), clamped; 1/q for an error estimate
     /// of local order q.
     const EXPO1: f64;
+
+    /// err^EXPO1.
+    #[inline]
+    fn power(err: f64) -> f64 {
+        err.powf(Self::EXPO1)
+    }
     /// Largest shrink (h_new >= SHRINK h) and growth (h_new <= GROWTH h) per step.
     const SHRINK: f64;
     const GROWTH: f64;
@@ -83,7 +89,7 @@ pub(super) fn interpolate<M: Scheme>(th: f64, n: usize, dense: &[f64], out: &mut
 /// The controller's divisor for the next step (h_next = h / factor) after an accepted step.
 #[inline]
 fn step_factor<M: Scheme>(err: f64) -> f64 {
-    (err.powf(M::EXPO1) / SAFE).clamp(1.0 / M::GROWTH, 1.0 / M::SHRINK)
+    (M::power(err) / SAFE).clamp(1.0 / M::GROWTH, 1.0 / M::SHRINK)
 }
 
 impl Integrator {
@@ -141,7 +147,7 @@ impl Integrator {
             }
             nonfinite = 0;
             if err > 1.0 {
-                self.h = hs / (err.powf(M::EXPO1) / SAFE).min(1.0 / M::SHRINK);
+                self.h = hs / (M::power(err) / SAFE).min(1.0 / M::SHRINK);
                 self.last_rejected = true;
                 self.n_rejected += 1;
                 continue;

@@ -5,3 +5,4 @@ pub mod compare;
 pub mod info;
 pub mod simulate;
 pub mod sweep;
+pub mod validate;

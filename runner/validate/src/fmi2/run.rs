@@ -66,6 +66,13 @@ impl Failure {
         self
     }
 
+    /// Names fmi2Instantiate as the call, made before any instance exists.
+    pub(crate) fn at_instantiate(mut self) -> Failure {
+        self.call = Some(Function::Instantiate.name().to_owned());
+        self.state = Some("(no instance)".to_owned());
+        self
+    }
+
     pub(crate) fn at(mut self, function: Function, state: State) -> Failure {
         self.call = Some(function.name().to_owned());
         self.state = Some(state.name().to_owned());
@@ -276,7 +283,7 @@ pub(crate) fn initialize(inst: &mut Instance, grid: &Grid) -> Result<(), Failure
 pub(crate) fn instantiate<'f>(fmu: &'f Fmu, name: &str, slot: usize) -> Result<Instance<'f>, Failure> {
     fmu.instantiate(name, slot).map_err(|(code, log)| {
         let what = if code == Code::MISSING { "is not exported".to_owned() } else { "returned NULL with the FMU's own GUID".to_owned() };
-        Failure { log, ..Failure::new(format!("fmi2Instantiate {what}")) }.at(Function::Instantiate, State::Instantiated).value(format!(
+        Failure { log, ..Failure::new(format!("fmi2Instantiate {what}")) }.at_instantiate().value(format!(
             "fmuType {}, GUID {}",
             fmu.interface.title(),
             fmu.model.md.guid

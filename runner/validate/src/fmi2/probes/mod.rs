@@ -192,7 +192,7 @@ fn lifecycle(ctx: &mut Ctx) {
             Err((code, log)) => {
                 let what = if code == super::raw::Code::MISSING { "is not exported" } else { "returned NULL with the FMU's own GUID" };
                 let failure = Failure { log, ..Failure::new(format!("fmi2Instantiate {what}, so nothing can run")) }
-                    .at(super::table::Function::Instantiate, State::Instantiated)
+                    .at_instantiate()
                     .value(fmu.model.md.guid.clone());
                 ctx.fail("lifecycle.guid", failure);
                 return;
@@ -208,7 +208,7 @@ fn lifecycle(ctx: &mut Ctx) {
                 Failure::new(
                     "fmi2Instantiate accepted a wrong GUID: it must refuse a modelDescription.xml that does not belong to its binary",
                 )
-                .at(super::table::Function::Instantiate, State::Instantiated)
+                .at_instantiate()
                 .value(wrong),
             );
         }
@@ -223,7 +223,7 @@ fn lifecycle(ctx: &mut Ctx) {
                 ctx.warn(
                     "lifecycle.guid",
                     Failure::new(format!("fmi2Instantiate created a {} instance, an interface the FMU does not declare", other.title()))
-                        .at(super::table::Function::Instantiate, State::Instantiated)
+                        .at_instantiate()
                         .value(format!("fmuType {}", other.title())),
                 );
             }

@@ -19,7 +19,9 @@
  *   FAULT_NAN          x becomes NaN from t = 1 on
  *   FAULT_EVENT_LOOP   fmi2NewDiscreteStates always asks for another iteration
  *   FAULT_EXIT         fmi2Terminate ends the process with exit(3)
- * and NOISY, not a fault: every fmi2DoStep prints to stdout and stderr, as some FMUs do. */
+ * and two variants that are not faults: NOISY, every fmi2DoStep prints to stdout and stderr, as
+ * some FMUs do; FORKS, the first fmi2Instantiate of a process starts a helper process that
+ * outlives it (holding every descriptor it inherited), as FMUs that talk to a tool server do. */
 
 #include <math.h>
 #include <stdarg.h>
@@ -27,6 +29,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 typedef void *fmi2Component;
 typedef void *fmi2ComponentEnvironment;
@@ -204,6 +207,16 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
 #ifdef FAULT_CRASH_EARLY
     volatile int *nowhere = NULL;
     *nowhere = 1;
+#endif
+#ifdef FORKS
+    static int helper_started = 0;
+    if (!helper_started) {
+        helper_started = 1;
+        if (fork() == 0) {
+            sleep(120);
+            _exit(0);
+        }
+    }
 #endif
     if (!cb || !cb->allocateMemory || !cb->freeMemory || !name || !name[0]) return NULL;
     Instance *inst = cb->allocateMemory(1, sizeof(Instance));

@@ -267,6 +267,18 @@ fn an_fmu_that_prints_is_still_clean() {
     assert!(!v.stdout.contains("fmi2DoStep at t"), "the FMU's output stays out of the report");
 }
 
+/// An FMU that starts a process outliving each probe process (which keeps the probe's pipe
+/// open) neither stalls the validation nor counts as a hang: each probe's process group ends
+/// with it.
+#[test]
+fn an_fmu_that_leaves_a_process_behind_is_still_clean() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faults_fmu(dir.path(), "forks", &["-DFORKS"], &[]);
+    let v = validate(dir.path(), &[fmu.to_str().unwrap()]);
+    assert_eq!(v.code, 0, "{}", v.stdout);
+    assert!(v.troubles().is_empty(), "{:#?}", v.troubles());
+}
+
 /// A description that is not XML: one error naming the problem, and nothing loaded.
 #[test]
 fn bad_xml_is_an_error_and_nothing_runs() {
@@ -340,6 +352,10 @@ fn exit_code_2_when_it_could_not_run() {
     let v = validate(dir.path(), &[broken.to_str().unwrap(), "no_such.fmu"]);
     assert_eq!(v.code, 2, "one FMU could not be validated");
     assert!(v.stdout.contains("validated 1 of 2 FMU(s): 0 clean, 1 with errors"), "{}", v.stdout);
+    let fmi3 = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference-fmus/fmi3/Dahlquist.fmu");
+    let v = validate(dir.path(), &[fmi3.to_str().unwrap()]);
+    assert_eq!(v.code, 2, "FMI 3.0 is not validated yet");
+    assert!(v.stderr.contains("FMI 3.0: runner validate checks FMI 2.0 FMUs so far"), "{}", v.stderr);
     let v = validate(dir.path(), &[broken.to_str().unwrap(), "--timeout", "-1"]);
     assert_eq!(v.code, 2);
     assert!(v.stderr.contains("the timeout must be a number of seconds above 0"), "{}", v.stderr);

@@ -250,6 +250,15 @@ fn log_tail(path: &Path) -> Option<String> {
 
 static CHILDREN: AtomicUsize = AtomicUsize::new(0);
 
+/// True when the child `pid` has exited (it is left unreaped, for `wait` to collect).
+fn exited(pid: libc::pid_t) -> bool {
+    // SAFETY: a zeroed siginfo_t to fill; WNOWAIT leaves the child's status in place.
+    let mut info: libc::siginfo_t = unsafe { std::mem::zeroed() };
+    let found = unsafe { libc::waitid(libc::P_PID, pid as libc::id_t, &mut info, libc::WEXITED | libc::WNOHANG | libc::WNOWAIT) };
+    // SAFETY: si_pid is set when waitid found a child.
+    found == 0 && unsafe { info.si_pid() } == pid
+}
+
 /// Runs one probe child: `launcher` with `args`, its files in `work`, each FMI call bounded by
 /// `timeout`. `cancelled` is polled; when it says so the child is killed.
 pub(crate) fn run_child(
@@ -307,6 +316,12 @@ pub(crate) fn run_child(
             }
             Err(mpsc::RecvTimeoutError::Disconnected) => break,
             Err(mpsc::RecvTimeoutError::Timeout) => {}
+        }
+        if exited(pid) {
+            // Ended, but something it started still holds the pipe: end that too (the child
+            // is not reaped yet, so its process group is still its own).
+            kill();
+            break;
         }
         if cancelled() {
             kill();

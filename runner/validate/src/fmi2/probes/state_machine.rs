@@ -445,7 +445,12 @@ pub(super) fn state(ctx: &mut Ctx, state: State) {
                 // In the Error state reads are allowed but their values "usable for debugging
                 // only": any status will do there.
                 if !code.0.ok() && state != State::Error {
-                    let culprit = vars.iter().find(|v| read_one(&mut reach_or_skip(fmu, state), v).is_none()).map(|v| v.name.clone());
+                    // Which variable it refuses: read each alone, one instance at a time.
+                    drop(inst);
+                    let culprit = vars
+                        .iter()
+                        .find(|v| reach(fmu, state).ok().is_some_and(|mut scratch| read_one(&mut scratch, v).is_none()))
+                        .map(|v| v.name.clone());
                     let failure = Failure::new(format!(
                         "{} of {} returned {} in {}, where the standard allows it",
                         f.name(),
@@ -501,12 +506,6 @@ pub(super) fn state(ctx: &mut Ctx, state: State) {
             format!("{}: {illegal} illegal calls refused with fmi2Error, no readable value changed", state.name()),
         );
     }
-}
-
-fn reach_or_skip(fmu: &Fmu, state: State) -> Instance<'_> {
-    // For locating which variable a failed read refused: a scratch instance (on failure the
-    // instance is in an unknown state and the read simply fails again).
-    reach(fmu, state).unwrap_or_else(|_| instantiate(fmu, NAME, 0).expect("instantiation worked a moment ago"))
 }
 
 trait WithLog {

@@ -430,7 +430,7 @@ fn the_reference_fmus_show_exactly_their_known_deviations() {
         ("Resource", common(&[])),
         ("Stair", {
             let mut s = common(&[]);
-            s.insert(e(cs, "lifecycle.reset", "", "", ""));
+            s.insert(e(cs, "lifecycle.reset", "fmi2Reset", "Terminated", ""));
             s
         }),
         ("VanDerPol", {

@@ -244,6 +244,7 @@ fn lifecycle(ctx: &mut Ctx) {
         return ctx.fail("lifecycle.run", f);
     }
     let first = run.trajectory.clone();
+    let first_ended = run.ended.clone();
     match first.first_non_finite() {
         Some((t, column, value)) => ctx.fail(
             "health.finite",
@@ -271,7 +272,15 @@ fn lifecycle(ctx: &mut Ctx) {
     match again {
         Err(f) => ctx.fail("lifecycle.reset", f),
         Ok(()) => match first.difference(&run.trajectory, "the first run", "the run after fmi2Reset") {
-            Some(f) => ctx.fail("lifecycle.reset", f),
+            Some(f) => {
+                let why = match (&run.ended, &first_ended) {
+                    (Some(now), None) => format!("; the model ended the second run: {now}"),
+                    (Some(now), Some(then)) if now != then => format!("; the model ended the second run: {now}"),
+                    _ => String::new(),
+                };
+                let message = format!("fmi2Reset did not bring back the instance fmi2Instantiate gave: {}{why}", f.message);
+                ctx.fail("lifecycle.reset", Failure { message, ..f }.at(super::table::Function::Reset, State::Terminated));
+            }
             None => {
                 run.inst.free();
                 ctx.pass("lifecycle.reset", "after fmi2Reset a second run equals the first bit for bit; fmi2FreeInstance returned");

@@ -897,10 +897,9 @@ pub(super) fn arguments(ctx: &mut Ctx) {
                 None => format!("value reference {vr} (no {} variable has it)", base.name()),
             });
             let value = Some(format!(
-                "{} value references {}, values {}",
-                n,
-                if null_vrs { "NULL" } else { "valid" },
-                if null_values { "NULL" } else { "valid" }
+                "vr {}, nvr {n}, value {}",
+                if null_vrs { "NULL" } else { "a valid array" },
+                if null_values { "NULL" } else { "a valid array" }
             ));
             let outcome = raw_access(&mut inst, f, base, null_vrs, null_values, n, vr.unwrap_or(0), variable.as_deref(), value.clone());
             if outcome.code == Code::MISSING {

@@ -157,8 +157,18 @@ impl Model {
     }
 
     /// The variables a run records: the numeric outputs, else every numeric variable that is
-    /// not a parameter (an FMU without outputs still has a trajectory to compare).
+    /// not a parameter (an FMU without outputs still has a trajectory to compare); at most
+    /// [`MAX_RECORDED`] of them, so that a run's record stays small.
     pub(crate) fn recorded(&self) -> Vec<usize> {
+        self.recordable().into_iter().take(MAX_RECORDED).collect()
+    }
+
+    /// How many variables a run would record without the [`MAX_RECORDED`] bound.
+    pub(crate) fn recordable_count(&self) -> usize {
+        self.recordable().len()
+    }
+
+    fn recordable(&self) -> Vec<usize> {
         let outputs: Vec<usize> =
             (0..self.vars.len()).filter(|&i| self.vars[i].causality == Causality::Output && self.vars[i].is_numeric()).collect();
         if !outputs.is_empty() {
@@ -188,6 +198,10 @@ pub(crate) struct Grid {
 
 /// The most communication steps one run takes (a run of our FMUs takes 10,000).
 pub(crate) const MAX_STEPS: usize = 100_000;
+
+/// The most variables a run records: 64 values at 100,000 points are 51 MB, and a run's record
+/// is kept a few times over (the reference, the threads' runs).
+pub(crate) const MAX_RECORDED: usize = 64;
 
 impl Grid {
     /// The grid of `md`'s DefaultExperiment. With `variable_steps` false the run ends at the
@@ -231,6 +245,19 @@ mod tests {
             r#"<fmiModelDescription fmiVersion="2.0" modelName="m" guid="g"><CoSimulation modelIdentifier="m"/>{experiment}<ModelVariables/><ModelStructure/></fmiModelDescription>"#
         );
         s::ModelDescription::from_xml(&xml).unwrap()
+    }
+
+    #[test]
+    fn a_run_records_at_most_max_recorded_outputs() {
+        let variables: String = (0..100)
+            .map(|i| format!(r#"<ScalarVariable name="y{i}" valueReference="{i}" causality="output"><Real/></ScalarVariable>"#))
+            .collect();
+        let xml = format!(
+            r#"<fmiModelDescription fmiVersion="2.0" modelName="m" guid="g"><CoSimulation modelIdentifier="m"/><ModelVariables>{variables}</ModelVariables><ModelStructure/></fmiModelDescription>"#
+        );
+        let model = Model::new(s::ModelDescription::from_xml(&xml).unwrap());
+        assert_eq!((model.recorded().len(), model.recordable_count()), (MAX_RECORDED, 100));
+        assert_eq!(model.recorded()[0], 0, "the first ones, in ModelVariables order");
     }
 
     #[test]

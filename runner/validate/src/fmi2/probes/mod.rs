@@ -253,10 +253,14 @@ fn lifecycle(ctx: &mut Ctx) {
                 .value(value.to_string())
                 .at(super::run::got_function(super::model::Base::Real), State::StepComplete),
         ),
-        None => ctx.pass(
-            "health.finite",
-            format!("all {} recorded outputs finite at all {} communication points", first.columns.len(), first.rows()),
-        ),
+        None => {
+            let all = fmu.model.recordable_count();
+            let of = if all > first.columns.len() { format!(" (the first {} of {all})", first.columns.len()) } else { String::new() };
+            ctx.pass(
+                "health.finite",
+                format!("all {} recorded outputs{of} finite at all {} communication points", first.columns.len(), first.rows()),
+            )
+        }
     }
     if let Err(e) = first.save(&ctx.reference_path()) {
         ctx.fail("lifecycle.run", Failure::new(format!("the validator could not keep the run: {e}")));

@@ -18,6 +18,8 @@
  *   FAULT_ILLEGAL      fmi2SetReal sets the fixed parameters k and x0 after initialization
  *   FAULT_NAN          x becomes NaN from t = 1 on
  *   FAULT_EVENT_LOOP   fmi2NewDiscreteStates always asks for another iteration
+ *   FAULT_NO_EVENTS    fmi2EnterEventMode refuses to leave Continuous-Time Mode (a state event
+ *                      cannot be handled)
  *   FAULT_EXIT         fmi2Terminate ends the process with exit(3)
  * and two variants that are not faults: NOISY, every fmi2DoStep prints to stdout and stderr, as
  * some FMUs do; FORKS, the first fmi2Instantiate of a process starts a helper process that
@@ -546,7 +548,11 @@ EXPORT fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind k, f
 
 /* Model Exchange. */
 EXPORT fmi2Status fmi2EnterEventMode(fmi2Component c) {
+#ifdef FAULT_NO_EVENTS
+    ENTER(0, EVENT);
+#else
     ENTER(0, EVENT | CONTINUOUS);
+#endif
     inst->v.state = EVENT;
     return fmi2OK;
 }

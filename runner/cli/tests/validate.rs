@@ -279,6 +279,15 @@ fn an_fmu_that_leaves_a_process_behind_is_still_clean() {
     assert!(v.troubles().is_empty(), "{:#?}", v.troubles());
 }
 
+#[test]
+fn a_state_event_the_fmu_cannot_handle_is_caught() {
+    let v = fault("NO_EVENTS");
+    let f = v.find("error", "model-exchange.state-events", Some("Model Exchange"));
+    assert_eq!((f["call"].as_str(), f["state"].as_str()), (Some("fmi2EnterEventMode"), Some("ContinuousTimeMode")), "{f}");
+    // The event the validator located: x = exp(-t) reaches the threshold 0.5 at t = ln 2.
+    assert!(f["message"].as_str().unwrap().contains("at t = 0.69314718"), "{f}");
+}
+
 /// A description that is not XML: one error naming the problem, and nothing loaded.
 #[test]
 fn bad_xml_is_an_error_and_nothing_runs() {

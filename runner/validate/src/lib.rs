@@ -100,7 +100,12 @@ pub fn probe_main(args: &[OsString]) -> i32 {
     }
     // SAFETY: a descriptor this process just created and owns.
     let out = fmi2::probes_out(unsafe { std::fs::File::from_raw_fd(protocol) });
-    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| fmi2::child(args, &out)));
+    // The FMI version's own probes (an FMI 3.0 set goes beside the 2.0 one).
+    let version = args.iter().position(|a| a == "--fmi").and_then(|i| args.get(i + 1)).map(|v| v.to_string_lossy().into_owned());
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match version.as_deref() {
+        Some("2") => fmi2::child(args, &out),
+        other => Err(format!("no probes for FMI version {other:?}")),
+    }));
     match result {
         Ok(Ok(())) => {
             out.send(&isolation::Message::Done);

@@ -176,6 +176,8 @@ impl Prober<'_> {
         let mut timeouts = 0;
         loop {
             let args: Vec<OsString> = [
+                "--fmi".into(),
+                "2".into(),
                 "--dir".into(),
                 self.dir.as_os_str().to_owned(),
                 "--runs".into(),
@@ -294,6 +296,9 @@ impl ProbeArgs {
             .split(',')
             .map(|a| Interface::from_arg(a).ok_or_else(|| format!("unknown interface {a:?}")))
             .collect::<Result<Vec<_>, _>>()?;
+        if text("--fmi")? != "2" {
+            return Err("an FMI 2.0 probe was started for another FMI version".to_owned());
+        }
         let probe = text("--probe")?;
         if probe != "binary" && !probes::known(&probe) {
             return Err(format!("unknown probe {probe:?}"));

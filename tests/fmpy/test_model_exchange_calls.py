@@ -37,12 +37,14 @@ ALLOWED = {
     "fmi2NewDiscreteStates": {EVENT},
     "fmi2EnterContinuousTimeMode": {EVENT},
     "fmi2CompletedIntegratorStep": {CT},
-    "fmi2SetTime": {EVENT, CT},
+    # In Event Mode only for an FMU without continuous states (footnote 8); every model has some.
+    "fmi2SetTime": {CT},
     "fmi2SetContinuousStates": {CT},
-    "fmi2GetDerivatives": {EVENT, CT, TERM},
+    # Initialization Mode too since FMI 2.0.1 (tickets 288 and 1277 of the standard).
+    "fmi2GetDerivatives": {INIT, EVENT, CT, TERM},
     "fmi2GetEventIndicators": {INIT, EVENT, CT, TERM},
     "fmi2GetContinuousStates": {INIT, EVENT, CT, TERM},
-    "fmi2GetNominalsOfContinuousStates": {I, EVENT, CT, TERM},
+    "fmi2GetNominalsOfContinuousStates": {I, INIT, EVENT, CT, TERM},
     # The Co-Simulation functions, exported by the same binary, are never legal here.
     "fmi2DoStep": NEVER,
     "fmi2GetStatus": NEVER,

@@ -1,4 +1,4 @@
-//! The `runner` command line: the commands (build, info, simulate, sweep, compare) over the
+//! The `runner` command line: the commands (build, info, simulate, sweep, compare, validate) over the
 //! engine, and the reporting they share (CSV, plots, progress, result files that appear only
 //! when complete). `main.rs` is only the argument parser.
 

@@ -1,4 +1,4 @@
-//! `runner`: builds, inspects, simulates, sweeps, compares and animates FMUs (FMI 2.0
+//! `runner`: builds, inspects, simulates, sweeps, compares, validates and animates FMUs (FMI 2.0
 //! Co-Simulation and Model Exchange, the latter integrated with the runner's own solvers; FMI
 //! 3.0 Co-Simulation), and reproduces the lab handbook's figures.
 
@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
-use runner::commands::{animate, build, compare, handbook, info, simulate, sweep};
+use runner::commands::{animate, build, compare, handbook, info, simulate, sweep, validate};
 use runner::experiment::{self, RunDefaults};
 use runner::integration::{self, Integration};
 use runner::interrupt;
@@ -204,6 +204,31 @@ enum Cmd {
     ///
     /// Example: `runner compare quarter_car second_order --target-error 1e-6`
     Compare(CompareArgs),
+    /// Check FMUs statically and dynamically: archive, description, exports, then every probe
+    /// of the binary in a child process (lifecycle, state machine, NULL and unknown arguments,
+    /// FMU state, variable steps, threads, reproducibility, Model Exchange events).
+    ///
+    /// Prints errors, warnings and passed checks per FMU; a crash or hang of the FMU is a
+    /// finding naming the call, the state, the variable and the value. Exit code 0 when clean,
+    /// 1 when an FMU has errors (or warnings, with --strict), 2 when one could not be validated.
+    ///
+    /// Example: `runner validate target/fmu/*.fmu --report validate.json --junit validate.xml`
+    Validate {
+        /// FMU files (or model names of this workspace).
+        fmus: Vec<String>,
+        /// Seconds any single FMI call may take before it counts as a hang.
+        #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+        timeout: Option<f64>,
+        /// Write every finding as JSON here.
+        #[arg(long, value_name = "FILE.json")]
+        report: Option<PathBuf>,
+        /// Write a JUnit XML report here (one test case per check).
+        #[arg(long, value_name = "FILE.xml")]
+        junit: Option<PathBuf>,
+        /// Warnings fail too (exit code 1).
+        #[arg(long)]
+        strict: bool,
+    },
     /// Animate an FMU whose outputs include point coordinates (<P>_x, <P>_y) into a GIF.
     ///
     /// Drawn to scale (equal axis scales) with a time stamp. The links, trails, ground lines and
@@ -325,6 +350,11 @@ struct CompareArgs {
 }
 
 fn main() {
+    // A probe process of `runner validate`: no argument parsing, no handlers, just the probe.
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    if args.get(1).is_some_and(|a| a == validate::PROBE_COMMAND) {
+        std::process::exit(fmi_validate::probe_main(&args[2..]));
+    }
     let cli = Cli::parse();
     if let Cmd::Worker = cli.command {
         if let Err(e) = runner_engine::worker::serve() {
@@ -381,6 +411,9 @@ fn main() {
                 Ok(s) => Err(format!("{} of {} sweep point(s) failed; see the status column", s.failed, s.points)),
                 Err(e) => Err(e),
             }
+        }
+        Cmd::Validate { fmus, timeout, report, junit, strict } => {
+            std::process::exit(validate::run(&validate::Options { fmus, timeout, report, junit, strict }))
         }
         Cmd::Compare(a) => compare::run(&compare::Options {
             models: a.models,

@@ -26,8 +26,9 @@ pub fn write_zip<W: Write + Seek>(out: W, entries: &[Entry]) -> Result<W, String
     zip.finish().map_err(|e| format!("cannot finish the archive: {e}"))
 }
 
-/// Why an entry name is unsafe to extract, or `None` when it stays inside the target directory.
-fn unsafe_entry_name(name: &str) -> Option<&'static str> {
+/// Why an entry name is unsafe to extract, or `None` when it stays inside the target directory
+/// (the rule `extract_zip` applies; `runner validate` reports each such entry).
+pub fn unsafe_entry_name(name: &str) -> Option<&'static str> {
     // Zips written on Windows may use backslashes; treat them as separators so `..\\x` is caught.
     let normalized = name.replace('\\', "/");
     if normalized.starts_with('/') {

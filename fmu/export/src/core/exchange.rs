@@ -142,11 +142,15 @@ impl<M: Model> Core<M> {
         Ok(())
     }
 
-    /// `fmi2GetDerivatives` at the time and states last set. Derivatives that are not finite
-    /// (states outside the model's domain, a diverging trial step) are returned with `Discard`,
-    /// which asks the importer for a smaller step; the instance stays usable.
+    /// `fmi2GetDerivatives` at the time and states last set (`initializing`: at the initial
+    /// states the parameters set so far give). Derivatives that are not finite (states outside
+    /// the model's domain, a diverging trial step) are returned with `Discard`, which asks the
+    /// importer for a smaller step; the instance stays usable.
     #[inline]
-    pub fn derivatives(&mut self, dx: &mut [f64]) -> CallResult {
+    pub fn derivatives(&mut self, dx: &mut [f64], initializing: bool) -> CallResult {
+        if initializing {
+            self.ensure_initial_state()?;
+        }
         if self.derivatives_into(dx) {
             Ok(())
         } else {

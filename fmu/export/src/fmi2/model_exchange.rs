@@ -74,11 +74,25 @@ impl<M: Model> Instance<M> {
         self.core.completed_integrator_step()
     }
 
-    /// `fmi2SetTime`.
+    /// `fmi2SetTime`: in Continuous-Time Mode, and in Event Mode only for a model without
+    /// continuous states (footnote 8 of the table: time moves on there only in a purely
+    /// discrete-time FMU).
     #[inline]
     pub fn set_time(&mut self, t: f64) -> CallResult {
         self.check(Call::SetTime)?;
+        if !self.time_settable() {
+            return Err(Failure::error(format!(
+                "fmi2SetTime is not allowed in state {} of an FMU with continuous states (time advances in Continuous-Time Mode): illegal call sequence",
+                self.state.name()
+            )));
+        }
         self.core.set_time(t)
+    }
+
+    /// The state-dependent half of `fmi2SetTime`'s rule (the table's half is [`Call::SetTime`]'s).
+    #[inline(always)]
+    fn time_settable(&self) -> bool {
+        M::N_STATES == 0 || self.state == FmiState::ContinuousTimeMode
     }
 
     /// `fmi2SetContinuousStates`.
@@ -89,12 +103,14 @@ impl<M: Model> Instance<M> {
         self.core.set_continuous_states(x)
     }
 
-    /// `fmi2GetDerivatives`: `Discard` for derivatives that are not finite.
+    /// `fmi2GetDerivatives`: `Discard` for derivatives that are not finite. In Initialization
+    /// Mode, at the initial states the values set so far give.
     #[inline]
     pub fn get_derivatives(&mut self, dx: &mut [f64]) -> CallResult<Status> {
         self.check(Call::GetDerivatives)?;
         Self::check_length(Call::GetDerivatives, "nx", dx.len(), M::N_STATES)?;
-        self.core.derivatives(dx).map(|()| Status::Ok)
+        let initializing = self.state == FmiState::InitializationMode;
+        self.core.derivatives(dx, initializing).map(|()| Status::Ok)
     }
 
     /// The usual `fmi2SetTime` (allowed now, a finite time), done: true; false leaves the
@@ -102,7 +118,7 @@ impl<M: Model> Instance<M> {
     /// calls these three hot paths before and for every evaluation of the derivatives.
     #[inline(always)]
     pub fn try_set_time(&mut self, t: f64) -> bool {
-        self.permits(Call::SetTime) && self.core.try_set_time(t)
+        self.permits(Call::SetTime) && self.time_settable() && self.core.try_set_time(t)
     }
 
     /// The usual `fmi2SetContinuousStates` (allowed now, the model's number of finite values).
@@ -111,11 +127,13 @@ impl<M: Model> Instance<M> {
         self.permits(Call::SetContinuousStates) && x.len() == M::N_STATES && self.core.try_set_continuous_states(x)
     }
 
-    /// The usual `fmi2GetDerivatives`: `None` when the call is not allowed or `dx` has the
-    /// wrong length (nothing computed), else whether the derivatives are all finite.
+    /// The usual `fmi2GetDerivatives`: `None` when the call is not allowed, `dx` has the
+    /// wrong length or the instance is initializing (nothing computed), else whether the
+    /// derivatives are all finite.
     #[inline(always)]
     pub fn try_get_derivatives(&mut self, dx: &mut [f64]) -> Option<bool> {
-        (self.permits(Call::GetDerivatives) && dx.len() == M::N_STATES).then(|| self.core.derivatives_into(dx))
+        (self.permits(Call::GetDerivatives) && self.state != FmiState::InitializationMode && dx.len() == M::N_STATES)
+            .then(|| self.core.derivatives_into(dx))
     }
 
     /// `fmi2GetEventIndicators`.

@@ -238,10 +238,12 @@ impl Call {
             Call::EnterEventMode => EVENT | CT,
             Call::NewDiscreteStates | Call::EnterContinuousTimeMode => EVENT,
             Call::CompletedIntegratorStep | Call::SetContinuousStates => CT,
+            // In Event Mode only for an FMU without continuous states (footnote 8; the model
+            // exchange front end applies that half).
             Call::SetTime => EVENT | CT,
-            Call::GetEventIndicators | Call::GetContinuousStates => INIT | EVENT | CT | TERM | ERR,
-            Call::GetDerivatives => EVENT | CT | TERM | ERR,
-            Call::GetNominalsOfContinuousStates => I | EVENT | CT | TERM | ERR,
+            // Initialization Mode too, since FMI 2.0.1 (tickets 288 and 1277 of the standard).
+            Call::GetEventIndicators | Call::GetContinuousStates | Call::GetDerivatives => INIT | EVENT | CT | TERM | ERR,
+            Call::GetNominalsOfContinuousStates => I | INIT | EVENT | CT | TERM | ERR,
         }
     }
 
@@ -292,8 +294,10 @@ mod tests {
         assert!(Call::EnterEventMode.is_allowed_in(ContinuousTimeMode) && Call::EnterEventMode.is_allowed_in(EventMode));
         assert!(!Call::CompletedIntegratorStep.is_allowed_in(EventMode));
         assert!(Call::GetContinuousStates.is_allowed_in(InitializationMode));
-        assert!(!Call::GetDerivatives.is_allowed_in(InitializationMode) && Call::GetDerivatives.is_allowed_in(Error));
+        assert!(Call::GetDerivatives.is_allowed_in(InitializationMode) && Call::GetDerivatives.is_allowed_in(Error));
+        assert!(!Call::GetDerivatives.is_allowed_in(Instantiated));
         assert!(Call::GetNominalsOfContinuousStates.is_allowed_in(Instantiated));
+        assert!(Call::GetNominalsOfContinuousStates.is_allowed_in(InitializationMode));
         assert!(Call::Terminate.is_allowed_in(EventMode) && Call::Terminate.is_allowed_in(ContinuousTimeMode));
         assert!(Call::SetReal.is_allowed_in(ContinuousTimeMode) && !Call::SetInteger.is_allowed_in(ContinuousTimeMode));
         assert!(Call::SetBoolean.is_allowed_in(EventMode));

@@ -9,25 +9,81 @@ use std::collections::{BTreeSet, HashMap, HashSet};
 
 use super::*;
 
+/// Which of the standard's rules a problem breaks, for tools that group them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Rule {
+    /// fmiVersion, modelName, guid, the interfaces and their modelIdentifiers.
+    Header,
+    /// Unique names and value references, one independent variable.
+    Names,
+    /// The causality/variability combination and the `initial` it allows.
+    Initial,
+    /// Which variables need, and which must not have, a start value.
+    Start,
+    /// min <= max, min <= start <= max, nominal > 0.
+    Ranges,
+    /// `declaredType` names a SimpleType of the same kind.
+    DeclaredType,
+    /// Units and display units used are defined.
+    Units,
+    /// `derivative` points at another Real variable.
+    Derivative,
+    /// Unique names inside UnitDefinitions, TypeDefinitions and LogCategories.
+    Definitions,
+    /// ModelStructure lists and their dependencies.
+    ModelStructure,
+    /// DefaultExperiment values.
+    DefaultExperiment,
+}
+
+/// One problem `check` found: the rule, the variable it concerns (if one) and the message.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Problem {
+    pub rule: Rule,
+    pub variable: Option<String>,
+    pub message: String,
+}
+
+/// The problems found so far, each tagged with the rule being checked when it was pushed.
+pub(super) struct Problems {
+    list: Vec<Problem>,
+    rule: Rule,
+    variable: Option<String>,
+}
+
+impl Problems {
+    fn push(&mut self, message: String) {
+        self.list.push(Problem { rule: self.rule, variable: self.variable.clone(), message });
+    }
+
+    /// Checks `rule` next (about `variable`, when it is one variable's).
+    fn now(&mut self, rule: Rule, variable: Option<&str>) -> &mut Problems {
+        self.rule = rule;
+        self.variable = variable.map(str::to_owned);
+        self
+    }
+}
+
 /// Runs every rule and returns the problems found (empty means clean).
-pub(super) fn check(md: &ModelDescription) -> Vec<String> {
-    let mut problems = Vec::new();
+pub(super) fn check(md: &ModelDescription) -> Vec<Problem> {
+    let mut problems = Problems { list: Vec::new(), rule: Rule::Header, variable: None };
     let lookup = Lookup::new(md);
-    check_header(md, &mut problems);
-    check_names_and_references(md, &mut problems);
+    check_header(md, problems.now(Rule::Header, None));
+    check_names_and_references(md, problems.now(Rule::Names, None));
     for (position, variable) in md.model_variables.iter().enumerate() {
         let at = at(variable, position as u32 + 1);
-        check_combination(variable, &at, &mut problems);
-        check_start(variable, &at, &mut problems);
-        check_ranges(&lookup, variable, &at, &mut problems);
-        check_declared_type(&lookup, variable, &at, &mut problems);
-        check_units(&lookup, variable, &at, &mut problems);
-        check_derivative(md, variable, &at, &mut problems);
+        let name = Some(variable.name.as_str());
+        check_combination(variable, &at, problems.now(Rule::Initial, name));
+        check_start(variable, &at, problems.now(Rule::Start, name));
+        check_ranges(&lookup, variable, &at, problems.now(Rule::Ranges, name));
+        check_declared_type(&lookup, variable, &at, problems.now(Rule::DeclaredType, name));
+        check_units(&lookup, variable, &at, problems.now(Rule::Units, name));
+        check_derivative(md, variable, &at, problems.now(Rule::Derivative, name));
     }
-    check_definitions(md, &lookup, &mut problems);
-    check_model_structure(md, &mut problems);
-    check_default_experiment(md, &mut problems);
-    problems
+    check_definitions(md, &lookup, problems.now(Rule::Definitions, None));
+    check_model_structure(md, problems.now(Rule::ModelStructure, None));
+    check_default_experiment(md, problems.now(Rule::DefaultExperiment, None));
+    problems.list
 }
 
 /// Units and simple types by name: exports from large models have 10^5 variables, so the
@@ -61,7 +117,7 @@ fn at(variable: &ScalarVariable, index: u32) -> String {
     format!("variable '{}' (index {index})", variable.name)
 }
 
-fn check_header(md: &ModelDescription, problems: &mut Vec<String>) {
+fn check_header(md: &ModelDescription, problems: &mut Problems) {
     if md.fmi_version != "2.0" {
         problems.push(format!("fmiVersion is \"{}\", must be \"2.0\"", md.fmi_version));
     }
@@ -89,7 +145,7 @@ fn check_header(md: &ModelDescription, problems: &mut Vec<String>) {
 }
 
 /// Unique names, and value references unique within each base type's fmi2Get/Set space.
-fn check_names_and_references(md: &ModelDescription, problems: &mut Vec<String>) {
+fn check_names_and_references(md: &ModelDescription, problems: &mut Problems) {
     let mut names: HashMap<&str, u32> = HashMap::new();
     let mut references: HashMap<(TypeKind, u32), (&str, u32)> = HashMap::new();
     for (position, variable) in md.model_variables.iter().enumerate() {
@@ -133,7 +189,7 @@ fn check_names_and_references(md: &ModelDescription, problems: &mut Vec<String>)
 }
 
 /// The standard's causality/variability table and the `initial` values each cell allows.
-fn check_combination(variable: &ScalarVariable, at: &str, problems: &mut Vec<String>) {
+fn check_combination(variable: &ScalarVariable, at: &str, problems: &mut Problems) {
     let causality = variable.causality();
     let variability = variability_text(variable);
     if variable.type_kind() != TypeKind::Real && variable.variability() == Variability::Continuous {
@@ -170,7 +226,7 @@ fn variability_text(variable: &ScalarVariable) -> String {
 }
 
 /// Start values: required for exact/approx and inputs, forbidden for calculated and independent.
-fn check_start(variable: &ScalarVariable, at: &str, problems: &mut Vec<String>) {
+fn check_start(variable: &ScalarVariable, at: &str, problems: &mut Problems) {
     let causality = variable.causality();
     let initial = variable.initial();
     let has_start = variable.has_start();
@@ -196,13 +252,13 @@ fn check_start(variable: &ScalarVariable, at: &str, problems: &mut Vec<String>) 
 
 /// min <= max, min <= start <= max, nominal > 0; bounds not on the variable come from its
 /// declared type, as the standard's attribute inheritance says.
-fn check_ranges(lookup: &Lookup, variable: &ScalarVariable, at: &str, problems: &mut Vec<String>) {
+fn check_ranges(lookup: &Lookup, variable: &ScalarVariable, at: &str, problems: &mut Problems) {
     fn range<T: PartialOrd + std::fmt::Display + Copy>(
         min: Option<T>,
         max: Option<T>,
         start: Option<T>,
         at: &str,
-        problems: &mut Vec<String>,
+        problems: &mut Problems,
     ) {
         if let (Some(min), Some(max)) = (min, max) {
             if min > max {
@@ -243,7 +299,7 @@ fn check_ranges(lookup: &Lookup, variable: &ScalarVariable, at: &str, problems: 
 }
 
 /// `declaredType` must name a SimpleType of the same kind; Enumerations must declare one.
-fn check_declared_type(lookup: &Lookup, variable: &ScalarVariable, at: &str, problems: &mut Vec<String>) {
+fn check_declared_type(lookup: &Lookup, variable: &ScalarVariable, at: &str, problems: &mut Problems) {
     let kind = variable.type_kind();
     match variable.declared_type() {
         None if kind == TypeKind::Enumeration => {
@@ -261,7 +317,7 @@ fn check_declared_type(lookup: &Lookup, variable: &ScalarVariable, at: &str, pro
 }
 
 /// Units referenced must be defined; display units must belong to the unit.
-fn check_units(lookup: &Lookup, variable: &ScalarVariable, at: &str, problems: &mut Vec<String>) {
+fn check_units(lookup: &Lookup, variable: &ScalarVariable, at: &str, problems: &mut Problems) {
     let Some(real) = variable.as_real() else { return };
     // Same resolution as ModelDescription::unit_of/display_unit_of: own attribute first.
     let declared = lookup.declared_real(real);
@@ -270,7 +326,7 @@ fn check_units(lookup: &Lookup, variable: &ScalarVariable, at: &str, problems: &
     check_unit_pair(lookup, unit, display_unit, at, problems);
 }
 
-fn check_unit_pair(lookup: &Lookup, unit: Option<&str>, display_unit: Option<&str>, at: &str, problems: &mut Vec<String>) {
+fn check_unit_pair(lookup: &Lookup, unit: Option<&str>, display_unit: Option<&str>, at: &str, problems: &mut Problems) {
     let defined = unit.and_then(|u| lookup.units.get(u));
     if let (Some(unit), None) = (unit, defined) {
         problems.push(format!("{at} has unit \"{unit}\", which is not defined in UnitDefinitions"));
@@ -287,7 +343,7 @@ fn check_unit_pair(lookup: &Lookup, unit: Option<&str>, display_unit: Option<&st
 }
 
 /// `derivative` must point at another existing Real variable.
-fn check_derivative(md: &ModelDescription, variable: &ScalarVariable, at: &str, problems: &mut Vec<String>) {
+fn check_derivative(md: &ModelDescription, variable: &ScalarVariable, at: &str, problems: &mut Problems) {
     let Some(state) = variable.derivative() else { return };
     match md.variable_by_index(state) {
         None => problems.push(format!("{at} has derivative=\"{state}\", which is not a variable index (1..={})", md.model_variables.len())),
@@ -300,7 +356,7 @@ fn check_derivative(md: &ModelDescription, variable: &ScalarVariable, at: &str, 
 }
 
 /// Uniqueness inside UnitDefinitions, TypeDefinitions and LogCategories, and units of types.
-fn check_definitions(md: &ModelDescription, lookup: &Lookup, problems: &mut Vec<String>) {
+fn check_definitions(md: &ModelDescription, lookup: &Lookup, problems: &mut Problems) {
     duplicates(md.unit_definitions.iter().map(|u| u.name.as_str()), "Unit name", problems);
     for unit in &md.unit_definitions {
         duplicates(unit.display_units.iter().map(|d| d.name.as_str()), &format!("DisplayUnit name in unit \"{}\"", unit.name), problems);
@@ -311,7 +367,10 @@ fn check_definitions(md: &ModelDescription, lookup: &Lookup, problems: &mut Vec<
         let at = format!("SimpleType '{}'", simple.name);
         match &simple.kind {
             SimpleTypeKind::Real(r) => {
+                // A type's units are a units problem, whatever list they sit in.
+                let rule = std::mem::replace(&mut problems.rule, Rule::Units);
                 check_unit_pair(lookup, r.unit.as_deref(), r.display_unit.as_deref(), &at, problems);
+                problems.rule = rule;
                 if let (Some(min), Some(max)) = (r.min, r.max) {
                     if min > max {
                         problems.push(format!("{at} has min={min} greater than max={max}"));
@@ -331,7 +390,7 @@ fn check_definitions(md: &ModelDescription, lookup: &Lookup, problems: &mut Vec<
     }
 }
 
-fn duplicates<'a>(names: impl Iterator<Item = &'a str>, what: &str, problems: &mut Vec<String>) {
+fn duplicates<'a>(names: impl Iterator<Item = &'a str>, what: &str, problems: &mut Problems) {
     let mut seen = HashSet::new();
     let mut reported = HashSet::new();
     for name in names {
@@ -342,7 +401,7 @@ fn duplicates<'a>(names: impl Iterator<Item = &'a str>, what: &str, problems: &m
 }
 
 /// Indices, dependency lists, and the exact contents of Outputs and InitialUnknowns (2.2.8).
-fn check_model_structure(md: &ModelDescription, problems: &mut Vec<String>) {
+fn check_model_structure(md: &ModelDescription, problems: &mut Problems) {
     let count = md.model_variables.len() as u32;
     let structure = &md.model_structure;
     let lists =
@@ -375,7 +434,7 @@ fn check_model_structure(md: &ModelDescription, problems: &mut Vec<String>) {
 
     let name_of = |index: u32| md.variable_by_index(index).map_or(format!("#{index}"), |v| v.name.clone());
     let listed = |list: &[Unknown]| -> BTreeSet<u32> { list.iter().map(|u| u.index).filter(|&i| i >= 1 && i <= count).collect() };
-    let compare = |list_name: &str, expected: &BTreeSet<u32>, actual: &BTreeSet<u32>, why: &str, problems: &mut Vec<String>| {
+    let compare = |list_name: &str, expected: &BTreeSet<u32>, actual: &BTreeSet<u32>, why: &str, problems: &mut Problems| {
         let missing: Vec<String> = expected.difference(actual).map(|&i| name_of(i)).collect();
         let extra: Vec<String> = actual.difference(expected).map(|&i| name_of(i)).collect();
         if !missing.is_empty() {
@@ -438,7 +497,7 @@ fn check_model_structure(md: &ModelDescription, problems: &mut Vec<String>) {
     }
 }
 
-fn check_default_experiment(md: &ModelDescription, problems: &mut Vec<String>) {
+fn check_default_experiment(md: &ModelDescription, problems: &mut Problems) {
     let Some(experiment) = &md.default_experiment else { return };
     for (name, value) in [
         ("startTime", experiment.start_time),

@@ -23,6 +23,7 @@ use std::fmt;
 use std::str::FromStr;
 
 pub use crate::{escaped_and_cut, printable, DescriptionError};
+pub use check::{Problem, Rule};
 
 fmi_enum! {
     /// `causality` of a ScalarVariable; absent means `local`.
@@ -778,7 +779,13 @@ impl ModelDescription {
 
     /// Checks the rules of the standard that fmpy's validation applies; empty means clean.
     pub fn check(&self) -> Vec<String> {
-        check::check(self).into_iter().map(printable).collect()
+        self.check_by_rule().into_iter().map(|p| p.message).collect()
+    }
+
+    /// [`ModelDescription::check`] with each problem tagged by the rule it breaks and the
+    /// variable it concerns (`runner validate` groups its findings by them).
+    pub fn check_by_rule(&self) -> Vec<Problem> {
+        check::check(self).into_iter().map(|p| Problem { message: printable(p.message), ..p }).collect()
     }
 
     /// The variable called `name`.

@@ -1198,3 +1198,26 @@ fn check_reports_every_problem_at_once() {
     let problems = md.check();
     assert_eq!(problems.len(), 3, "{problems:#?}");
 }
+
+/// `check_by_rule` tags each problem with the rule and variable it concerns, and its messages
+/// are exactly `check`'s.
+#[test]
+fn check_by_rule_tags_each_problem() {
+    let mut md = spring();
+    real_of(&mut md, "k").start = None;
+    real_of(&mut md, "k").unit = Some("furlong".to_string());
+    real_of(&mut md, "x").start = Some(11.0);
+    md.unit_definitions.retain(|u| u.name != "m");
+    md.model_structure.outputs.clear();
+    let tagged = md.check_by_rule();
+    assert_eq!(tagged.iter().map(|p| p.message.clone()).collect::<Vec<_>>(), md.check());
+    let rule_of = |text: &str| {
+        let p = tagged.iter().find(|p| p.message.contains(text)).unwrap_or_else(|| panic!("no problem with {text:?}: {tagged:#?}"));
+        (p.rule, p.variable.clone())
+    };
+    assert_eq!(rule_of("'k' (index 6) has initial=\"exact\""), (Rule::Start, Some("k".to_string())));
+    assert_eq!(rule_of("unit \"furlong\""), (Rule::Units, Some("k".to_string())));
+    assert_eq!(rule_of("start=11 outside"), (Rule::Ranges, Some("x".to_string())));
+    assert_eq!(rule_of("SimpleType 'Position' has unit \"m\""), (Rule::Units, None));
+    assert_eq!(rule_of("ModelStructure/Outputs is missing"), (Rule::ModelStructure, None));
+}

@@ -7,3 +7,4 @@ pub mod handbook;
 pub mod info;
 pub mod simulate;
 pub mod sweep;
+pub mod validate;

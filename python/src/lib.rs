@@ -18,7 +18,7 @@ use runner_engine::sweep::{PointResult, SweepSpec};
 use runner_engine::variables;
 use runner_workspace::{Located, RunSections};
 
-create_exception!(_engine, RunnerError, PyException, "An error of the runner: its message is the one the command line prints.");
+create_exception!(fmurunner, RunnerError, PyException, "An error of the runner: its message is the one the command line prints.");
 
 /// The runner's message as a Python exception.
 fn err(message: String) -> PyErr {

@@ -56,6 +56,14 @@ def test_errors_are_raised_before_anything_runs_on_the_cluster(client):
         fmurunner.sweep("quarter_car", {"speed": [1.0]}, {"p": "max(z_s)"}, client=client, chunk_size=0)
 
 
+def test_an_error_on_a_worker_reaches_the_client_as_the_runners_error(client):
+    """RunnerError pickles (it is fmurunner.RunnerError), so a chunk whose FMU cannot be loaded
+    on a worker raises it on the client with the runner's message."""
+    future = client.submit(fmurunner._dask._run_chunk, b"not a zip archive", "0" * 64, "broken.fmu", "{}", 0, 1)
+    with pytest.raises(fmurunner.RunnerError, match="broken.fmu"):
+        future.result()
+
+
 def _sweep_memory(client, points: int) -> tuple[pd.DataFrame, int]:
     """A cheap sweep of `points` points (5 steps each) and the client's peak Python memory
     (tracemalloc: numpy's buffers included) above what it held before, less the result's size."""

@@ -1,9 +1,10 @@
-//! The runner's engine: one simulation run ([`run`]), parameter sweeps on a thread pool
+//! The runner's engine: one simulation run ([`run`]), with inputs from a table ([`input`]), parameter sweeps on a thread pool
 //! ([`sweep`]) or in worker processes ([`isolation`], with the worker's side in [`worker`] and
 //! their messages in [`protocol`]), per-run metrics and closed-form formulas ([`metrics`]), and
 //! the lookup of variables by name with values parsed to their types ([`variables`]). It drives
 //! FMUs through the importer and knows nothing of our models.
 
+pub mod input;
 pub mod isolation;
 pub mod metrics;
 pub mod protocol;

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use fmi_importer::{Description, Fmu, Interface, Value, Variable};
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
+use crate::input::InputTable;
 use crate::run::{Grid, Recording};
 use crate::sweep::{PointResult, SweepSpec};
 
@@ -108,6 +109,9 @@ pub struct RunJob {
     pub events: bool,
     /// Turns the FMU's debug logging on.
     pub debug_logging: bool,
+    /// Inputs set before every step (`--input-file`), checked against the FMU where it runs.
+    #[serde(default)]
+    pub inputs: Option<InputTable>,
 }
 
 impl RunJob {
@@ -120,7 +124,13 @@ impl RunJob {
             recorded: recording.variables.iter().map(|v| v.name.clone()).collect(),
             events: recording.events,
             debug_logging,
+            inputs: None,
         }
+    }
+
+    /// The job with `inputs` set before every step.
+    pub fn with_inputs(self, inputs: Option<InputTable>) -> RunJob {
+        RunJob { inputs, ..self }
     }
 
     /// The job's assignments and recording, looked up in `description`: the same on both sides

@@ -2,7 +2,9 @@
 //! A Model Exchange FMU is integrated by the runner between the grid points, with the grid's
 //! solver; a Co-Simulation FMU integrates itself.
 
-use fmi_importer::{Description, Fmu, Reader, Solver, Step, Value, Variable};
+use fmi_importer::{Description, Fmu, Instance, Reader, Solver, Step, Value, Variable};
+
+use crate::input::Inputs;
 
 /// Most communication steps a run may have: a billion is minutes per run and a CSV of a
 /// hundred gigabytes, so more is a typo in the stop time or the interval, not an experiment.
@@ -172,13 +174,9 @@ pub fn run(
     assignments: &[(&Variable, Value)],
     recorded: &[&Variable],
     debug_logging: bool,
-    mut sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
+    sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
 ) -> Result<Outcome, String> {
-    if let Some(array) = recorded.iter().find(|v| v.is_array()) {
-        return Err(format!("{} is an array; name one of its elements", array.name));
-    }
-    let recording = Recording { variables: recorded.to_vec(), sizes: vec![1; recorded.len()], names: Vec::new(), events: false };
-    run_recording(fmu, name, grid, assignments, &recording, debug_logging, |t, values, _| sample(t, values))
+    run_driven(fmu, name, grid, assignments, None, recorded, debug_logging, sample)
 }
 
 /// The exact text of each column of a sample (strings, binary, wide integers): the [`Reader`]
@@ -209,6 +207,95 @@ pub fn run_recording(
     assignments: &[(&Variable, Value)],
     recording: &Recording,
     debug_logging: bool,
+    sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
+) -> Result<Outcome, String> {
+    run_with_inputs(fmu, name, grid, assignments, None, recording, debug_logging, sample)
+}
+
+/// [`run`] with `inputs` (`None`: none) set before initialization ends and before every step,
+/// each step ending on the inputs' next discontinuity where it would cross one.
+#[allow(clippy::too_many_arguments)]
+pub fn run_driven(
+    fmu: &Fmu,
+    name: &str,
+    grid: &Grid,
+    assignments: &[(&Variable, Value)],
+    inputs: Option<&Inputs>,
+    recorded: &[&Variable],
+    debug_logging: bool,
+    mut sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
+) -> Result<Outcome, String> {
+    if let Some(array) = recorded.iter().find(|v| v.is_array()) {
+        return Err(format!("{} is an array; name one of its elements", array.name));
+    }
+    let recording = Recording { variables: recorded.to_vec(), sizes: vec![1; recorded.len()], names: Vec::new(), events: false };
+    run_with_inputs(fmu, name, grid, assignments, inputs, &recording, debug_logging, |t, values, _| sample(t, values))
+}
+
+/// [`run_recording`] with `inputs` (`None`: none), as [`run_driven`] applies them.
+#[allow(clippy::too_many_arguments)]
+pub fn run_with_inputs(
+    fmu: &Fmu,
+    name: &str,
+    grid: &Grid,
+    assignments: &[(&Variable, Value)],
+    inputs: Option<&Inputs>,
+    recording: &Recording,
+    debug_logging: bool,
+    sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
+) -> Result<Outcome, String> {
+    // Two copies of the loop: the one without inputs is the sweep's hot path, unchanged.
+    match inputs {
+        None => drive(fmu, name, grid, assignments, &Constant, recording, debug_logging, sample),
+        Some(inputs) => drive(fmu, name, grid, assignments, inputs, recording, debug_logging, sample),
+    }
+}
+
+/// What a run sets before each step.
+trait Stimulus {
+    /// Sets the inputs at `time`.
+    fn apply(&self, instance: &mut Instance, time: f64) -> Result<(), String>;
+    /// Where a step from `now` towards `end` must stop.
+    fn step_end(&self, now: f64, end: f64) -> f64;
+}
+
+/// No inputs: every input keeps the value it was given before initialization.
+struct Constant;
+
+impl Stimulus for Constant {
+    #[inline(always)]
+    fn apply(&self, _: &mut Instance, _: f64) -> Result<(), String> {
+        Ok(())
+    }
+
+    #[inline(always)]
+    fn step_end(&self, _: f64, end: f64) -> f64 {
+        end
+    }
+}
+
+impl Stimulus for Inputs<'_> {
+    #[inline]
+    fn apply(&self, instance: &mut Instance, time: f64) -> Result<(), String> {
+        Inputs::apply(self, instance, time)
+    }
+
+    #[inline]
+    fn step_end(&self, now: f64, end: f64) -> f64 {
+        Inputs::step_end(self, now, end)
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn drive(
+    fmu: &Fmu,
+    name: &str,
+    grid: &Grid,
+    assignments: &[(&Variable, Value)],
+    inputs: &impl Stimulus,
+    recording: &Recording,
+    debug_logging: bool,
     mut sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
 ) -> Result<Outcome, String> {
     let mut reader = Reader::with_sizes(fmu.description.fmi_version, &recording.variables, &recording.sizes)?;
@@ -220,6 +307,7 @@ pub fn run_recording(
         instance.set(variable, value)?;
     }
     instance.enter_initialization_mode()?;
+    inputs.apply(&mut instance, grid.start)?;
     instance.exit_initialization_mode()?;
     instance.read(&mut reader, &mut values)?;
     sample(grid.start, &values, &reader)?;
@@ -227,11 +315,19 @@ pub fn run_recording(
     let mut t = grid.time_of(0, n);
     for i in 0..n {
         let t_next = grid.time_of(i + 1, n);
-        // A step may stop at events before its end: go on from each until t_next.
+        // A step may stop at events before its end, or end early on an input's discontinuity:
+        // go on from each until t_next.
         let mut now = t;
         loop {
-            match instance.do_step(now, t_next - now)? {
-                Step::Done => break,
+            inputs.apply(&mut instance, now)?;
+            let end = inputs.step_end(now, t_next);
+            match instance.do_step(now, end - now)? {
+                Step::Done => {
+                    if end == t_next {
+                        break;
+                    }
+                    now = end;
+                }
                 Step::Event { time } => {
                     if recording.events {
                         instance.read(&mut reader, &mut values)?;

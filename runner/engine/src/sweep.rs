@@ -8,9 +8,10 @@ use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc;
 
-use fmi_importer::{Description, Fmu, Value, Variable};
+use fmi_importer::{Description, Fmu, Interface, Value, Variable};
 use serde::{Deserialize, Serialize};
 
+use crate::input::{InputTable, Inputs};
 use crate::metrics::Metrics;
 use crate::run::{self, Grid};
 use crate::variables;
@@ -103,14 +104,20 @@ pub struct SweepSpec {
     pub ranges: Vec<(String, Vec<f64>)>,
     /// `NAME=EXPR` metrics.
     pub metrics: Vec<String>,
+    /// Inputs set before every step of every point (`--input-file`).
+    #[serde(default)]
+    pub inputs: Option<InputTable>,
 }
 
 impl SweepSpec {
-    /// The checked plan of this sweep over the FMU `description` (modelIdentifier `identifier`).
-    pub fn plan<'a>(&self, description: &'a Description, identifier: &'a str) -> Result<Plan<'a>, String> {
+    /// The checked plan of this sweep over the FMU `description` (modelIdentifier `identifier`),
+    /// run through `interface`.
+    pub fn plan<'a>(&self, description: &'a Description, identifier: &'a str, interface: Interface) -> Result<Plan<'a>, String> {
         let fixed = variables::parse_sets(description, &self.sets)?;
         let metrics = Metrics::parse(&self.metrics)?;
-        Plan::new(description, identifier, self.grid, fixed, self.ranges.clone(), metrics)
+        let mut plan = Plan::new(description, identifier, self.grid, fixed, self.ranges.clone(), metrics)?;
+        plan.inputs = self.inputs.as_ref().map(|table| table.bind(description, interface)).transpose()?;
+        Ok(plan)
     }
 }
 
@@ -129,6 +136,8 @@ pub struct Plan<'a> {
     pub metrics: Metrics,
     /// The variables the metrics read, in the order of `metrics.sources`.
     pub sources: Vec<&'a Variable>,
+    /// Inputs set before every step of every point.
+    pub inputs: Option<Inputs<'a>>,
 }
 
 impl<'a> Plan<'a> {
@@ -166,7 +175,7 @@ impl<'a> Plan<'a> {
             })
             .collect::<Result<Vec<_>, String>>()?;
         let space = Space::new(ranges)?;
-        Ok(Plan { description, identifier, grid, fixed, swept, space, metrics, sources })
+        Ok(Plan { description, identifier, grid, fixed, swept, space, metrics, sources, inputs: None })
     }
 
     /// The instance name of point `i`, e.g. `quarter_car[speed=4.0]`.
@@ -187,7 +196,7 @@ impl<'a> Plan<'a> {
         }
         let name = self.instance_name(point);
         let mut acc = self.metrics.accumulators();
-        let result = run::run(fmu, &name, &self.grid, &assignments, &self.sources, false, |t, values| {
+        let result = run::run_driven(fmu, &name, &self.grid, &assignments, self.inputs.as_ref(), &self.sources, false, |t, values| {
             if stop() {
                 return Err("interrupted".to_owned());
             }

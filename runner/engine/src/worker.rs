@@ -121,7 +121,7 @@ pub fn serve() -> Result<(), String> {
                 reply(&Reply::Released)?;
                 break;
             }
-            Request::Sweep(spec) => match spec.plan(&fmu.description, &fmu.identifier) {
+            Request::Sweep(spec) => match spec.plan(&fmu.description, &fmu.identifier, fmu.interface) {
                 Ok(p) => {
                     plan = Some(p);
                     reply(&Reply::Ready)?;
@@ -139,6 +139,7 @@ pub fn serve() -> Result<(), String> {
             }
             Request::Run(job) => {
                 let result = job.resolve(&fmu.description).and_then(|(assignments, recording)| {
+                    let inputs = job.inputs.as_ref().map(|table| table.bind(&fmu.description, fmu.interface)).transpose()?;
                     samples.clear();
                     let mut texts = Vec::new();
                     // The columns the supervisor cannot print from their numbers.
@@ -146,8 +147,15 @@ pub fn serve() -> Result<(), String> {
                     let flush = |samples: &mut Vec<f64>, texts: &mut Vec<String>| {
                         reply(&Reply::Samples { values: std::mem::take(samples), texts: std::mem::take(texts) })
                     };
-                    let outcome =
-                        run::run_recording(&fmu, &job.name, &job.grid, &assignments, &recording, job.debug_logging, |t, values, reader| {
+                    let outcome = run::run_with_inputs(
+                        &fmu,
+                        &job.name,
+                        &job.grid,
+                        &assignments,
+                        inputs.as_ref(),
+                        &recording,
+                        job.debug_logging,
+                        |t, values, reader| {
                             samples.push(t);
                             samples.extend_from_slice(values);
                             let lossy = lossy.get_or_insert_with(|| (0..values.len()).filter(|&c| reader.needs_text(c)).collect());
@@ -157,7 +165,8 @@ pub fn serve() -> Result<(), String> {
                                 samples.reserve(BATCH + 64);
                             }
                             Ok(())
-                        });
+                        },
+                    );
                     if !samples.is_empty() {
                         flush(&mut samples, &mut texts)?;
                     }

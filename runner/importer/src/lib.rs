@@ -370,6 +370,17 @@ impl Instance<'_> {
         }
     }
 
+    /// Sets the first time derivative of the Real input `variable` (FMI 2.0 Co-Simulation FMUs
+    /// that declare `canInterpolateInputs`; the others are refused).
+    pub fn set_input_derivative(&mut self, variable: &Variable, derivative: f64) -> Result<(), String> {
+        match self {
+            Instance::Fmi2Cs(i) => i.set_input_derivative(variable, derivative),
+            Instance::Fmi2Me(_) | Instance::Fmi3Cs(_) => {
+                Err(format!("{}: input derivatives are passed to FMI 2.0 Co-Simulation FMUs only", variable.name))
+            }
+        }
+    }
+
     /// Reads the variables of `reader` into `out`, one f64 per variable (Booleans as 0/1).
     #[inline]
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {

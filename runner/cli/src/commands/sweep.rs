@@ -178,8 +178,8 @@ pub fn run(options: &Options) -> Result<Summary, String> {
     grid.solver = solver;
     let mut set_texts = defaults.set.clone();
     set_texts.extend(options.run.set.iter().cloned());
-    let spec = SweepSpec { grid, sets: set_texts, ranges, metrics: metric_texts.clone() };
-    let plan = spec.plan(d, held.identifier())?;
+    let spec = SweepSpec { grid, sets: set_texts, ranges, metrics: metric_texts.clone(), inputs: None };
+    let plan = spec.plan(d, held.identifier(), held.interface())?;
     let (space, metrics, swept) = (&plan.space, &plan.metrics, &plan.swept);
     let n = space.len;
     let once = isolation::once_per_process(d, held.interface());

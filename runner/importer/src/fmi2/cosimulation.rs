@@ -41,6 +41,19 @@ impl<'a> CoSimulation<'a> {
         self.component.set(variable, value)
     }
 
+    /// fmi2SetRealInputDerivatives of the first derivative of the Real input `variable`, for an
+    /// FMU that interpolates inputs over a step (`canInterpolateInputs`).
+    pub fn set_input_derivative(&mut self, variable: &Variable, derivative: f64) -> Result<(), String> {
+        let Some(set) = self.component.binary.api.set_real_input_derivatives else {
+            return Err(format!("{}: the FMU does not export fmi2SetRealInputDerivatives", self.component.name));
+        };
+        let (vr, order): (c::ValueReference, c::Integer) = (variable.value_reference, 1);
+        trace::enter(Call::SetReal, self.component.time);
+        // SAFETY: one value reference, order and value, valid for the call.
+        let status = unsafe { set(self.component.raw, &vr, 1, &order, &derivative) };
+        self.component.check(&format!("fmi2SetRealInputDerivatives of {}", variable.name), status)
+    }
+
     /// Reads the variables of `reader` into `out` (one f64 per variable, Booleans as 0/1).
     #[inline]
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {

@@ -83,6 +83,9 @@ pub(crate) struct Api {
     pub(crate) do_step: Option<c::DoStep>,
     pub(crate) get_boolean_status: Option<c::GetBooleanStatus>,
     pub(crate) get_real_status: Option<c::GetRealStatus>,
+    /// Co-Simulation: `fmi2SetRealInputDerivatives`, for FMUs that interpolate inputs (looked up
+    /// leniently: an FMU that cannot interpolate need not export it usefully).
+    pub(crate) set_real_input_derivatives: Option<c::SetRealInputDerivatives>,
     /// The Model Exchange functions, resolved when the binary is loaded for that interface.
     pub(crate) exchange: Option<ExchangeApi>,
 }
@@ -183,6 +186,7 @@ impl Api {
             do_step: optional(lib, "fmi2DoStep", co_simulation)?,
             get_boolean_status: optional(lib, "fmi2GetBooleanStatus", co_simulation)?,
             get_real_status: optional(lib, "fmi2GetRealStatus", co_simulation)?,
+            set_real_input_derivatives: optional(lib, "fmi2SetRealInputDerivatives", co_simulation).ok().flatten(),
         })
     }
 }

@@ -1,0 +1,394 @@
+//! `fmurunner._engine`: the runner's engine for Python. The Python side (`fmurunner/`) shapes
+//! arguments and builds DataFrames; everything that runs an FMU is here and calls the engine
+//! directly (`SweepSpec::plan`, `Plan::execute_range`, `run::run_with_inputs`), with the GIL
+//! released while Rust runs. Results cross as compact tables: little-endian `f64` bytes plus the
+//! few strings (failed points' statuses, text columns) that numbers cannot carry.
+
+use std::path::{Path, PathBuf};
+
+use fmi_importer::model::Dimension;
+use fmi_importer::{Description, FmiVersion, Fmu, Interface, Kind, Unpacked, Variable};
+use pyo3::create_exception;
+use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyList};
+use runner_engine::input::InputTable;
+use runner_engine::run::{self, Grid, GridSettings, Recording};
+use runner_engine::sweep::{PointResult, SweepSpec};
+use runner_engine::variables;
+use runner_workspace::{Located, RunSections};
+
+create_exception!(fmurunner, RunnerError, PyException, "An error of the runner: its message is the one the command line prints.");
+
+/// The runner's message as a Python exception.
+fn err(message: String) -> PyErr {
+    RunnerError::new_err(message)
+}
+
+/// Points' results as Python receives them: row-major metric bytes, (point, status) of the
+/// failed ones, seconds.
+type Points<'py> = (Bound<'py, PyBytes>, Vec<(usize, String)>, f64);
+
+/// A grid source as Python passes it: (stop_time, output_interval, tolerance).
+type GridArgs = (Option<f64>, Option<f64>, Option<f64>);
+
+fn grid_settings(args: &[GridArgs]) -> Vec<GridSettings> {
+    args.iter().map(|&(stop_time, output_interval, tolerance)| GridSettings { stop_time, output_interval, tolerance }).collect()
+}
+
+/// Resolves `fmu` as the command line does: an `.fmu` path, or a model of this workspace (whose
+/// FMU `runner build` writes). Returns the file and, for a model, the `NAME=VALUE` sets and grid
+/// of its experiment's `[simulate]` or `[sweep]` section (`command`).
+#[pyfunction]
+fn locate(fmu: &str, command: &str) -> PyResult<(String, Vec<String>, GridArgs)> {
+    match runner_workspace::locate(fmu).map_err(err)? {
+        Located::File(path) => Ok((path.display().to_string(), Vec::new(), (None, None, None))),
+        Located::Model { id, fmu: path, experiment } => {
+            if !path.is_file() {
+                return Err(err(format!(
+                    "{} is missing: build it first with `runner build {id}` (cargo run --release -p runner -- build {id})",
+                    path.display()
+                )));
+            }
+            let sections: RunSections = runner_workspace::read(&experiment).map_err(err)?;
+            let defaults = match command {
+                "sweep" => sections.sweep.run(),
+                _ => sections.simulate,
+            };
+            Ok((path.display().to_string(), defaults.set, (defaults.stop_time, defaults.output_interval, defaults.tolerance)))
+        }
+    }
+}
+
+fn variable_dict<'py>(py: Python<'py>, d: &Description, v: &Variable) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    out.set_item("name", &v.name)?;
+    out.set_item("value_reference", v.value_reference)?;
+    out.set_item("causality", v.causality.as_str())?;
+    out.set_item("variability", v.variability.as_str())?;
+    out.set_item("type", v.kind.name_in(d.fmi_version))?;
+    out.set_item("unit", &v.unit)?;
+    out.set_item("display_unit", &v.display_unit)?;
+    out.set_item("start", v.start.as_ref().map(|s| s.to_string()))?;
+    out.set_item("description", &v.description)?;
+    let dimensions: Vec<String> = v
+        .dimensions
+        .iter()
+        .map(|dim| match *dim {
+            Dimension::Fixed(n) => n.to_string(),
+            Dimension::Variable(vr) => d.variable_by_reference(vr).map_or(format!("vr {vr}"), |p| p.name.clone()),
+        })
+        .collect();
+    out.set_item("dimensions", dimensions)?;
+    Ok(out)
+}
+
+/// What `runner info` shows of the FMU at `path`, as a dict (the binary is not loaded).
+#[pyfunction]
+fn describe<'py>(py: Python<'py>, path: &str) -> PyResult<Bound<'py, PyDict>> {
+    let unpacked = py.detach(|| Unpacked::open(Path::new(path))).map_err(err)?;
+    let d = &unpacked.description;
+    let out = PyDict::new(py);
+    out.set_item("model_name", &d.model_name)?;
+    out.set_item("description", &d.description)?;
+    out.set_item("fmi_version", &d.fmi_version_text)?;
+    out.set_item("guid", &d.instantiation_token)?;
+    out.set_item("generation_tool", &d.generation_tool)?;
+    for (key, interface) in [("co_simulation", Interface::CoSimulation), ("model_exchange", Interface::ModelExchange)] {
+        let Some(c) = d.interface(interface) else {
+            out.set_item(key, py.None())?;
+            continue;
+        };
+        let caps = PyDict::new(py);
+        caps.set_item("model_identifier", &c.model_identifier)?;
+        caps.set_item("needs_execution_tool", c.needs_execution_tool)?;
+        caps.set_item("can_be_instantiated_only_once_per_process", c.can_be_instantiated_only_once_per_process)?;
+        caps.set_item("can_get_and_set_fmu_state", c.can_get_and_set_fmu_state)?;
+        caps.set_item("can_serialize_fmu_state", c.can_serialize_fmu_state)?;
+        caps.set_item("provides_directional_derivative", c.provides_directional_derivative)?;
+        if interface == Interface::CoSimulation {
+            caps.set_item("can_handle_variable_communication_step_size", c.can_handle_variable_communication_step_size)?;
+            caps.set_item("can_interpolate_inputs", c.can_interpolate_inputs)?;
+            caps.set_item("max_output_derivative_order", c.max_output_derivative_order)?;
+        }
+        out.set_item(key, caps)?;
+    }
+    out.set_item("number_of_continuous_states", d.number_of_continuous_states)?;
+    out.set_item("number_of_event_indicators", d.number_of_event_indicators)?;
+    match &d.default_experiment {
+        Some(e) => {
+            let de = PyDict::new(py);
+            de.set_item("start_time", e.start_time)?;
+            de.set_item("stop_time", e.stop_time)?;
+            de.set_item("tolerance", e.tolerance)?;
+            de.set_item("step_size", e.step_size)?;
+            out.set_item("default_experiment", de)?;
+        }
+        None => out.set_item("default_experiment", py.None())?,
+    }
+    let list = PyList::empty(py);
+    for v in &d.variables {
+        list.append(variable_dict(py, d, v)?)?;
+    }
+    out.set_item("variables", list)?;
+    Ok(out)
+}
+
+/// How a column's numbers become a pandas column.
+fn column_kind(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Real | Kind::Float32 => "float",
+        Kind::Boolean => "bool",
+        Kind::String | Kind::Binary | Kind::Clock => "text",
+        _ => "int",
+    }
+}
+
+/// A loaded FMU (unpacked, binary open) that runs simulations and sweep points in this process.
+#[pyclass(frozen, module = "fmurunner._engine")]
+struct Model {
+    fmu: Fmu,
+    /// A copy of an FMU received as bytes (a Dask worker's), deleted with the model.
+    _copy: Option<tempfile::TempDir>,
+}
+
+/// The little-endian bytes of `values`.
+fn f64_bytes(values: &[f64]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(values.len() * 8);
+    for x in values {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+    out
+}
+
+impl Model {
+    fn grid(&self, sources: &[GridArgs]) -> Result<Grid, String> {
+        Grid::choose(&self.fmu.description, &grid_settings(sources))
+    }
+
+    fn spec(&self, spec_json: &str) -> PyResult<SweepSpec> {
+        serde_json::from_str(spec_json).map_err(|e| err(format!("not a sweep of this version of fmurunner: {e}")))
+    }
+}
+
+/// Refuses a sweep of more than one point in one process for an FMU that allows only one instance.
+fn check_once_per_process(d: &Description, interface: Interface, points: usize) -> Result<(), String> {
+    if points > 1 && runner_engine::isolation::once_per_process(d, interface) {
+        return Err(format!(
+            "{} declares canBeInstantiatedOnlyOncePerProcess, so its points cannot share a process: sweep it with `runner sweep`, which gives each point a worker process of its own",
+            d.model_name
+        ));
+    }
+    Ok(())
+}
+
+/// Checks a sweep of the FMU `d` and returns it as data (JSON) that any process holding this
+/// FMU runs the same way: the grid from `grid_sources`, the common `sets`, the swept `ranges`
+/// (their cartesian product, the last varying fastest) and the `NAME=EXPR` `metrics`. Also
+/// returns the number of points and the metric names.
+fn plan(
+    d: &Description,
+    identifier: &str,
+    interface: Interface,
+    grid_sources: &[GridArgs],
+    sets: Vec<String>,
+    ranges: Vec<(String, Vec<f64>)>,
+    metrics: Vec<String>,
+) -> PyResult<(String, usize, Vec<String>)> {
+    let grid = Grid::choose(d, &grid_settings(grid_sources)).map_err(err)?;
+    if ranges.is_empty() {
+        return Err(err("nothing to sweep: give params, a dict of parameter name to its values".to_owned()));
+    }
+    if metrics.is_empty() {
+        return Err(err("no metric: give metrics, e.g. {'amplitude': 'max(x)'}".to_owned()));
+    }
+    if let Some((name, _)) = ranges.iter().find(|(_, values)| values.is_empty()) {
+        return Err(err(format!("params['{name}'] has no values")));
+    }
+    let spec = SweepSpec { grid, sets, ranges, metrics, inputs: None };
+    let plan = spec.plan(d, identifier, interface).map_err(err)?;
+    check_once_per_process(d, interface, plan.space.len).map_err(err)?;
+    let names = plan.metrics.metrics.iter().map(|(n, _)| n.clone()).collect();
+    let json = serde_json::to_string(&spec).map_err(|e| err(format!("cannot encode the sweep: {e}")))?;
+    Ok((json, plan.space.len, names))
+}
+
+/// [`plan`] for the FMU at `path`, from its description alone (its binary is not loaded: a
+/// Dask client plans a sweep that only the workers run).
+#[pyfunction]
+fn plan_sweep(
+    py: Python<'_>,
+    path: &str,
+    grid_sources: Vec<GridArgs>,
+    sets: Vec<String>,
+    ranges: Vec<(String, Vec<f64>)>,
+    metrics: Vec<String>,
+) -> PyResult<(String, usize, Vec<String>)> {
+    let unpacked = py.detach(|| Unpacked::open(Path::new(path))).map_err(err)?;
+    plan(&unpacked.description, &unpacked.identifier, unpacked.interface, &grid_sources, sets, ranges, metrics)
+}
+
+#[pymethods]
+impl Model {
+    /// Unpacks and loads the FMU at `path` (Co-Simulation when it offers it, else Model Exchange).
+    #[new]
+    fn new(py: Python<'_>, path: &str) -> PyResult<Model> {
+        let fmu = py.detach(|| Fmu::load_as(Path::new(path), None)).map_err(err)?;
+        Ok(Model { fmu, _copy: None })
+    }
+
+    /// Loads an FMU from its bytes (as a Dask worker receives it); `name` is its file name.
+    #[staticmethod]
+    fn from_bytes(py: Python<'_>, data: Vec<u8>, name: &str) -> PyResult<Model> {
+        py.detach(|| {
+            let dir = tempfile::Builder::new()
+                .prefix("fmurunner-")
+                .tempdir()
+                .map_err(|e| format!("cannot create a directory for {name}: {e}"))?;
+            let file_name = Path::new(name).file_name().map_or_else(|| PathBuf::from("model.fmu"), PathBuf::from);
+            let path = dir.path().join(file_name);
+            std::fs::write(&path, &data).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            let fmu = Fmu::load_as(&path, None)?;
+            // The FMU is unpacked elsewhere: its archive is no longer needed.
+            let _ = std::fs::remove_file(&path);
+            Ok(Model { fmu, _copy: Some(dir) })
+        })
+        .map_err(err)
+    }
+
+    /// The model's name and its modelIdentifier.
+    #[getter]
+    fn identifier(&self) -> &str {
+        &self.fmu.identifier
+    }
+
+    /// One run: `sets` (`NAME=VALUE`) before initialization, the grid from the first of
+    /// `grid_sources` that gives each entry (else the FMU's default experiment), `input` as
+    /// (names, time, columns). Returns (names, kinds, row-major f64 bytes of time and the
+    /// outputs, rows, {column: texts} for columns numbers cannot give, why it ended early).
+    #[allow(clippy::type_complexity)]
+    #[pyo3(signature = (grid_sources, sets, input=None))]
+    fn simulate<'py>(
+        &self,
+        py: Python<'py>,
+        grid_sources: Vec<GridArgs>,
+        sets: Vec<String>,
+        input: Option<(Vec<String>, Vec<f64>, Vec<Vec<f64>>)>,
+    ) -> PyResult<(Vec<String>, Vec<&'static str>, Bound<'py, PyBytes>, usize, Bound<'py, PyDict>, Option<String>)> {
+        let md = &self.fmu.description;
+        let (names, kinds, data, rows, texts, ended_early) = py
+            .detach(|| -> Result<_, String> {
+                let grid = self.grid(&grid_sources)?;
+                let assignments = variables::parse_sets(md, &sets)?;
+                let inputs = match input {
+                    Some((names, time, values)) => Some(InputTable::from_columns(names, time, values)?.bind(md, self.fmu.interface)?),
+                    None => None,
+                };
+                // As `runner simulate` writes them: FMI 2.0 Strings are left out (fmpy leaves them
+                // out too), FMI 3.0 Strings and Binaries kept; clocks have no value.
+                let recordable = |v: &&Variable| match md.fmi_version {
+                    FmiVersion::Fmi2 => v.kind.is_numeric(),
+                    FmiVersion::Fmi3 => v.kind != Kind::Clock,
+                };
+                let outputs: Vec<&Variable> = md.outputs().filter(recordable).collect();
+                let recording = Recording::new(md, &outputs, &assignments)?;
+                let mut kinds = vec!["float"];
+                for (v, &size) in recording.variables.iter().zip(&recording.sizes) {
+                    kinds.extend(std::iter::repeat_n(column_kind(v.kind), size));
+                }
+                let columns = recording.names.len();
+                let mut data: Vec<f64> = Vec::new();
+                let mut texts: Vec<Option<Vec<String>>> = vec![None; columns];
+                let mut rows = 0usize;
+                let outcome = run::run_with_inputs(
+                    &self.fmu,
+                    &self.fmu.identifier,
+                    &grid,
+                    &assignments,
+                    inputs.as_ref(),
+                    &recording,
+                    false,
+                    |t, values, text| {
+                        data.push(t);
+                        data.extend_from_slice(&values[..columns]);
+                        for (c, slot) in texts.iter_mut().enumerate() {
+                            if text.needs_text(c) || kinds[c + 1] == "text" {
+                                slot.get_or_insert_with(Vec::new).push(text.text(c, values));
+                            }
+                        }
+                        rows += 1;
+                        Ok(())
+                    },
+                )?;
+                let mut names = vec!["time".to_owned()];
+                names.extend(recording.names);
+                Ok((names, kinds, data, rows, texts, outcome.ended_early))
+            })
+            .map_err(err)?;
+        let text_columns = PyDict::new(py);
+        for (c, column) in texts.into_iter().enumerate() {
+            if let Some(column) = column {
+                text_columns.set_item(&names[c + 1], column)?;
+            }
+        }
+        Ok((names, kinds, PyBytes::new(py, &f64_bytes(&data)), rows, text_columns, ended_early))
+    }
+
+    /// [`plan_sweep`] for this FMU.
+    fn plan_sweep(
+        &self,
+        grid_sources: Vec<GridArgs>,
+        sets: Vec<String>,
+        ranges: Vec<(String, Vec<f64>)>,
+        metrics: Vec<String>,
+    ) -> PyResult<(String, usize, Vec<String>)> {
+        let f = &self.fmu;
+        plan(&f.description, &f.identifier, f.interface, &grid_sources, sets, ranges, metrics)
+    }
+
+    /// Runs the points `start..stop` of the sweep `spec_json` (from [`Model::plan_sweep`]) on
+    /// `threads` threads. Returns the row-major f64 bytes of their metrics (NaN where a point
+    /// did not run), the (point, status) of every point whose status is not `ok`, and the
+    /// seconds it took.
+    fn run_points<'py>(&self, py: Python<'py>, spec_json: &str, start: usize, stop: usize, threads: usize) -> PyResult<Points<'py>> {
+        let spec = self.spec(spec_json)?;
+        let (values, failures, seconds) = py
+            .detach(|| -> Result<_, String> {
+                let clock = std::time::Instant::now();
+                let plan = spec.plan(&self.fmu.description, &self.fmu.identifier, self.fmu.interface)?;
+                if start > stop || stop > plan.space.len {
+                    return Err(format!("points {start}..{stop} are not within the sweep's {} points", plan.space.len));
+                }
+                check_once_per_process(&self.fmu.description, self.fmu.interface, plan.space.len)?;
+                let m = plan.metrics.metrics.len();
+                let mut values: Vec<f64> = Vec::with_capacity((stop - start) * m);
+                let mut failures = Vec::new();
+                plan.execute_range(&self.fmu, start..stop, threads, &|| false, |i, r: PointResult| {
+                    match r.metrics {
+                        Some(v) => values.extend_from_slice(&v),
+                        None => values.extend(std::iter::repeat_n(f64::NAN, m)),
+                    }
+                    if r.status != "ok" {
+                        failures.push((i, r.status));
+                    }
+                    Ok(())
+                })?;
+                Ok((values, failures, clock.elapsed().as_secs_f64()))
+            })
+            .map_err(err)?;
+        Ok((PyBytes::new(py, &f64_bytes(&values)), failures, seconds))
+    }
+}
+
+/// The runner's engine for Python (see the `fmurunner` package).
+#[pymodule]
+fn _engine(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("RunnerError", m.py().get_type::<RunnerError>())?;
+    m.add_function(wrap_pyfunction!(locate, m)?)?;
+    m.add_function(wrap_pyfunction!(describe, m)?)?;
+    m.add_function(wrap_pyfunction!(plan_sweep, m)?)?;
+    m.add_class::<Model>()?;
+    // The points a sweep may have, as the command line allows.
+    m.add("MAX_POINTS", runner_engine::sweep::MAX_POINTS)?;
+    Ok(())
+}

@@ -1,0 +1,136 @@
+"""fmurunner on this machine: info, simulate (against fmpy on the same FMU, with and without
+inputs), sweep (against the CLI's CSV, bit for bit), and errors with the runner's messages."""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from fmpy import simulate_fmu
+
+import fmurunner
+from fmurunner_helpers import EX4_METRICS, EX4_SPEEDS, REFERENCE, assert_same_as_cli, fmu_path, runner_sweep_csv
+
+
+def test_info_lists_the_variables_and_capabilities():
+    d = fmurunner.info("quarter_car")
+    assert d["model_name"] == "quarter_car"
+    assert d["co_simulation"]["model_identifier"] == "quarter_car"
+    assert d["model_exchange"] is not None
+    speed = next(v for v in d["variables"] if v["name"] == "speed")
+    assert (speed["causality"], speed["type"], speed["unit"], speed["start"]) == ("parameter", "Real", "m/s", "30")
+    assert d["default_experiment"]["stop_time"] == 10.0
+    ball = fmurunner.info(REFERENCE / "fmi3" / "BouncingBall.fmu")
+    assert ball["fmi_version"] == "3.0" and ball["model_name"] == "BouncingBall"
+
+
+def test_the_ex4_sweep_is_the_clis_bit_for_bit(tmp_path):
+    """The model name picks up the experiment's [sweep] grid (1 ms, rtol 1e-9) as the CLI does;
+    the CLI runs its points in worker processes, the package on threads: same engine, same bits."""
+    frame = fmurunner.sweep("quarter_car", {"speed": EX4_SPEEDS}, EX4_METRICS, threads=2)
+    assert_same_as_cli(frame, runner_sweep_csv(tmp_path, "quarter_car"))
+    assert (frame["status"] == "ok").all()
+    peak = frame.loc[frame["transmissibility"].idxmax()]
+    assert peak["speed"] == 4.0 and abs(peak["transmissibility"] - 2.1758) < 1e-4
+
+
+def test_points_are_the_cartesian_product_in_the_clis_order(tmp_path):
+    params = {"speed": [2.0, 4.0, 8.0], "k_s": [15000.0, 18000.0]}
+    metrics = ["peak=max(z_s)"]
+    frame = fmurunner.sweep(fmu_path("quarter_car"), params, metrics, stop_time=2.0, output_interval=0.01, threads=2,
+                            start_values={"b_s": 1100.0})
+    assert frame[["speed", "k_s"]].values.tolist() == [[2, 15000], [2, 18000], [4, 15000], [4, 18000], [8, 15000], [8, 18000]]
+    rows = runner_sweep_csv(tmp_path, str(fmu_path("quarter_car")), "--param", "speed=2,4,8", "--param", "k_s=15000,18000",
+                            "--metric", "peak=max(z_s)", "--stop-time", "2", "--output-interval", "0.01", "--set", "b_s=1100")
+    assert_same_as_cli(frame, rows)
+
+
+def test_a_failed_point_is_a_row_with_its_error():
+    frame = fmurunner.sweep("quarter_car", {"m_s": [200.0, -1.0, 250.0]}, {"peak": "max(z_s)"}, stop_time=1.0, threads=2)
+    assert list(frame["status"][[0, 2]]) == ["ok", "ok"]
+    assert "m_s" in frame["status"][1] and frame["status"][1] != "ok", frame["status"][1]
+    assert math.isnan(frame["peak"][1]) and frame["peak"][0] > 0
+
+
+def test_errors_raise_the_runners_messages():
+    with pytest.raises(fmurunner.RunnerError, match="did you mean 'speed'"):
+        fmurunner.sweep("quarter_car", {"sped": [1.0]}, {"p": "max(z_s)"})
+    with pytest.raises(fmurunner.RunnerError, match="z_q"):
+        fmurunner.sweep("quarter_car", {"speed": [1.0]}, {"p": "max(z_q)"})
+    with pytest.raises(fmurunner.RunnerError, match="metric"):
+        fmurunner.sweep("quarter_car", {"speed": [1.0]}, ["p=maxx(z_s"])
+    with pytest.raises(fmurunner.RunnerError, match="neither an existing .fmu file nor a model"):
+        fmurunner.simulate("quater_car")
+    with pytest.raises(fmurunner.RunnerError, match="does not exist"):
+        fmurunner.info("missing/thing.fmu")
+    with pytest.raises(fmurunner.RunnerError, match="only parameters and inputs can be set"):
+        fmurunner.simulate("quarter_car", start_values={"z_s": 1.0})
+
+
+def test_an_unreadable_fmu_is_an_error(tmp_path):
+    bad = tmp_path / "bad.fmu"
+    bad.write_bytes(b"not a zip archive")
+    with pytest.raises(fmurunner.RunnerError, match="bad.fmu"):
+        fmurunner.simulate(bad)
+    with pytest.raises(fmurunner.RunnerError, match="bad.fmu"):
+        fmurunner.sweep(bad, {"k": [1.0]}, {"p": "max(x)"})
+
+
+def _fmpy_frame(result) -> pd.DataFrame:
+    return pd.DataFrame({name: result[name] for name in result.dtype.names})
+
+
+@pytest.mark.parametrize("fmu, outputs", [(REFERENCE / "fmi2" / "BouncingBall.fmu", ["h", "v"]),
+                                          (REFERENCE / "fmi2" / "VanDerPol.fmu", ["x0", "x1"])])
+def test_simulate_equals_fmpy_on_the_same_fmu(fmu, outputs):
+    """The same Co-Simulation FMU stepped on the same grid by both importers: the FMU does all
+    the arithmetic, so the values agree to rounding of the communication times (1e-12)."""
+    ours = fmurunner.simulate(fmu, stop_time=3.0, output_interval=0.01)
+    theirs = _fmpy_frame(simulate_fmu(str(fmu), stop_time=3.0, output_interval=0.01, fmi_type="CoSimulation"))
+    assert list(ours.columns[:1]) == ["time"] and set(outputs) <= set(ours.columns)
+    assert len(ours) == len(theirs)
+    np.testing.assert_allclose(ours["time"], theirs["time"], rtol=0, atol=1e-12)
+    for name in outputs:
+        np.testing.assert_allclose(ours[name], theirs[name], rtol=1e-12, atol=1e-12)
+
+
+def test_simulate_of_a_model_name_uses_its_experiment():
+    frame = fmurunner.simulate("quarter_car", stop_time=0.5, start_values={"speed": 4.0})
+    assert frame.columns[0] == "time" and "z_s" in frame.columns
+    assert frame["time"].iloc[1] == 1e-3 and frame["time"].iloc[-1] == 0.5
+    assert frame["n_steps"].dtype == np.int64
+
+
+def _feedthrough_input():
+    """fmpy's convention: a structured array, time first; 0.5 repeated is a step."""
+    return np.array([(0.0, 0.0, 0), (0.5, 1.0, 0), (0.5, 2.0, 3), (1.0, 3.0, 3)],
+                    dtype=[("time", np.float64), ("Float64_continuous_input", np.float64), ("Int32_input", np.int32)])
+
+
+def test_simulate_with_inputs_equals_fmpy():
+    """Feedthrough passes its inputs to its outputs: the interpolated Real and the held Integer
+    must match fmpy's at every point, both given the same structured array."""
+    fmu = REFERENCE / "fmi2" / "Feedthrough.fmu"
+    signals = _feedthrough_input()
+    theirs = _fmpy_frame(simulate_fmu(str(fmu), stop_time=1.0, output_interval=0.1, input=signals, fmi_type="CoSimulation"))
+    ours = fmurunner.simulate(fmu, stop_time=1.0, output_interval=0.1, input=signals)
+    as_frame = fmurunner.simulate(fmu, stop_time=1.0, output_interval=0.1, input=pd.DataFrame(signals))
+    pd.testing.assert_frame_equal(ours, as_frame)
+    assert len(ours) == len(theirs)
+    for name in ["Float64_continuous_output", "Int32_output"]:
+        np.testing.assert_allclose(ours[name], theirs[name], rtol=0, atol=1e-12, err_msg=name)
+    # And not merely the same as fmpy: an FMI 2.0 Feedthrough's output at t = 0.3 is the input
+    # set for the step into it, u(0.2) = 0.4 (linear from 0 at 0 to 1 at 0.5), and the Integer
+    # steps to 3 at the repeated time 0.5.
+    assert ours["Float64_continuous_output"].iloc[3] == pytest.approx(0.4, abs=1e-12)
+    assert list(ours["Int32_output"]) == [0] * 6 + [3] * 5
+
+
+def test_bad_inputs_are_refused_with_the_runners_message():
+    fmu = REFERENCE / "fmi2" / "Feedthrough.fmu"
+    with pytest.raises(fmurunner.RunnerError, match="first field must be 'time'"):
+        fmurunner.simulate(fmu, input=np.array([(1.0, 0.0)], dtype=[("x", float), ("time", float)]))
+    with pytest.raises(fmurunner.RunnerError, match="not an input"):
+        fmurunner.simulate(fmu, input=pd.DataFrame({"time": [0.0], "Float64_continuous_output": [1.0]}))
+    with pytest.raises(fmurunner.RunnerError, match="time must not decrease"):
+        fmurunner.simulate(fmu, input=pd.DataFrame({"time": [1.0, 0.0], "Float64_continuous_input": [1.0, 2.0]}))

@@ -22,7 +22,9 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import sys
 import threading
+import time
 import uuid
 from collections import OrderedDict
 from typing import TYPE_CHECKING
@@ -92,6 +94,36 @@ class _Sizer:
         return min(size, fair, remaining)
 
 
+class _Progress:
+    """The client's progress bar: points done of all, their rate and the time left, on stderr
+    when it is a terminal (the CLI's convention), redrawn at most five times a second. Dask's
+    own ``progress()`` needs every future at once, which the bounded window of tasks never
+    holds; its dashboard shows the tasks under the ``fmurunner-sweep`` prefix."""
+
+    def __init__(self, points: int, stream=None, force: bool = False):
+        self.points, self.done = points, 0
+        self.stream = sys.stderr if stream is None else stream
+        self.shown = force or (hasattr(self.stream, "isatty") and self.stream.isatty())
+        self.start = self.drawn = time.monotonic()
+
+    def advance(self, points: int) -> None:
+        self.done += points
+        now = time.monotonic()
+        if self.shown and (now - self.drawn >= 0.2 or self.done == self.points):
+            self.drawn = now
+            elapsed = max(now - self.start, 1e-9)
+            rate = self.done / elapsed
+            left = (self.points - self.done) / rate if rate > 0 else float("inf")
+            width = 30
+            full = width * self.done // max(self.points, 1)
+            bar = "#" * full + "-" * (width - full)
+            end = "\n" if self.done == self.points else ""
+            self.stream.write(
+                f"\rsweep on Dask [{bar}] {self.done}/{self.points} points, {rate:.0f}/s, {left:.0f} s left{end}"
+            )
+            self.stream.flush()
+
+
 def sweep_on_cluster(
     client: Client,
     path: str,
@@ -128,6 +160,7 @@ def sweep_on_cluster(
     fmu = client.scatter(data, broadcast=True, hash=True)
     sweep_id = uuid.uuid4().hex[:12]
     next_point = 0
+    progress = _Progress(n)
 
     def submit():
         nonlocal next_point
@@ -151,6 +184,7 @@ def sweep_on_cluster(
                 status[i] = message
             filled[start:stop] = True
             sizer.record(stop - start, seconds)
+            progress.advance(stop - start)
             # Keep the cluster busy with a bounded number of tasks.
             while next_point < n and pending.count() < window:
                 pending.add(submit())

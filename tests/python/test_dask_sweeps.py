@@ -2,6 +2,8 @@
 the CLI and as the local run, a worker SIGKILLed mid-sweep costing nothing, a failed point as a
 row, and client memory flat in the number of points."""
 
+import io
+import sys
 import os
 import signal
 import threading
@@ -47,6 +49,23 @@ def test_a_failed_point_is_a_row_not_a_failed_task(client):
     assert list(frame["status"][[0, 2, 3]]) == ["ok", "ok", "ok"]
     assert "m_s" in frame["status"][1] and frame["status"][1] != "ok"
     assert np.isnan(frame["peak"][1]) and (frame["peak"][[0, 2, 3]] > 0).all()
+
+
+def test_progress_shows_on_a_terminal_and_ends_at_every_point(client, monkeypatch):
+    """The client's progress bar: drawn when stderr is a terminal, counting points as chunks
+    arrive, and ending at exactly the number of points (a chunk counted twice or missed would
+    end elsewhere)."""
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    terminal = Terminal()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    fmurunner.sweep("quarter_car", {"speed": [5.0, 10.0, 15.0, 20.0, 25.0]}, {"peak": "max(z_s)"}, stop_time=0.5,
+                    client=client, chunk_size=2)
+    drawn = terminal.getvalue()
+    assert drawn.endswith("\n") and "5/5 points" in drawn.rsplit("\r", 1)[-1], drawn
 
 
 def test_errors_are_raised_before_anything_runs_on_the_cluster(client):

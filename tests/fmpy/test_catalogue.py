@@ -37,7 +37,8 @@ def test_each_entry_lists_the_variables_of_the_built_fmu():
         assert all(d[4:-1] in listed for d in derivatives), (model, derivatives)
         tails.add(tuple(tail[: len(tail) - len(derivatives)]))
     # What follows the model's own variables is the same in every FMU: the rows of the
-    # conventions entry before `der(<state>)` (the solver controls and time).
+    # conventions entry before `der(<state>)`: the solver controls (max_step last among them, after
+    # the counters, so that the older value references stay as they were) and time.
     common = re.findall(r"(?m)^\| `([^`]+)` \|", entries["conventions"])
     assert common[-1] == "der(<state>)" and "time" in common, common
     assert tails == {tuple(common[:-1])}, tails

@@ -94,7 +94,8 @@ pub fn conventions() -> String {
     for row in &rows {
         let start = match (&row.slot, row.base_type) {
             (table::Slot::Control(c), BaseType::Integer) => c.default_value().map(|v| format!("{}", v as i64)),
-            (table::Slot::Control(c), _) => c.default_value().map(|v| format!("{v:e}")),
+            // 0 reads as 0 (max_step: unlimited), the others as the code writes them (1e-3).
+            (table::Slot::Control(c), _) => c.default_value().map(|v| if v == 0.0 { "0".to_owned() } else { format!("{v:e}") }),
             _ => None,
         };
         out.push_str(&format!(

@@ -1,19 +1,24 @@
-"""The closed-form references of the models' experiment.toml (`[compare.reference]`), evaluated
-here as `runner compare` and the Rust tests evaluate them (runner-engine's `metrics::Formula`),
-so each closed form is written once. The grammar is the Formula's: numbers, names, `+ - * /`,
+"""The closed-form references of the models, evaluated here as `runner compare`, `runner handbook`
+and the Rust tests evaluate them (runner-engine's `metrics::Formula` and `references::References`),
+so each closed form is written once: experiment.toml's `[compare.reference]` (formulas of t and
+the parameters) and references.toml (named formulas, where a name that is another entry of the
+file stands for that entry's value). The grammar is the Formula's: numbers, names, `+ - * /`,
 `^` (right-associative, binding tighter than unary minus: -x^2 = -(x^2), 2^-1 = 0.5),
-parentheses and the one-argument functions exp log sqrt sin cos tan atan abs; names take numpy
-arrays or numbers."""
+parentheses and the one-argument functions exp log sqrt sin cos tan atan abs ellipk (the
+complete elliptic integral of the first kind of the parameter m = k^2, scipy's convention;
+scipy evaluates it here, an arithmetic-geometric mean in Rust); names take numpy arrays or
+numbers."""
 
 import re
 import tomllib
 
 import numpy as np
+from scipy.special import ellipk
 
 from conftest import ROOT
 
 FUNCTIONS = {"exp": np.exp, "log": np.log, "sqrt": np.sqrt, "sin": np.sin, "cos": np.cos, "tan": np.tan,
-             "atan": np.arctan, "abs": np.abs}
+             "atan": np.arctan, "abs": np.abs, "ellipk": ellipk}
 TOKEN = re.compile(r"\s*(?:(\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?)|([A-Za-z_]\w*)|(\S))")
 
 
@@ -123,3 +128,46 @@ def reference(model, output):
     """The closed form of `output` in models/<model>/experiment.toml."""
     with open(ROOT / "models" / model / "experiment.toml", "rb") as f:
         return Formula(tomllib.load(f)["compare"]["reference"][output])
+
+
+class References:
+    """A model's references.toml: `references(model)["name"](t=..., K=...)` evaluates entry
+    `name`, the entries it uses first (as runner-engine's `References::value` does);
+    `.matrix("name", ...)` evaluates a matrix entry (rows of formulas) to a numpy array."""
+
+    def __init__(self, table):
+        self.formulas = {name: Formula(text) for name, text in table.items() if isinstance(text, str)}
+        self.matrices = {name: [[Formula(cell) for cell in row] for row in rows]
+                         for name, rows in table.items() if isinstance(rows, list)}
+        for name, rows in self.matrices.items():
+            if any(len(row) != len(rows[0]) for row in rows):
+                raise ValueError(f"matrix reference {name}: rows of different lengths")
+        for name in self.formulas:
+            self._check_acyclic(name, [])
+
+    def _check_acyclic(self, name, path):
+        if name in path:
+            raise ValueError(f"references use each other in a cycle: {' -> '.join(path + [name])}")
+        for used in self.formulas[name].names if name in self.formulas else []:
+            self._check_acyclic(used, path + [name])
+
+    def value(self, name, values):
+        return self._evaluate(self.formulas[name], values)
+
+    def _evaluate(self, formula, values):
+        args = {used: self.value(used, values) if used in self.formulas else values[used] for used in formula.names}
+        return formula(**args)
+
+    def matrix(self, name, **values):
+        return np.array([[float(self._evaluate(cell, values)) for cell in row] for row in self.matrices[name]])
+
+    def __getitem__(self, name):
+        if name not in self.formulas:
+            raise KeyError(f"there is no reference {name!r}")
+        return lambda **values: self.value(name, values)
+
+
+def references(model):
+    """The named closed forms of models/<model>/references.toml."""
+    with open(ROOT / "models" / model / "references.toml", "rb") as f:
+        return References(tomllib.load(f))

@@ -14,11 +14,9 @@ import ctypes
 import numpy as np
 import pytest
 from fmpy import extract, instantiate_fmu, read_model_description, simulate_fmu
-from scipy.optimize import brentq
-from scipy.special import ellipk
-
+from closed_form import reference, references
 from conftest import MODELS, fmu_path
-from test_lab_models import bumper_contact, zero_crossings
+from test_lab_models import zero_crossings
 from test_mechanisms import RPM, fourbar_closed_form, slider_closed_form, wrap
 
 FMI2_ME_FUNCTIONS = """
@@ -120,8 +118,7 @@ def test_initial_unknowns_declare_what_initialization_reads():
 def test_second_order_matches_the_closed_form():
     r = me("second_order", relative_tolerance=1e-11, output_interval=0.01)
     t = r["time"]
-    q = 7.5 * np.exp(-2 * t) - 5.5 * np.exp(-3 * t) - 0.5 * t * np.exp(-3 * t)
-    q_dot = -15 * np.exp(-2 * t) + 16 * np.exp(-3 * t) + 1.5 * t * np.exp(-3 * t)
+    q, q_dot = reference("second_order", "q")(t=t), reference("second_order", "q_dot")(t=t)
     # CVODE at rtol = atol = 1e-11 on values of size ~2 (measured 1.2e-10 and 3.9e-10): bound
     # 1e-8, as for CS.
     assert np.max(np.abs(r["q"] - q)) < 1e-8
@@ -135,21 +132,20 @@ def test_mass_spring_damper_step_force_from_fmpy_input():
     signals = np.array([(0.0, f0), (10.0, f0)], dtype=[("time", np.float64), ("F", np.float64)])
     r = me("mass_spring_damper", relative_tolerance=1e-12, output_interval=0.01, input=signals)
     t = r["time"]
-    wn, zeta = np.sqrt(k / m), b / (2 * np.sqrt(k * m))
-    wd = wn * np.sqrt(1 - zeta**2)
-    a = -f0 / k
-    x = f0 / k + np.exp(-zeta * wn * t) * (a * np.cos(wd * t) + zeta * wn * a / wd * np.sin(wd * t))
+    # From rest under a constant f0: the free vibration about the shifted equilibrium f0/k.
+    x = f0 / k + reference("mass_spring_damper", "x")(t=t, m=m, b=b, k=k, x0=-f0 / k, v0=0.0)
     # Response ~0.057 m; CVODE at rtol = atol = 1e-12 (measured 8e-11): bound 1e-9, as for CS.
     assert np.max(np.abs(r["x"] - x)) < 1e-9
 
 
 def test_pendulum_period_matches_the_elliptic_integral():
-    L, g = 0.75, 9.81
+    L, g, m = 0.75, 9.81, 0.5
+    ref = references("pendulum")
     for deg in (15.0, 120.0):
         theta0 = np.radians(deg)
         r = me("pendulum", relative_tolerance=1e-11, output_interval=1e-3, start_values={"theta0": theta0},
                output=["theta", "omega", "energy"])
-        period = 4 * np.sqrt(L / g) * ellipk(np.sin(theta0 / 2) ** 2)
+        period = ref["period"](L=L, g=g, theta0=theta0)
         tc = zero_crossings(r["time"], r["theta"], r["omega"])
         n = np.arange(len(tc))
         assert len(tc) >= 8
@@ -157,56 +153,55 @@ def test_pendulum_period_matches_the_elliptic_integral():
         np.testing.assert_allclose(tc, period / 4 + n * period / 2, rtol=0, atol=1e-8)
         # BDF does not conserve energy as well as DOPRI5 at 1e-11 on 1 ms steps (measured
         # 1.8e-8 relative): bound 1e-7.
-        e0 = 0.5 * g * L * (1 - np.cos(theta0))
+        e0 = ref["energy"](m=m, g=g, L=L, theta0=theta0)
         assert np.max(np.abs(r["energy"] - e0)) < 1e-7 * e0
 
 
+BUMPER = dict(M=1000.0, K=9850.0, B=12500.0, V0=1.0)
+
+
 def test_bumper_releases_at_the_closed_form_time():
-    M, K, B, V0 = 1000.0, 9850.0, 12500.0, 1.0
+    ref, K, B = references("bumper"), BUMPER["K"], BUMPER["B"]
     r = me("bumper", relative_tolerance=1e-11, output_interval=1e-3, record_events=False,
            output=["x", "v", "a", "x_mass", "v_mass", "in_contact", "t_release"])
-    force = lambda t: K * bumper_contact(t, M, K, B, V0)[0] + B * bumper_contact(t, M, K, B, V0)[1]
-    t_r = brentq(force, 0.1, 1.0, xtol=1e-15)
+    t_r = ref["t_release"](**BUMPER)
     # CVODE locates the root of the contact force to its time tolerance; the release time is
     # off by the states' error over the root's slope (measured 2.0e-9 s at rtol 1e-11): 1e-8 s.
     assert abs(r["t_release"][-1] - t_r) < 1e-8
     t = r["time"]
     before, after = t < t_r, t > t_r
     assert np.all(r["in_contact"][before]) and not np.any(r["in_contact"][after])
-    x_c, v_c = bumper_contact(t[before], M, K, B, V0)
+    x_c, v_c = ref["x_contact"](t=t[before], **BUMPER), ref["v_contact"](t=t[before], **BUMPER)
     # Measured 1.8e-11 m and 2.1e-10 m/s: bounds 1e-10 and 1e-9.
     np.testing.assert_allclose(r["x"][before], x_c, rtol=0, atol=1e-10)
     np.testing.assert_allclose(r["v"][before], v_c, rtol=0, atol=1e-9)
-    x_r, v_r = bumper_contact(t_r, M, K, B, V0)
     # After the release: the release time's error times |x'| and |v_r| adds ~1e-10 (measured
     # 1.3e-10 and 2.0e-10): bound 1e-9.
-    np.testing.assert_allclose(r["x"][after], x_r * np.exp(-K * (t[after] - t_r) / B), rtol=0, atol=1e-9)
-    np.testing.assert_allclose(r["x_mass"][after], x_r + v_r * (t[after] - t_r), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(r["x"][after], ref["x_separated"](t=t[after], **BUMPER), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(r["x_mass"][after], ref["x_mass_separated"](t=t[after], **BUMPER), rtol=0, atol=1e-9)
     np.testing.assert_allclose(r["a"][after], (K / B) ** 2 * r["x"][after], rtol=1e-12, atol=0)
 
 
 def test_attached_bumper_keeps_contact():
-    M, K, B, V0 = 1000.0, 9850.0, 12500.0, 1.0
     r = me("bumper", relative_tolerance=1e-11, output_interval=1e-2, start_values={"attached": True},
            output=["x", "in_contact", "t_release", "F_contact"])
     assert np.all(r["in_contact"]) and np.all(r["t_release"] == -1.0)
-    np.testing.assert_allclose(r["x"], bumper_contact(r["time"], M, K, B, V0)[0], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(r["x"], references("bumper")["x_contact"](t=r["time"], **BUMPER), rtol=0, atol=1e-10)
     assert r["F_contact"][-1] < 0, "the fastened plate pulls the mass back"
 
 
 def test_quarter_car_transmissibility_at_body_resonance():
-    ms, mu, ks, bs, kt, bt = 200.0, 30.0, 18000.0, 1300.0, 125000.0, 10.0
-    speed, lam = 4.25, 3.0
+    car = dict(m_s=200.0, m_u=30.0, k_s=18000.0, b_s=1300.0, k_t=125000.0, b_t=10.0, road_wavelength=3.0)
+    speed = 4.25
     r = me("quarter_car", relative_tolerance=1e-10, output_interval=1e-4, start_values={"speed": speed},
            output=["z_s", "z_r"])
-    s = 2j * np.pi * speed / lam
-    H = (bs * s + ks) * (bt * s + kt) / ((ms * s**2 + bs * s + ks) * (mu * s**2 + (bs + bt) * s + ks + kt) - (bs * s + ks) ** 2)
+    H = references("quarter_car")["transmissibility"](speed=speed, **car)
     late = r["time"] >= 7.0
     measured = np.max(r["z_s"][late]) / np.max(r["z_r"][late])
     # As for CS: transients below 2e-8 after 7 s, sampling 1e-7; CVODE's error at rtol 1e-10
     # on signals of 0.04 m is below 1e-7 relative (measured 2.7e-8 off |H| in all): 1e-5 bounds
     # the sum.
-    assert abs(measured / abs(H) - 1) < 1e-5
+    assert abs(measured / H - 1) < 1e-5
 
 
 def _cs_launch(tmp_path):

@@ -1,10 +1,12 @@
 """fmpy Co-Simulation runs of the walking arm trebuchet (models/trebuchet/derivation.md): the
 launch runs to the landing and stops there cleanly, and the landing point agrees with the
-ballistic closed form computed here from the release state read from the FMU's outputs."""
+ballistic closed form of references.toml (closed_form.py evaluates it) from the release state
+read from the FMU's outputs."""
 
 import numpy as np
 from fmpy import read_model_description, simulate_fmu
 
+from closed_form import references
 from conftest import fmu_path
 
 G = 9.81
@@ -40,15 +42,14 @@ def test_range_matches_the_ballistic_closed_form_from_the_release_state():
     k = np.nonzero(r["regime"] == 4)[0][0]
     tau = r["time"][k] - t_r
     assert 0 <= tau <= 1e-3 + 1e-12
-    # Back along the parabola to the release instant.
-    vx, vy0 = r["vx_p"][k], r["vy_p"][k] + G * tau
-    x0 = r["x_p"][k] - vx * tau
-    y0 = r["y_p"][k] - vy0 * tau + 0.5 * G * tau ** 2
+    # Back along the parabola to the release instant, then the flight to the ground.
+    ballistics = references("trebuchet")
+    sample = dict(x=r["x_p"][k], y=r["y_p"][k], vx=r["vx_p"][k], vy=r["vy_p"][k], tau=tau, g=G)
+    vx = r["vx_p"][k]
     # The release happened where theta3 - theta2 = release_angle = 140 deg (frozen after it).
     assert abs(r["theta3"][k] - r["theta2"][k] - np.radians(140.0)) < 1e-8
     assert abs(r["projectile_speed"][k] - np.hypot(vx, r["vy_p"][k])) < 1e-12
-    t_f = (vy0 + np.sqrt(vy0 ** 2 + 2 * G * y0)) / G
-    expected = x0 + vx * t_f
+    t_f, expected = ballistics["t_flight"](**sample), ballistics["range"](**sample)
     # Event located to 1e-10 s times |vx| ~ 12 m/s, flight polynomial integrated exactly.
     assert abs(r["range"][-1] - expected) < 1e-8, (r["range"][-1], expected)
     assert abs(r["time"][-1] - (t_r + t_f)) < 1e-8

@@ -8,10 +8,14 @@ import os
 import pathlib
 import struct
 import subprocess
+import sys
 
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
+# The models' closed forms (references.toml, experiment.toml) are evaluated by tests/fmpy's
+# closed_form.py, the one evaluator the Python checks share.
+sys.path.insert(0, str(ROOT / "tests" / "fmpy"))
 TARGET = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
 RUNNER = TARGET / "release" / "runner"
 FMU_DIR = TARGET / "fmu"

@@ -2,9 +2,10 @@
 the handbook's Discussion and Deliverables sections ask for exists and opens, every link of
 index.html resolves, the GIFs have the frames their timing implies, the page renders in a
 headless browser without a broken image (where Debian's chromium is installed), and the
-numbers a report quotes agree with references computed here, independently of the FMUs:
-elliptic integrals (scipy), closed forms, the frequency response, ballistics and the
-trebuchet's potential energy from Table 6.1."""
+numbers a report quotes agree with references evaluated here, independently of the FMUs: the
+models' closed forms as written once in their references.toml and experiment.toml (elliptic
+integrals by scipy, the bumper's release, the frequency response, ballistics; closed_form.py
+evaluates them) and the trebuchet's potential energy from Table 6.1."""
 
 import html.parser
 import math
@@ -16,9 +17,9 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from scipy.special import ellipk
 
-from handbook_tools import ROOT, handbook, read_gif, runner  # noqa: F401 (handbook is a fixture)
+from handbook_tools import ROOT, handbook, read_gif, runner  # noqa: F401 (handbook is a fixture); first: it finds closed_form
+from closed_form import reference, references  # noqa: E402
 
 G = 9.81
 INCH, FOOT, LBF = 0.0254, 0.3048, 4.4482216152605
@@ -136,21 +137,18 @@ def test_pendulum_periods_match_the_elliptic_integral(handbook):
     # Forward Euler (step 1e-5 s) gains energy at about h g/L per second: 1.3e-3 of it over
     # the 10 s run, which lengthens the 120 deg swing's period by a part of that; the 15 deg
     # swing's period hardly depends on amplitude. Hence 1e-3 and 1e-4.
+    ref = references("pendulum")
     for degrees, tolerance in [(15, 1e-4), (120, 1e-3)]:
-        m = math.sin(math.radians(degrees) / 2) ** 2
-        exact = 4 * math.sqrt(length / G) * ellipk(m)
+        exact = ref["period"](L=length, g=G, theta0=math.radians(degrees))
         assert abs(summary[f"pendulum_period_{degrees}deg_s"] / exact - 1) < tolerance, degrees
         assert abs(summary[f"pendulum_period_{degrees}deg_exact_s"] / exact - 1) < 1e-12, degrees
-    assert abs(summary["pendulum_period_small_angle_s"] - 2 * math.pi * math.sqrt(length / G)) < 1e-12
+    assert abs(summary["pendulum_period_small_angle_s"] - ref["period_small_angle"](L=length, g=G)) < 1e-12
 
 
 def test_bumper_release_time_matches_the_closed_form(handbook):
     _, summary, _ = handbook
-    m, k, b = 1000.0, 9850.0, 12500.0
-    r1, r2 = np.roots([m, b, k])  # overdamped: two real roots, r1 > r2
-    r1, r2 = max(r1, r2), min(r1, r2)
-    # Release when the contact force K x + B x' of x = e^{r1 t} - e^{r2 t} vanishes.
-    t_r = math.log((k + b * r2) / (k + b * r1)) / (r1 - r2)
+    # Release when the contact force K x + B x' of the overdamped contact closed form vanishes.
+    t_r = references("bumper")["t_release"](M=1000.0, K=9850.0, B=12500.0)
     assert abs(summary["bumper_t_release_analytic_s"] - t_r) < 1e-12
     # The FMU locates the event by bisection on its dense output, far below its 1e-6 tolerance.
     assert abs(summary["bumper_t_release_s"] - t_r) < 1e-6
@@ -159,10 +157,8 @@ def test_bumper_release_time_matches_the_closed_form(handbook):
 
 def frequency_response(speed):
     """|Z_s/Z_r| of the linear quarter car (Table 4.1) on a road of wavelength 3 m."""
-    m_s, m_u, k_s, b_s, k_t, b_t = 200.0, 30.0, 18000.0, 1300.0, 125000.0, 10.0
-    s = 2j * math.pi * speed / 3.0
-    ks, kt = k_s + b_s * s, k_t + b_t * s
-    return abs(kt * ks / ((m_s * s ** 2 + ks) * (m_u * s ** 2 + ks + kt) - ks ** 2))
+    car = dict(m_s=200.0, m_u=30.0, k_s=18000.0, b_s=1300.0, k_t=125000.0, b_t=10.0, road_wavelength=3.0)
+    return references("quarter_car")["transmissibility"](speed=speed, **car)
 
 
 def test_peak_transmissibility_matches_the_frequency_response(handbook):
@@ -182,10 +178,11 @@ def test_trebuchet_numbers_follow_from_its_release_state(handbook):
     t_r = summary["trebuchet_t_release_s"]
     tau = s["t"] - t_r
     assert 0 < tau <= 0.01 + 1e-12
-    vx, vy = s["vx"], s["vy"] + G * tau
-    x0, y0 = s["x"] - vx * tau, s["y"] - vy * tau + G * tau ** 2 / 2
-    flight = (vy + math.sqrt(vy ** 2 + 2 * G * y0)) / G
-    assert abs(summary["trebuchet_range_m"] - (x0 + vx * flight)) < 1e-6
+    ballistics = references("trebuchet")
+    sample = dict(x=s["x"], y=s["y"], vx=s["vx"], vy=s["vy"], tau=tau, g=G)
+    vx, vy = s["vx"], ballistics["vy_release"](**sample)
+    flight = ballistics["t_flight"](**sample)
+    assert abs(summary["trebuchet_range_m"] - ballistics["range"](**sample)) < 1e-6
     assert abs(summary["trebuchet_t_land_s"] - (t_r + flight)) < 1e-6
     # Potential energy at the start, datum the ground, from Table 6.1: rods AC and BD of
     # 0.7 lbf/ft (BD through C, r_BC + r_CD long), the 20 lbf counterweight at B and the 4 ozf
@@ -225,7 +222,7 @@ def test_step_counts_are_the_fixed_steps_and_reach_the_target(handbook, tmp_path
                "--out", csv)
         data = np.genfromtxt(csv, delimiter=",", names=True)
         t = data["time"]
-        exact = 7.5 * np.exp(-2 * t) - 5.5 * np.exp(-3 * t) - 0.5 * t * np.exp(-3 * t)
+        exact = reference("second_order", "q")(t=t)
         return np.max(np.abs(data["q"] - exact)) / np.max(np.abs(exact))
 
     assert euler_error(h) <= target

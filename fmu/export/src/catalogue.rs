@@ -3,13 +3,17 @@
 //! Each model's tests call [`check`], which fails when the committed entry differs from the
 //! table; with `UPDATE_CATALOGUE=1` in the environment it rewrites the entry instead (adding
 //! it at the end when the model has none yet), so `UPDATE_CATALOGUE=1 cargo test --workspace
-//! catalogue` regenerates the whole file.
+//! catalogue` regenerates the whole file. The rows every FMU adds to its model's (solver
+//! controls, `time`, `der(<state>)`) are one more generated entry, `conventions`, checked by
+//! this crate's tests.
 
 use std::path::{Path, PathBuf};
 
-use crate::model::{Access, Causality, Model, Variability};
-use crate::table::Start;
+use crate::model::{Access, BaseType, Causality, Model, Variability};
+use crate::table::{self, Row, Start};
 use crate::units;
+use solvers::controls::CONTROLS;
+use solvers::Method;
 
 /// The file name of the catalogue, at the workspace root.
 pub const FILE: &str = "MODELS.md";
@@ -59,6 +63,56 @@ fn variability(v: Variability) -> &'static str {
         Variability::Discrete => "discrete",
         Variability::Continuous => "continuous",
     }
+}
+
+/// The identifier of the entry that describes the rows every FMU adds after its model's own.
+pub const CONVENTIONS: &str = "conventions";
+
+/// The entry of the rows every FMU adds after its model's own, marker lines included: the
+/// solver controls, then the Model Exchange variables `time` and `der(<state>)`, as the
+/// variable table appends them (so the model's value references never move), and the codes
+/// of `solver`.
+pub fn conventions() -> String {
+    // The rows exactly as `Table` builds them; `()` stands in for the model, which no row reads.
+    let mut rows: Vec<Row<()>> = CONTROLS.iter().map(|&c| Row::from_control(c)).collect();
+    rows.push(Row::time());
+    let state = Row { name: "<state>", ..Row::time() };
+    // A leak of two short strings per call: a Row's strings are `&'static`, and this runs in tests.
+    let label: &'static (String, String) = Box::leak(Box::new(table::derivative_label(state.name)));
+    let mut derivative = Row::derivative(0, &state, label);
+    derivative.unit = Some("(unit of the state)/s");
+    derivative.description = "Time derivative of the state named in the parentheses: one row per state, in state order";
+    rows.push(derivative);
+    let mut out = begin_marker(CONVENTIONS);
+    out.push_str(
+        "\nAfter its own variables every FMU declares these, in this order (value references continue the model's). \
+         The Model Exchange interface reads `time` and the `der(<state>)` rows; the solver controls are the FMU's own \
+         integrator, which Co-Simulation uses.\n\n",
+    );
+    out.push_str("| variable | causality | variability | type | unit | start | description |\n");
+    out.push_str("|---|---|---|---|---|---|---|\n");
+    for row in &rows {
+        let start = match (&row.slot, row.base_type) {
+            (table::Slot::Control(c), BaseType::Integer) => c.default_value().map(|v| format!("{}", v as i64)),
+            // 0 reads as 0 (max_step: unlimited), the others as the code writes them (1e-3).
+            (table::Slot::Control(c), _) => c.default_value().map(|v| if v == 0.0 { "0".to_owned() } else { format!("{v:e}") }),
+            _ => None,
+        };
+        out.push_str(&format!(
+            "| `{}` | {} | {} | {:?} | {} | {} | {} |\n",
+            row.name,
+            causality(row.causality, false),
+            variability(row.variability),
+            row.base_type,
+            cell(row.unit.unwrap_or("")),
+            cell(&start.unwrap_or_default()),
+            cell(row.description),
+        ));
+    }
+    let codes: Vec<String> = Method::ALL.iter().map(|m| format!("`{}` = {} (`{}`)", m.code(), m.title(), m.name())).collect();
+    out.push_str(&format!("\n`solver` codes: {}.\n", codes.join(", ")));
+    out.push_str(&end_marker(CONVENTIONS));
+    out
 }
 
 /// The entry of model `M`, marker lines included: its identity and default experiment, then
@@ -139,13 +193,16 @@ pub fn path(manifest_dir: &str) -> PathBuf {
 /// rewrites the entry with `UPDATE_CATALOGUE=1`. `manifest_dir` is the calling model crate's
 /// `env!("CARGO_MANIFEST_DIR")`.
 pub fn check<M: Model>(manifest_dir: &str) {
+    check_entry(manifest_dir, M::info().identifier, &entry::<M>());
+}
+
+/// [`check`] for any entry `id` whose current text is `entry`.
+fn check_entry(manifest_dir: &str, id: &str, entry: &str) {
     let file = path(manifest_dir);
     let text = std::fs::read_to_string(&file).unwrap_or_else(|e| panic!("cannot read the catalogue {}: {e}", file.display()));
-    let id = M::info().identifier;
-    let entry = entry::<M>();
     let update = std::env::var("UPDATE_CATALOGUE").is_ok_and(|v| !v.is_empty() && v != "0");
     if update {
-        let updated = with_entry(&text, id, &entry);
+        let updated = with_entry(&text, id, entry);
         if updated != text {
             std::fs::write(&file, updated).unwrap_or_else(|e| panic!("cannot write {}: {e}", file.display()));
         }
@@ -153,7 +210,7 @@ pub fn check<M: Model>(manifest_dir: &str) {
     }
     match find(&text, id) {
         None => panic!("{} has no entry for {id}: run `{UPDATE_COMMAND}` to add it", file.display()),
-        Some(range) if text[range.clone()] != entry => {
+        Some(range) if text[range.clone()] != *entry => {
             let committed: Vec<&str> = text[range].lines().collect();
             let first = entry.lines().zip(&committed).position(|(a, b)| a != *b).unwrap_or(committed.len().min(entry.lines().count()));
             panic!(
@@ -171,6 +228,25 @@ pub fn check<M: Model>(manifest_dir: &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// MODELS.md's `conventions` entry is the one the solver controls and the table give.
+    #[test]
+    fn conventions_entry_is_current() {
+        check_entry(env!("CARGO_MANIFEST_DIR"), CONVENTIONS, &conventions());
+    }
+
+    /// The generated conventions name every control, both Model Exchange rows and every code.
+    #[test]
+    fn conventions_list_every_control_and_solver_code() {
+        let text = conventions();
+        for c in CONTROLS {
+            assert!(text.contains(&format!("| `{}` |", c.name())), "{} missing", c.name());
+        }
+        assert!(text.contains("| `time` | independent |") && text.contains("| `der(<state>)` | local |"), "{text}");
+        for m in Method::ALL {
+            assert!(text.contains(&format!("`{}` = {}", m.code(), m.title())), "{text}");
+        }
+    }
 
     const TEXT: &str =
         "# Catalogue\n\nconventions\n\n## a\n\nnotes on a\n\n<!-- catalogue a: x -->\nold\n<!-- end of catalogue a -->\n\n## b\n";

@@ -49,7 +49,7 @@ impl<M> Row<M> {
         }
     }
 
-    fn from_control(c: Control) -> Row<M> {
+    pub(crate) fn from_control(c: Control) -> Row<M> {
         let (causality, variability, initial) = if c.is_output() {
             (Causality::Output, Variability::Discrete, Some(Initial::Calculated))
         } else {
@@ -68,7 +68,7 @@ impl<M> Row<M> {
         }
     }
 
-    fn time() -> Row<M> {
+    pub(crate) fn time() -> Row<M> {
         Row {
             name: "time",
             description: "Simulation time",
@@ -84,7 +84,7 @@ impl<M> Row<M> {
 
     /// The row `der(x)` of state `k`, whose own row is `state`; `names` holds the derivative's
     /// name and description.
-    fn derivative(k: usize, state: &Row<M>, names: &'static (String, String)) -> Row<M> {
+    pub(crate) fn derivative(k: usize, state: &Row<M>, names: &'static (String, String)) -> Row<M> {
         Row {
             name: &names.0,
             description: &names.1,
@@ -104,6 +104,11 @@ impl<M> Row<M> {
     }
 }
 
+/// The name and description of the derivative of state `state`: `der(state)`.
+pub(crate) fn derivative_label(state: &str) -> (String, String) {
+    (format!("der({state})"), format!("Time derivative of {state}"))
+}
+
 /// The name and description of `der(x)` for each state, in state order.
 type DerivativeNames = &'static [(String, String)];
 
@@ -116,7 +121,7 @@ fn derivative_names<M: Model>(rows: &[Row<M>]) -> DerivativeNames {
         let made: Vec<(String, String)> = (0..M::N_STATES)
             .map(|k| {
                 let state = rows.iter().find(|r| matches!(r.slot, Slot::Model(Access::State(j)) if j == k)).map_or("?", |r| r.name);
-                (format!("der({state})"), format!("Time derivative of {state}"))
+                derivative_label(state)
             })
             .collect();
         Box::leak(made.into_boxed_slice())

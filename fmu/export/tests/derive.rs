@@ -250,8 +250,8 @@ fn an_input_range_names_an_input() {
 fn ranges_appear_as_min_and_max_in_the_model_description() {
     let md = model_description::<Toy<With>>();
     let bounds = |name: &str| match &md.model_variables.iter().find(|v| v.name == name).unwrap().var_type {
-        VariableType::Real(r) => (r.min, r.max),
-        VariableType::Integer(i) => (i.min.map(f64::from), i.max.map(f64::from)),
+        VariableType::Real(r) => (r.attributes.min, r.attributes.max),
+        VariableType::Integer(i) => (i.attributes.min.map(f64::from), i.attributes.max.map(f64::from)),
         _ => panic!("{name}"),
     };
     assert_eq!(bounds("M"), (Some(0.0), None));

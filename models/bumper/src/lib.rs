@@ -138,15 +138,26 @@ fmu_export::export_fmu!(Bumper);
 mod tests {
     use super::*;
     use fmu_export::harness::Harness;
+    use runner_engine::references::References;
+    use std::sync::OnceLock;
 
-    /// Regime 1 in closed form (derivation.md), any damping: plate (x, x').
+    /// Entry `name` of references.toml (derivation.md's closed forms, the ones `runner handbook`
+    /// and tests/fmpy evaluate too) at time `t` for the parameters of `p`.
+    fn reference(p: &Bumper, name: &str, t: f64) -> f64 {
+        static REFERENCES: OnceLock<References> = OnceLock::new();
+        let references = REFERENCES.get_or_init(|| References::from_toml(include_str!("../references.toml")).expect("valid references"));
+        references
+            .value(name, &[("t", t), ("M", p.mass), ("K", p.k), ("B", p.b), ("V0", p.v0)])
+            .expect("a reference of t and the parameters")
+    }
+
+    /// Regime 1 in closed form (derivation.md): plate (x, x'). The overdamped case (the
+    /// handbook's) is references.toml's; the underdamped one is only tested here.
     fn contact(p: &Bumper, t: f64) -> (f64, f64) {
         let sigma = p.b / (2.0 * p.mass);
         let disc = sigma * sigma - p.k / p.mass;
         if disc > 0.0 {
-            let (s1, s2) = (-sigma + disc.sqrt(), -sigma - disc.sqrt());
-            let c = p.v0 / (s1 - s2);
-            (c * ((s1 * t).exp() - (s2 * t).exp()), c * (s1 * (s1 * t).exp() - s2 * (s2 * t).exp()))
+            (reference(p, "x_contact", t), reference(p, "v_contact", t))
         } else {
             let wd = (-disc).sqrt();
             let e = (-sigma * t).exp();
@@ -155,7 +166,7 @@ mod tests {
     }
 
     /// The first zero of the contact force K x + B x' of the closed form, by a scan for the
-    /// sign change and bisection to machine precision (independent of derivation.md's formula).
+    /// sign change and bisection to machine precision (independent of the release formula).
     fn release_time(p: &Bumper) -> f64 {
         let force = |t: f64| {
             let (x, v) = contact(p, t);
@@ -183,17 +194,21 @@ mod tests {
         Harness::started(&all, Some(1e-11)).unwrap()
     }
 
-    /// derivation.md's numbers: zeta = 1.99 (overdamped) and the formula
-    /// t_r = 2 ln(s2/s1)/(s1 - s2) = 0.485484 s agree with the bisection reference.
+    /// derivation.md's numbers: zeta = 1.99 (overdamped) and references.toml's release time
+    /// t_r = ln((K + B s2)/(K + B s1))/(s1 - s2) = 2 ln(s2/s1)/(s1 - s2) = 0.485484 s agree
+    /// with the bisection on its contact force; the contact closed form starts at (0, V0).
     #[test]
     fn handbook_case_is_overdamped_and_the_release_formula_holds() {
         let p = Bumper::default();
         assert!((p.b / (2.0 * (p.k * p.mass).sqrt()) - 1.991_415_587).abs() < 1e-9);
-        let d = (p.b * p.b - 4.0 * p.k * p.mass).sqrt();
-        let (s1, s2) = ((-p.b + d) / (2.0 * p.mass), (-p.b - d) / (2.0 * p.mass));
-        let formula = 2.0 * (s2 / s1).ln() / (s1 - s2);
+        let formula = reference(&p, "t_release", 0.0);
         assert!((formula - release_time(&p)).abs() < 1e-13, "{formula} vs {}", release_time(&p));
         assert!((formula - 0.485_484_434_9).abs() < 1e-10);
+        let (s1, s2) = (reference(&p, "s1", 0.0), reference(&p, "s2", 0.0));
+        assert!((formula - 2.0 * (s2 / s1).ln() / (s1 - s2)).abs() < 1e-15);
+        assert_eq!(contact(&p, 0.0), (0.0, p.v0));
+        let (x_r, v_r) = contact(&p, formula);
+        assert_eq!((reference(&p, "x_release", 0.0), reference(&p, "v_release", 0.0)), (x_r, v_r));
     }
 
     /// The FMU's located event against the closed-form release time: the toolkit locates it
@@ -224,7 +239,7 @@ mod tests {
     fn both_regimes_match_the_closed_form() {
         let p = Bumper::default();
         let t_r = release_time(&p);
-        let (x_r, v_r) = contact(&p, t_r);
+        let v_r = contact(&p, t_r).1;
         let rate = p.k / p.b;
         let mut h = tight(&[]);
         let names = ["x", "v", "a", "x_mass", "v_mass", "in_contact", "t_release", "F_contact"];
@@ -241,10 +256,10 @@ mod tests {
                 assert!(g("F_contact") > 0.0);
             } else {
                 after += 1;
-                let x = x_r * (-rate * (t - t_r)).exp();
+                let x = reference(&p, "x_separated", t);
                 assert!((g("x") - x).abs() < 1e-10, "plate at t={t}: {} vs {x}", g("x"));
                 assert!((g("v") + rate * x).abs() < 1e-10 && (g("a") - rate * rate * x).abs() < 1e-10);
-                assert!((g("x_mass") - (x_r + v_r * (t - t_r))).abs() < 1e-10, "mass at t={t}");
+                assert!((g("x_mass") - reference(&p, "x_mass_separated", t)).abs() < 1e-10, "mass at t={t}");
                 assert!((g("v_mass") - v_r).abs() < 1e-10);
                 assert_eq!((g("in_contact"), g("F_contact")), (0.0, 0.0));
             }

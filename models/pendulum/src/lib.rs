@@ -98,20 +98,22 @@ fmu_export::export_fmu!(Pendulum);
 mod tests {
     use super::*;
     use fmu_export::harness::Harness;
+    use runner_engine::references::References;
     use std::f64::consts::PI;
+    use std::sync::OnceLock;
 
-    /// K(k) = pi / (2 AGM(1, sqrt(1 - k²))): the AGM converges quadratically, to rounding.
-    fn elliptic_k(k: f64) -> f64 {
-        let (mut a, mut b) = (1.0, (1.0 - k * k).sqrt());
-        while (a - b).abs() > 1e-16 * a {
-            (a, b) = (0.5 * (a + b), (a * b).sqrt());
-        }
-        PI / (a + b)
+    /// Entry `name` of references.toml (derivation.md's closed forms, the ones `runner handbook`
+    /// and tests/fmpy evaluate too) for the parameters of `p` released from rest at `theta0`.
+    fn reference(p: &Pendulum, name: &str, theta0: f64) -> f64 {
+        static REFERENCES: OnceLock<References> = OnceLock::new();
+        let references = REFERENCES.get_or_init(|| References::from_toml(include_str!("../references.toml")).expect("valid references"));
+        references.value(name, &[("L", p.l), ("g", p.g), ("m", p.m), ("theta0", theta0)]).expect("a reference of the parameters")
     }
 
-    /// The exact period of the frictionless pendulum released from rest at `theta0`.
+    /// The exact period of the frictionless pendulum released from rest at `theta0`: 4 sqrt(L/g)
+    /// K(sin²(theta0/2)), the complete elliptic integral evaluated by an AGM (metrics' `ellipk`).
     fn exact_period(p: &Pendulum, theta0: f64) -> f64 {
-        4.0 * (p.l / p.g).sqrt() * elliptic_k((theta0 / 2.0).sin())
+        reference(p, "period", theta0)
     }
 
     fn run(params: &[(&str, f64)], tolerance: Option<f64>, dt: f64) -> fmu_export::harness::Trajectory {
@@ -161,8 +163,12 @@ mod tests {
     #[test]
     fn period_matches_the_complete_elliptic_integral() {
         let p = Pendulum::default();
-        // AGM check against a tabulated value: K(sin 60°) = 2.156515647499643.
-        assert!((elliptic_k((PI / 3.0).sin()) - 2.156_515_647_499_643).abs() < 1e-14);
+        // The reference against a tabulated value: K(m = sin²60°) = 2.156515647499643 at 120 deg,
+        // and against the small-angle period 2 pi sqrt(L/g) as theta0 -> 0.
+        let scale = 4.0 * (p.l / p.g).sqrt();
+        assert!((exact_period(&p, 120.0 * DEGREE) / scale - 2.156_515_647_499_643).abs() < 1e-14);
+        let small = reference(&p, "period_small_angle", 0.0);
+        assert!((small - 2.0 * PI * (p.l / p.g).sqrt()).abs() < 1e-15 && (exact_period(&p, 1e-4) / small - 1.0).abs() < 1e-9);
         for deg in [15.0, 120.0] {
             let theta0 = deg * DEGREE;
             let period = exact_period(&p, theta0);
@@ -188,6 +194,8 @@ mod tests {
         for deg in [15.0, 120.0] {
             let theta0 = deg * DEGREE;
             let e0 = Pendulum::default().energy_at(theta0, 0.0);
+            // The model's energy at rest against references.toml's m g L (1 - cos theta0).
+            assert!((e0 / reference(&Pendulum::default(), "energy", theta0) - 1.0).abs() < 1e-15, "{deg} deg");
             for (tolerance, bound) in [(None, 2e-5), (Some(1e-11), 2e-10)] {
                 let traj = run(&[("theta0", theta0), ("abs_tol", 1e-13)], tolerance, 0.01);
                 let e = traj.get("energy");

@@ -205,38 +205,42 @@ mod tests {
     use super::*;
     use fmu_export::harness::Harness;
     use nalgebra::{Complex, SMatrix, SVector};
+    use runner_engine::references::References;
 
     type M8 = SMatrix<f64, 8, 8>;
     type V8 = SVector<f64, 8>;
 
-    /// The autonomous 8-state system of derivation.md: [z_s, z_u, z_r, z_s', z_u', p, q, c] with
-    /// the road oscillator p' = q, q' = -omega² p and the constant external rate c; u = q + c.
-    /// Written out from the free-body diagrams again here rather than reusing the model's code.
+    /// references.toml, the closed forms tests/fmpy and tests/handbook evaluate too.
+    fn references() -> &'static References {
+        static REFERENCES: std::sync::OnceLock<References> = std::sync::OnceLock::new();
+        REFERENCES.get_or_init(|| References::from_toml(include_str!("../references.toml")).expect("valid references"))
+    }
+
+    /// The parameters of `p` by name, as references.toml reads them.
+    fn parameters(p: &QuarterCar) -> [(&'static str, f64); 10] {
+        [
+            ("m_s", p.m_s),
+            ("m_u", p.m_u),
+            ("k_s", p.k_s),
+            ("b_s", p.b_s),
+            ("k_t", p.k_t),
+            ("b_t", p.b_t),
+            ("speed", p.speed),
+            ("road_wavelength", p.road_wavelength),
+            ("road_amplitude", p.road_amplitude),
+            ("z_r_dot_ext", p.z_r_dot_ext),
+        ]
+    }
+
+    /// references.toml's autonomous 8-state system of derivation.md, [z_s, z_u, z_r, z_s', z_u',
+    /// p, q, c] with the road oscillator p' = q, q' = -omega² p and the constant external rate
+    /// c; u = q + c. Written out from the free-body diagrams there rather than reusing the
+    /// model's code; its matrix exponential is taken here with nalgebra (scipy's in tests/fmpy).
     fn augmented(p: &QuarterCar) -> (M8, V8) {
-        let (ms, mu, ks, bs, kt, bt) = (p.m_s, p.m_u, p.k_s, p.b_s, p.k_t, p.b_t);
-        let w = 2.0 * PI * p.speed / p.road_wavelength;
-        let mut f = M8::zeros();
-        f[(0, 3)] = 1.0;
-        f[(1, 4)] = 1.0;
-        f[(2, 6)] = 1.0;
-        f[(2, 7)] = 1.0;
-        f[(3, 0)] = -ks / ms;
-        f[(3, 1)] = ks / ms;
-        f[(3, 3)] = -bs / ms;
-        f[(3, 4)] = bs / ms;
-        f[(4, 0)] = ks / mu;
-        f[(4, 1)] = -(ks + kt) / mu;
-        f[(4, 2)] = kt / mu;
-        f[(4, 3)] = bs / mu;
-        f[(4, 4)] = -(bs + bt) / mu;
-        f[(4, 6)] = bt / mu;
-        f[(4, 7)] = bt / mu;
-        f[(5, 6)] = 1.0;
-        f[(6, 5)] = -w * w;
-        let mut y0 = V8::zeros();
-        y0[6] = p.road_amplitude * w;
-        y0[7] = p.z_r_dot_ext;
-        (f, y0)
+        let values = parameters(p);
+        let f = references().matrix("road_system", &values).expect("a matrix of the parameters");
+        let y0 = references().matrix("road_start", &values).expect("a row of the parameters");
+        (M8::from_fn(|i, j| f[i][j]), V8::from_fn(|i, _| y0[0][i]))
     }
 
     /// Runs the FMU at rtol 1e-12 and checks every sample against exp(F t) y0.
@@ -352,12 +356,25 @@ mod tests {
         car.derivatives(0.0, &[0.0; 5], &mut [0.0; 5]);
     }
 
-    /// The steady-state frequency response |H(i omega)| of derivation.md, in complex arithmetic.
+    /// The steady-state frequency response |H(i omega)| of derivation.md: references.toml's
+    /// `transmissibility`, the one tests/fmpy and tests/handbook evaluate too.
     fn transmissibility(p: &QuarterCar) -> f64 {
-        let s = Complex::new(0.0, p.road_frequency());
-        let num = (s * p.b_s + p.k_s) * (s * p.b_t + p.k_t);
-        let den = (s * s * p.m_s + s * p.b_s + p.k_s) * (s * s * p.m_u + s * (p.b_s + p.b_t) + p.k_s + p.k_t) - (s * p.b_s + p.k_s).powi(2);
-        (num / den).norm()
+        references().value("transmissibility", &parameters(p)).expect("a reference of the parameters")
+    }
+
+    /// references.toml's real-arithmetic |H(i omega)| against H evaluated here in complex
+    /// arithmetic from derivation.md's transfer function, to rounding.
+    #[test]
+    fn the_frequency_response_reference_is_the_transfer_function() {
+        for speed in [1.0, 4.25, 10.0, 30.0, 50.0] {
+            let p = QuarterCar { speed, ..Default::default() };
+            let s = Complex::new(0.0, p.road_frequency());
+            let num = (s * p.b_s + p.k_s) * (s * p.b_t + p.k_t);
+            let den =
+                (s * s * p.m_s + s * p.b_s + p.k_s) * (s * s * p.m_u + s * (p.b_s + p.b_t) + p.k_s + p.k_t) - (s * p.b_s + p.k_s).powi(2);
+            let complex = (num / den).norm();
+            assert!((transmissibility(&p) / complex - 1.0).abs() < 1e-13, "speed {speed}: {} vs {complex}", transmissibility(&p));
+        }
     }
 
     /// max(z_s)/max(z_r) over 7..10 s (the slowest transient, exp(-2.57 t), is below 2e-8 by

@@ -572,6 +572,7 @@ fmu_export::export_fmu!(Trebuchet);
 mod tests {
     use super::*;
     use fmu_export::harness::Harness;
+    use runner_engine::references::References;
 
     const G: f64 = 9.81;
 
@@ -800,11 +801,11 @@ mod tests {
         assert!((rel - Trebuchet::default().release_angle).abs() < 1e-8, "{rel}");
         let tau = h.instance.time() - t_r;
         let (x, y, vx, vy) = (h.get("x_p").unwrap(), h.get("y_p").unwrap(), h.get("vx_p").unwrap(), h.get("vy_p").unwrap());
-        let vy0 = vy + G * tau;
-        let y0 = y - vy0 * tau + 0.5 * G * tau * tau;
-        let x0 = x - vx * tau;
-        let t_f = (vy0 + (vy0 * vy0 + 2.0 * G * y0).sqrt()) / G;
-        let expected = x0 + vx * t_f;
+        // references.toml's ballistics (the ones tests/fmpy and tests/handbook evaluate too).
+        let references = References::from_toml(include_str!("../references.toml")).expect("valid references");
+        let sample = [("x", x), ("y", y), ("vx", vx), ("vy", vy), ("tau", tau), ("g", G)];
+        let at = |name: &str| references.value(name, &sample).expect("a reference of the flight sample");
+        let (x0, y0, vy0, t_f, expected) = (at("x_release"), at("y_release"), at("vy_release"), at("t_flight"), at("range"));
         let t_now = h.instance.time();
         h.step(10.0 - t_now).unwrap();
         let range = h.get("range").unwrap();

@@ -98,7 +98,7 @@ fn description_of(path: &Path) -> Result<String, String> {
 fn identifier_of(xml: &str) -> String {
     fmi_schema::fmi2::ModelDescription::from_xml(xml)
         .ok()
-        .and_then(|d| d.co_simulation().ok().map(|c| c.model_identifier.clone()))
+        .and_then(|d| d.co_simulation().ok().map(|c| c.common.model_identifier.clone()))
         .unwrap_or_else(|| "m".to_owned())
 }
 

@@ -48,25 +48,20 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
     md.variable_naming_convention = Some(d::VariableNamingConvention::Flat);
     md.number_of_event_indicators = Some(M::N_EVENT_INDICATORS as u32);
     // The same binary serves both interfaces (one fmi2Instantiate, by fmuType).
-    md.model_exchange = Some(d::ModelExchange {
+    let common = d::InterfaceCommon {
         model_identifier: info.identifier.to_owned(),
+        can_get_and_set_fmu_state: true,
+        can_serialize_fmu_state: true,
+        can_not_use_memory_management_functions: true,
+        can_be_instantiated_only_once_per_process: false,
+        ..Default::default()
+    };
+    md.model_exchange = Some(d::ModelExchange {
+        common: common.clone(),
         // fmi2CompletedIntegratorStep checks sign changes and the constraints' drift.
         completed_integrator_step_not_needed: false,
-        can_get_and_set_fmu_state: true,
-        can_serialize_fmu_state: true,
-        can_not_use_memory_management_functions: true,
-        can_be_instantiated_only_once_per_process: false,
-        ..Default::default()
     });
-    md.co_simulation = Some(d::CoSimulation {
-        model_identifier: info.identifier.to_owned(),
-        can_handle_variable_communication_step_size: true,
-        can_get_and_set_fmu_state: true,
-        can_serialize_fmu_state: true,
-        can_not_use_memory_management_functions: true,
-        can_be_instantiated_only_once_per_process: false,
-        ..Default::default()
-    });
+    md.co_simulation = Some(d::CoSimulation { common, can_handle_variable_communication_step_size: true, ..Default::default() });
     md.log_categories = CATEGORIES.iter().map(|c| d::Category::new(c.name, Some(c.description))).collect();
     md.default_experiment = Some(d::DefaultExperiment {
         start_time: Some(0.0),
@@ -90,10 +85,13 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
         let start = row.start(&defaults);
         let var_type = match row.base_type {
             BaseType::Real => d::VariableType::Real(d::RealVariable {
-                unit: row.unit.map(str::to_owned),
-                display_unit: row.display_unit.map(str::to_owned),
-                min: range.min(),
-                max: range.max(),
+                attributes: d::RealAttributes {
+                    unit: row.unit.map(str::to_owned),
+                    display_unit: row.display_unit.map(str::to_owned),
+                    min: range.min(),
+                    max: range.max(),
+                    ..Default::default()
+                },
                 start: match start {
                     Some(Start::Real(v)) => Some(v),
                     _ => None,
@@ -107,8 +105,11 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
             }),
             BaseType::Integer => d::VariableType::Integer(d::IntegerVariable {
                 // Integer ranges have integer bounds (one_of, or min/max written as integers).
-                min: range.min().map(|v| v as i32),
-                max: range.max().map(|v| v as i32),
+                attributes: d::IntegerAttributes {
+                    min: range.min().map(|v| v as i32),
+                    max: range.max().map(|v| v as i32),
+                    ..Default::default()
+                },
                 start: match start {
                     Some(Start::Integer(v)) => Some(v),
                     _ => None,

@@ -103,7 +103,7 @@ impl<'a> Lookup<'a> {
     }
 
     /// The Real SimpleType a Real variable declares, if it exists and is Real.
-    fn declared_real(&self, real: &RealVariable) -> Option<&'a RealType> {
+    fn declared_real(&self, real: &RealVariable) -> Option<&'a RealAttributes> {
         match &self.types.get(real.declared_type.as_deref()?)?.kind {
             SimpleTypeKind::Real(t) => Some(t),
             _ => None,
@@ -131,8 +131,8 @@ fn check_header(md: &ModelDescription, problems: &mut Problems) {
         problems.push("neither ModelExchange nor CoSimulation is present".to_string());
     }
     for (interface, identifier) in [
-        ("ModelExchange", md.model_exchange.as_ref().map(|m| &m.model_identifier)),
-        ("CoSimulation", md.co_simulation.as_ref().map(|c| &c.model_identifier)),
+        ("ModelExchange", md.model_exchange.as_ref().map(|m| &m.common.model_identifier)),
+        ("CoSimulation", md.co_simulation.as_ref().map(|c| &c.common.model_identifier)),
     ] {
         if let Some(identifier) = identifier {
             let valid_c_name = identifier.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
@@ -275,10 +275,10 @@ fn check_ranges(lookup: &Lookup, variable: &ScalarVariable, at: &str, problems: 
     match &variable.var_type {
         VariableType::Real(r) => {
             let declared = lookup.declared_real(r);
-            let min = r.min.or_else(|| declared.and_then(|t| t.min));
-            let max = r.max.or_else(|| declared.and_then(|t| t.max));
+            let min = r.attributes.min.or_else(|| declared.and_then(|t| t.min));
+            let max = r.attributes.max.or_else(|| declared.and_then(|t| t.max));
             range(min, max, r.start, at, problems);
-            if let Some(nominal) = r.nominal {
+            if let Some(nominal) = r.attributes.nominal {
                 if nominal.is_nan() || nominal <= 0.0 {
                     problems.push(format!("{at} has nominal={nominal}, must be > 0"));
                 }
@@ -289,11 +289,11 @@ fn check_ranges(lookup: &Lookup, variable: &ScalarVariable, at: &str, problems: 
                 SimpleTypeKind::Integer(t) => Some(t),
                 _ => None,
             });
-            let min = i.min.or_else(|| declared.and_then(|t| t.min));
-            let max = i.max.or_else(|| declared.and_then(|t| t.max));
+            let min = i.attributes.min.or_else(|| declared.and_then(|t| t.min));
+            let max = i.attributes.max.or_else(|| declared.and_then(|t| t.max));
             range(min, max, i.start, at, problems)
         }
-        VariableType::Enumeration(e) => range(e.min, e.max, e.start, at, problems),
+        VariableType::Enumeration(e) => range(e.attributes.min, e.attributes.max, e.start, at, problems),
         VariableType::Boolean(_) | VariableType::String(_) => {}
     }
 }
@@ -321,8 +321,8 @@ fn check_units(lookup: &Lookup, variable: &ScalarVariable, at: &str, problems: &
     let Some(real) = variable.as_real() else { return };
     // Same resolution as ModelDescription::unit_of/display_unit_of: own attribute first.
     let declared = lookup.declared_real(real);
-    let unit = real.unit.as_deref().or_else(|| declared.and_then(|t| t.unit.as_deref()));
-    let display_unit = real.display_unit.as_deref().or_else(|| declared.and_then(|t| t.display_unit.as_deref()));
+    let unit = real.attributes.unit.as_deref().or_else(|| declared.and_then(|t| t.unit.as_deref()));
+    let display_unit = real.attributes.display_unit.as_deref().or_else(|| declared.and_then(|t| t.display_unit.as_deref()));
     check_unit_pair(lookup, unit, display_unit, at, problems);
 }
 

@@ -173,15 +173,14 @@ impl Initial {
     }
 }
 
-/// `<ModelExchange>`: capability flags of the Model Exchange interface.
+/// The attributes `<ModelExchange>` and `<CoSimulation>` share (written once, as in the
+/// standard's schema, where both types list them alike).
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct ModelExchange {
+pub struct InterfaceCommon {
     /// Prefix of the C functions and name of the shared library.
     pub model_identifier: String,
     /// The FMU only talks to an external tool.
     pub needs_execution_tool: bool,
-    /// fmi2CompletedIntegratorStep need not be called.
-    pub completed_integrator_step_not_needed: bool,
     /// Only one instance per process.
     pub can_be_instantiated_only_once_per_process: bool,
     /// Ignores the memory callbacks.
@@ -196,13 +195,20 @@ pub struct ModelExchange {
     pub source_files: Vec<String>,
 }
 
+/// `<ModelExchange>`: capability flags of the Model Exchange interface.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ModelExchange {
+    /// The attributes every interface has.
+    pub common: InterfaceCommon,
+    /// fmi2CompletedIntegratorStep need not be called.
+    pub completed_integrator_step_not_needed: bool,
+}
+
 /// `<CoSimulation>`: capability flags of the Co-Simulation interface.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct CoSimulation {
-    /// Prefix of the C functions and name of the shared library.
-    pub model_identifier: String,
-    /// The FMU only talks to an external tool.
-    pub needs_execution_tool: bool,
+    /// The attributes every interface has.
+    pub common: InterfaceCommon,
     /// fmi2DoStep accepts a varying communication step size.
     pub can_handle_variable_communication_step_size: bool,
     /// Uses input derivatives set with fmi2SetRealInputDerivatives.
@@ -211,18 +217,6 @@ pub struct CoSimulation {
     pub max_output_derivative_order: u32,
     /// fmi2DoStep can run asynchronously (spelled as in the standard).
     pub can_run_asynchronuously: bool,
-    /// Only one instance per process.
-    pub can_be_instantiated_only_once_per_process: bool,
-    /// Ignores the memory callbacks.
-    pub can_not_use_memory_management_functions: bool,
-    /// Supports fmi2Get/SetFMUstate.
-    pub can_get_and_set_fmu_state: bool,
-    /// Supports fmi2SerializeFMUstate.
-    pub can_serialize_fmu_state: bool,
-    /// Supports fmi2GetDirectionalDerivative.
-    pub provides_directional_derivative: bool,
-    /// `SourceFiles/File@name` entries (source FMUs only).
-    pub source_files: Vec<String>,
 }
 
 /// `<Unit>`: a unit, its SI decomposition and its display units.
@@ -313,9 +307,9 @@ impl SimpleType {
 #[derive(Debug, Clone, PartialEq)]
 pub enum SimpleTypeKind {
     /// `<Real>` with unit and range defaults.
-    Real(RealType),
+    Real(RealAttributes),
     /// `<Integer>` with range defaults.
-    Integer(IntegerType),
+    Integer(IntegerAttributes),
     /// `<Boolean/>`.
     Boolean,
     /// `<String/>`.
@@ -324,9 +318,10 @@ pub enum SimpleTypeKind {
     Enumeration(EnumerationType),
 }
 
-/// `<Real>` of a SimpleType.
+/// The schema's attribute group `fmi2RealAttributes`: what a `<Real>` SimpleType defines and
+/// a `<Real>` variable may override (written once for both).
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct RealType {
+pub struct RealAttributes {
     /// Physical quantity, e.g. `"Velocity"`.
     pub quantity: Option<String>,
     /// Unit name (must be in UnitDefinitions).
@@ -345,9 +340,10 @@ pub struct RealType {
     pub unbounded: bool,
 }
 
-/// `<Integer>` of a SimpleType.
+/// The schema's attribute group `fmi2IntegerAttributes`: what an `<Integer>` SimpleType defines
+/// and an `<Integer>` or `<Enumeration>` variable may override (written once for all three).
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct IntegerType {
+pub struct IntegerAttributes {
     /// Physical quantity.
     pub quantity: Option<String>,
     /// Lower bound.
@@ -446,22 +442,8 @@ pub enum VariableType {
 pub struct RealVariable {
     /// SimpleType providing defaults.
     pub declared_type: Option<String>,
-    /// Physical quantity.
-    pub quantity: Option<String>,
-    /// Unit name (must be in UnitDefinitions).
-    pub unit: Option<String>,
-    /// Default display unit (must belong to the unit).
-    pub display_unit: Option<String>,
-    /// Offsets must be ignored for display.
-    pub relative_quantity: bool,
-    /// Lower bound.
-    pub min: Option<f64>,
-    /// Upper bound.
-    pub max: Option<f64>,
-    /// Typical magnitude (> 0).
-    pub nominal: Option<f64>,
-    /// Value may grow without bound.
-    pub unbounded: bool,
+    /// Quantity, unit, display unit, range and nominal (each overrides the declared type's).
+    pub attributes: RealAttributes,
     /// Start value.
     pub start: Option<f64>,
     /// 1-based index of the state this variable is the derivative of.
@@ -475,12 +457,8 @@ pub struct RealVariable {
 pub struct IntegerVariable {
     /// SimpleType providing defaults.
     pub declared_type: Option<String>,
-    /// Physical quantity.
-    pub quantity: Option<String>,
-    /// Lower bound.
-    pub min: Option<i32>,
-    /// Upper bound.
-    pub max: Option<i32>,
+    /// Quantity and range.
+    pub attributes: IntegerAttributes,
     /// Start value.
     pub start: Option<i32>,
 }
@@ -508,12 +486,8 @@ pub struct StringVariable {
 pub struct EnumerationVariable {
     /// The Enumeration SimpleType (required by the standard; `check` reports a missing one).
     pub declared_type: Option<String>,
-    /// Physical quantity.
-    pub quantity: Option<String>,
-    /// Lower bound.
-    pub min: Option<i32>,
-    /// Upper bound.
-    pub max: Option<i32>,
+    /// Quantity and range, as for Integer.
+    pub attributes: IntegerAttributes,
     /// Start value (an item value).
     pub start: Option<i32>,
 }
@@ -651,7 +625,7 @@ impl ScalarVariable {
 
     /// `unit` written on the variable itself (see [`ModelDescription::unit_of`] for declared types).
     pub fn unit(&self) -> Option<&str> {
-        self.as_real().and_then(|r| r.unit.as_deref())
+        self.as_real().and_then(|r| r.attributes.unit.as_deref())
     }
 
     /// 1-based index of the state this Real variable is the derivative of.
@@ -837,17 +811,17 @@ impl ModelDescription {
     /// Effective unit of a Real variable: its own `unit`, else its declared type's.
     pub fn unit_of<'a>(&'a self, variable: &'a ScalarVariable) -> Option<&'a str> {
         let real = variable.as_real()?;
-        real.unit.as_deref().or_else(|| self.declared_real(real).and_then(|t| t.unit.as_deref()))
+        real.attributes.unit.as_deref().or_else(|| self.declared_real(real).and_then(|t| t.unit.as_deref()))
     }
 
     /// Effective display unit of a Real variable: its own `displayUnit`, else its declared type's.
     pub fn display_unit_of<'a>(&'a self, variable: &'a ScalarVariable) -> Option<&'a str> {
         let real = variable.as_real()?;
-        real.display_unit.as_deref().or_else(|| self.declared_real(real).and_then(|t| t.display_unit.as_deref()))
+        real.attributes.display_unit.as_deref().or_else(|| self.declared_real(real).and_then(|t| t.display_unit.as_deref()))
     }
 
     /// The Real SimpleType a Real variable declares, if it exists and is Real.
-    fn declared_real(&self, real: &RealVariable) -> Option<&RealType> {
+    fn declared_real(&self, real: &RealVariable) -> Option<&RealAttributes> {
         match &self.simple_type(real.declared_type.as_deref()?)?.kind {
             SimpleTypeKind::Real(t) => Some(t),
             _ => None,

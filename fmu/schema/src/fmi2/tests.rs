@@ -29,16 +29,18 @@ fn spring() -> ModelDescription {
     md.variable_naming_convention = Some(VariableNamingConvention::Structured);
     md.number_of_event_indicators = Some(0);
     md.model_exchange = Some(ModelExchange {
-        model_identifier: "Spring".to_string(),
+        common: InterfaceCommon { model_identifier: "Spring".to_string(), ..InterfaceCommon::default() },
         completed_integrator_step_not_needed: true,
-        ..ModelExchange::default()
     });
     md.co_simulation = Some(CoSimulation {
-        model_identifier: "Spring".to_string(),
+        common: InterfaceCommon {
+            model_identifier: "Spring".to_string(),
+            can_get_and_set_fmu_state: true,
+            source_files: vec!["spring.c".to_string()],
+            ..InterfaceCommon::default()
+        },
         can_handle_variable_communication_step_size: true,
-        can_get_and_set_fmu_state: true,
         max_output_derivative_order: 1,
-        source_files: vec!["spring.c".to_string()],
         ..CoSimulation::default()
     });
     md.unit_definitions = vec![
@@ -55,11 +57,11 @@ fn spring() -> ModelDescription {
         SimpleType {
             name: "Position".to_string(),
             description: Some("a length".to_string()),
-            kind: SimpleTypeKind::Real(RealType {
+            kind: SimpleTypeKind::Real(RealAttributes {
                 quantity: Some("Length".to_string()),
                 unit: Some("m".to_string()),
                 display_unit: Some("mm".to_string()),
-                ..RealType::default()
+                ..RealAttributes::default()
             }),
         },
         SimpleType {
@@ -76,7 +78,7 @@ fn spring() -> ModelDescription {
         SimpleType {
             name: "Count".to_string(),
             description: None,
-            kind: SimpleTypeKind::Integer(IntegerType { quantity: None, min: Some(0), max: None }),
+            kind: SimpleTypeKind::Integer(IntegerAttributes { quantity: None, min: Some(0), max: None }),
         },
         SimpleType { name: "Flag".to_string(), description: None, kind: SimpleTypeKind::Boolean },
         SimpleType { name: "Text".to_string(), description: None, kind: SimpleTypeKind::String },
@@ -90,7 +92,7 @@ fn spring() -> ModelDescription {
         0,
         Causality::Independent,
         Variability::Continuous,
-        RealVariable { unit: Some("s".to_string()), ..RealVariable::default() },
+        RealVariable { attributes: RealAttributes { unit: Some("s".to_string()), ..RealAttributes::default() }, ..RealVariable::default() },
     );
     time.description = Some("Simulation time".to_string());
     let mut x = real(
@@ -101,9 +103,7 @@ fn spring() -> ModelDescription {
         RealVariable {
             declared_type: Some("Position".to_string()),
             start: Some(1.0),
-            min: Some(-10.0),
-            max: Some(10.0),
-            nominal: Some(0.5),
+            attributes: RealAttributes { min: Some(-10.0), max: Some(10.0), nominal: Some(0.5), ..RealAttributes::default() },
             ..RealVariable::default()
         },
     );
@@ -113,7 +113,11 @@ fn spring() -> ModelDescription {
         2,
         Causality::Local,
         Variability::Continuous,
-        RealVariable { unit: Some("m/s".to_string()), derivative: Some(2), ..RealVariable::default() },
+        RealVariable {
+            attributes: RealAttributes { unit: Some("m/s".to_string()), ..RealAttributes::default() },
+            derivative: Some(2),
+            ..RealVariable::default()
+        },
     );
     let mut v = real(
         "v",
@@ -121,8 +125,11 @@ fn spring() -> ModelDescription {
         Causality::Output,
         Variability::Continuous,
         RealVariable {
-            unit: Some("m/s".to_string()),
-            display_unit: Some("km/h".to_string()),
+            attributes: RealAttributes {
+                unit: Some("m/s".to_string()),
+                display_unit: Some("km/h".to_string()),
+                ..RealAttributes::default()
+            },
             start: Some(0.0),
             reinit: true,
             ..RealVariable::default()
@@ -134,28 +141,48 @@ fn spring() -> ModelDescription {
         4,
         Causality::Local,
         Variability::Continuous,
-        RealVariable { unit: Some("m/s2".to_string()), derivative: Some(4), ..RealVariable::default() },
+        RealVariable {
+            attributes: RealAttributes { unit: Some("m/s2".to_string()), ..RealAttributes::default() },
+            derivative: Some(4),
+            ..RealVariable::default()
+        },
     );
     let k = real(
         "k",
         5,
         Causality::Parameter,
         Variability::Fixed,
-        RealVariable { unit: Some("N/m".to_string()), start: Some(1e-9), ..RealVariable::default() },
+        RealVariable {
+            attributes: RealAttributes { unit: Some("N/m".to_string()), ..RealAttributes::default() },
+            start: Some(1e-9),
+            ..RealVariable::default()
+        },
     );
     let force = real(
         "F",
         6,
         Causality::Input,
         Variability::Continuous,
-        RealVariable { unit: Some("N".to_string()), start: Some(0.1), ..RealVariable::default() },
+        RealVariable {
+            attributes: RealAttributes { unit: Some("N".to_string()), ..RealAttributes::default() },
+            start: Some(0.1),
+            ..RealVariable::default()
+        },
     );
     let energy = real(
         "energy",
         7,
         Causality::CalculatedParameter,
         Variability::Fixed,
-        RealVariable { unit: Some("J".to_string()), relative_quantity: true, unbounded: true, ..RealVariable::default() },
+        RealVariable {
+            attributes: RealAttributes {
+                unit: Some("J".to_string()),
+                relative_quantity: true,
+                unbounded: true,
+                ..RealAttributes::default()
+            },
+            ..RealVariable::default()
+        },
     );
     let mut steps = ScalarVariable::new(
         "steps",
@@ -177,10 +204,8 @@ fn spring() -> ModelDescription {
         1,
         VariableType::Enumeration(EnumerationVariable {
             declared_type: Some("Mode".to_string()),
-            min: Some(1),
-            max: Some(2),
+            attributes: IntegerAttributes { min: Some(1), max: Some(2), ..IntegerAttributes::default() },
             start: Some(2),
-            ..EnumerationVariable::default()
         }),
     );
     mode.causality = Some(Causality::Parameter);
@@ -198,8 +223,11 @@ fn spring() -> ModelDescription {
         Causality::Local,
         Variability::Discrete,
         RealVariable {
-            unit: Some("degC".to_string()),
-            display_unit: Some("degF".to_string()),
+            attributes: RealAttributes {
+                unit: Some("degC".to_string()),
+                display_unit: Some("degF".to_string()),
+                ..RealAttributes::default()
+            },
             start: Some(-0.0),
             ..RealVariable::default()
         },
@@ -268,14 +296,21 @@ fn reals_round_trip_bit_exactly() {
         6.02214076e23,
     ];
     let mut md = ModelDescription::new("Reals", "guid");
-    md.co_simulation = Some(CoSimulation { model_identifier: "Reals".to_string(), ..CoSimulation::default() });
+    md.co_simulation = Some(CoSimulation {
+        common: InterfaceCommon { model_identifier: "Reals".to_string(), ..InterfaceCommon::default() },
+        ..CoSimulation::default()
+    });
     for (i, &value) in values.iter().enumerate() {
         md.model_variables.push(real(
             &format!("p{i}"),
             i as u32,
             Causality::Parameter,
             Variability::Fixed,
-            RealVariable { start: Some(value), nominal: Some(value), ..RealVariable::default() },
+            RealVariable {
+                start: Some(value),
+                attributes: RealAttributes { nominal: Some(value), ..RealAttributes::default() },
+                ..RealVariable::default()
+            },
         ));
     }
     md.model_variables.push(real(
@@ -283,7 +318,11 @@ fn reals_round_trip_bit_exactly() {
         99,
         Causality::Parameter,
         Variability::Fixed,
-        RealVariable { start: Some(0.0), min: Some(f64::NEG_INFINITY), max: Some(f64::INFINITY), ..RealVariable::default() },
+        RealVariable {
+            start: Some(0.0),
+            attributes: RealAttributes { min: Some(f64::NEG_INFINITY), max: Some(f64::INFINITY), ..RealAttributes::default() },
+            ..RealVariable::default()
+        },
     ));
     let xml = md.to_xml().unwrap();
     assert!(xml.contains(r#"start="1e-9""#), "{xml}");
@@ -295,11 +334,11 @@ fn reals_round_trip_bit_exactly() {
     for (i, &value) in values.iter().enumerate() {
         let read = back.model_variables[i].real_start().unwrap();
         assert_eq!(read.to_bits(), value.to_bits(), "{value:?} came back as {read:?}");
-        let nominal = back.model_variables[i].as_real().unwrap().nominal.unwrap();
+        let nominal = back.model_variables[i].as_real().unwrap().attributes.nominal.unwrap();
         assert_eq!(nominal.to_bits(), value.to_bits());
     }
     let inf = back.variable("inf").unwrap().as_real().unwrap();
-    assert_eq!((inf.min, inf.max), (Some(f64::NEG_INFINITY), Some(f64::INFINITY)));
+    assert_eq!((inf.attributes.min, inf.attributes.max), (Some(f64::NEG_INFINITY), Some(f64::INFINITY)));
 }
 
 #[test]
@@ -361,7 +400,10 @@ fn written_xml_has_declaration_indentation_and_fmi_names() {
 #[test]
 fn minimal_description_writes_required_elements_only() {
     let mut md = ModelDescription::new("Empty", "g");
-    md.co_simulation = Some(CoSimulation { model_identifier: "Empty".to_string(), ..CoSimulation::default() });
+    md.co_simulation = Some(CoSimulation {
+        common: InterfaceCommon { model_identifier: "Empty".to_string(), ..InterfaceCommon::default() },
+        ..CoSimulation::default()
+    });
     let xml = md.to_xml().unwrap();
     assert_eq!(
         xml,
@@ -568,15 +610,15 @@ fn reads_reference_style_bouncing_ball() {
     assert_eq!(md.variable_naming_convention, None);
 
     let me = md.model_exchange.as_ref().unwrap();
-    assert_eq!(me.model_identifier, "BouncingBall");
-    assert!(me.can_get_and_set_fmu_state && !me.completed_integrator_step_not_needed);
-    assert_eq!(me.source_files, vec!["all.c".to_string()]);
+    assert_eq!(me.common.model_identifier, "BouncingBall");
+    assert!(me.common.can_get_and_set_fmu_state && !me.completed_integrator_step_not_needed);
+    assert_eq!(me.common.source_files, vec!["all.c".to_string()]);
 
     let cs = md.co_simulation().unwrap();
-    assert_eq!(cs.model_identifier, "BouncingBall");
+    assert_eq!(cs.common.model_identifier, "BouncingBall");
     assert!(cs.can_handle_variable_communication_step_size);
-    assert!(cs.can_serialize_fmu_state, "xs:boolean \"1\" is true");
-    assert!(!cs.can_interpolate_inputs && !cs.needs_execution_tool && !cs.can_run_asynchronuously);
+    assert!(cs.common.can_serialize_fmu_state, "xs:boolean \"1\" is true");
+    assert!(!cs.can_interpolate_inputs && !cs.common.needs_execution_tool && !cs.can_run_asynchronuously);
     assert_eq!(cs.max_output_derivative_order, 0);
 
     assert_eq!(md.unit_definitions.len(), 4);
@@ -608,7 +650,7 @@ fn reads_reference_style_bouncing_ball() {
     assert_eq!(md.variable_by_index(0), None);
     assert_eq!(md.variable("g").unwrap().real_start(), Some(-9.81));
     let e = md.variable("e").unwrap();
-    assert_eq!((e.as_real().unwrap().min, e.as_real().unwrap().max), (Some(0.5), Some(1.0)));
+    assert_eq!((e.as_real().unwrap().attributes.min, e.as_real().unwrap().attributes.max), (Some(0.5), Some(1.0)));
     assert_eq!(e.variability(), Variability::Tunable);
     assert_eq!(e.initial, None);
     assert_eq!(e.initial(), Some(Initial::Exact), "parameters default to exact");
@@ -765,7 +807,10 @@ fn reads_every_variable_type() {
     }
     assert_eq!(md.simple_type("Bools").unwrap().kind, SimpleTypeKind::Boolean);
     assert_eq!(md.simple_type("Strings").unwrap().kind, SimpleTypeKind::String);
-    assert_eq!(md.simple_type("Ints").unwrap().kind, SimpleTypeKind::Integer(IntegerType { quantity: None, min: Some(-5), max: Some(5) }));
+    assert_eq!(
+        md.simple_type("Ints").unwrap().kind,
+        SimpleTypeKind::Integer(IntegerAttributes { quantity: None, min: Some(-5), max: Some(5) })
+    );
     let outputs: Vec<&str> = md.outputs().map(|v| v.name.as_str()).collect();
     assert_eq!(outputs, ["real_continuous_output", "int_output", "bool_output", "enum_output"]);
     assert_eq!(md.check(), Vec::<String>::new());
@@ -1084,22 +1129,22 @@ fn check_finds_illegal_causality_variability_initial() {
 #[test]
 fn check_finds_unit_problems() {
     assert_problem(
-        |md| real_of(md, "k").unit = Some("furlong".to_string()),
+        |md| real_of(md, "k").attributes.unit = Some("furlong".to_string()),
         "variable 'k' (index 6) has unit \"furlong\", which is not defined in UnitDefinitions",
     );
     assert_problem(
-        |md| real_of(md, "v").display_unit = Some("mph".to_string()),
+        |md| real_of(md, "v").attributes.display_unit = Some("mph".to_string()),
         "variable 'v' (index 4) has displayUnit \"mph\", which is not a DisplayUnit of unit \"m/s\"",
     );
     assert_problem(
-        |md| real_of(md, "der(x)").display_unit = Some("mm".to_string()),
+        |md| real_of(md, "der(x)").attributes.display_unit = Some("mm".to_string()),
         "has displayUnit \"mm\", which is not a DisplayUnit of unit \"m/s\"",
     );
     assert_problem(
         |md| {
             let energy = real_of(md, "energy");
-            energy.unit = None;
-            energy.display_unit = Some("kWh".to_string());
+            energy.attributes.unit = None;
+            energy.attributes.display_unit = Some("kWh".to_string());
         },
         "variable 'energy' (index 8) has displayUnit \"kWh\" but no unit",
     );
@@ -1145,9 +1190,9 @@ fn check_finds_declared_type_and_derivative_problems() {
 
 #[test]
 fn check_finds_range_problems() {
-    assert_problem(|md| real_of(md, "x").min = Some(20.0), "variable 'x' (index 2) has min=20 greater than max=10");
+    assert_problem(|md| real_of(md, "x").attributes.min = Some(20.0), "variable 'x' (index 2) has min=20 greater than max=10");
     assert_problem(|md| real_of(md, "x").start = Some(11.0), "variable 'x' (index 2) has start=11 outside [min, max] = [-10, 10]");
-    assert_problem(|md| real_of(md, "x").nominal = Some(0.0), "has nominal=0, must be > 0");
+    assert_problem(|md| real_of(md, "x").attributes.nominal = Some(0.0), "has nominal=0, must be > 0");
     // Bounds inherited from the declared type count too (Count has min=0).
     assert_problem(
         |md| {
@@ -1177,7 +1222,7 @@ fn check_finds_header_and_experiment_problems() {
         "neither ModelExchange nor CoSimulation is present",
     );
     assert_problem(
-        |md| md.co_simulation.as_mut().unwrap().model_identifier = "my model".to_string(),
+        |md| md.co_simulation.as_mut().unwrap().common.model_identifier = "my model".to_string(),
         "CoSimulation modelIdentifier \"my model\" is not a valid C identifier",
     );
     assert_problem(|md| md.fmi_version = "3.0".to_string(), "fmiVersion is \"3.0\", must be \"2.0\"");
@@ -1193,7 +1238,7 @@ fn check_finds_header_and_experiment_problems() {
 fn check_reports_every_problem_at_once() {
     let mut md = spring();
     real_of(&mut md, "k").start = None;
-    real_of(&mut md, "k").unit = Some("furlong".to_string());
+    real_of(&mut md, "k").attributes.unit = Some("furlong".to_string());
     md.model_structure.outputs.clear();
     let problems = md.check();
     assert_eq!(problems.len(), 3, "{problems:#?}");
@@ -1205,7 +1250,7 @@ fn check_reports_every_problem_at_once() {
 fn check_by_rule_tags_each_problem() {
     let mut md = spring();
     real_of(&mut md, "k").start = None;
-    real_of(&mut md, "k").unit = Some("furlong".to_string());
+    real_of(&mut md, "k").attributes.unit = Some("furlong".to_string());
     real_of(&mut md, "x").start = Some(11.0);
     md.unit_definitions.retain(|u| u.name != "m");
     md.model_structure.outputs.clear();

@@ -577,27 +577,12 @@ impl RawModelDescription {
             .map(|raw| {
                 let at = "ModelExchange";
                 Ok::<_, DescriptionError>(ModelExchange {
-                    model_identifier: required(raw.model_identifier.clone(), "modelIdentifier", at)?,
-                    needs_execution_tool: flag(&raw.needs_execution_tool, "needsExecutionTool", at)?,
+                    common: raw.common(at)?,
                     completed_integrator_step_not_needed: flag(
                         &raw.completed_integrator_step_not_needed,
                         "completedIntegratorStepNotNeeded",
                         at,
                     )?,
-                    can_be_instantiated_only_once_per_process: flag(
-                        &raw.can_be_instantiated_only_once_per_process,
-                        "canBeInstantiatedOnlyOncePerProcess",
-                        at,
-                    )?,
-                    can_not_use_memory_management_functions: flag(
-                        &raw.can_not_use_memory_management_functions,
-                        "canNotUseMemoryManagementFunctions",
-                        at,
-                    )?,
-                    can_get_and_set_fmu_state: flag(&raw.can_get_and_set_fmu_state, "canGetAndSetFMUstate", at)?,
-                    can_serialize_fmu_state: flag(&raw.can_serialize_fmu_state, "canSerializeFMUstate", at)?,
-                    provides_directional_derivative: flag(&raw.provides_directional_derivative, "providesDirectionalDerivative", at)?,
-                    source_files: source_files(raw.source_files, at)?,
                 })
             })
             .transpose()?;
@@ -606,8 +591,7 @@ impl RawModelDescription {
             .map(|raw| {
                 let at = "CoSimulation";
                 Ok::<_, DescriptionError>(CoSimulation {
-                    model_identifier: required(raw.model_identifier.clone(), "modelIdentifier", at)?,
-                    needs_execution_tool: flag(&raw.needs_execution_tool, "needsExecutionTool", at)?,
+                    common: raw.common(at)?,
                     can_handle_variable_communication_step_size: flag(
                         &raw.can_handle_variable_communication_step_size,
                         "canHandleVariableCommunicationStepSize",
@@ -616,20 +600,6 @@ impl RawModelDescription {
                     can_interpolate_inputs: flag(&raw.can_interpolate_inputs, "canInterpolateInputs", at)?,
                     max_output_derivative_order: uint(&raw.max_output_derivative_order, "maxOutputDerivativeOrder", at)?.unwrap_or(0),
                     can_run_asynchronuously: flag(&raw.can_run_asynchronuously, "canRunAsynchronuously", at)?,
-                    can_be_instantiated_only_once_per_process: flag(
-                        &raw.can_be_instantiated_only_once_per_process,
-                        "canBeInstantiatedOnlyOncePerProcess",
-                        at,
-                    )?,
-                    can_not_use_memory_management_functions: flag(
-                        &raw.can_not_use_memory_management_functions,
-                        "canNotUseMemoryManagementFunctions",
-                        at,
-                    )?,
-                    can_get_and_set_fmu_state: flag(&raw.can_get_and_set_fmu_state, "canGetAndSetFMUstate", at)?,
-                    can_serialize_fmu_state: flag(&raw.can_serialize_fmu_state, "canSerializeFMUstate", at)?,
-                    provides_directional_derivative: flag(&raw.provides_directional_derivative, "providesDirectionalDerivative", at)?,
-                    source_files: source_files(raw.source_files, at)?,
                 })
             })
             .transpose()?;
@@ -704,10 +674,99 @@ impl RawModelDescription {
     }
 }
 
-fn source_files(raw: Option<RawSourceFiles>, interface: &str) -> Result<Vec<String>, DescriptionError> {
-    only!(raw.map(|s| s.files).unwrap_or_default(), FileChild::File)
+impl RawInterface {
+    /// The attributes both interfaces share, read once for either.
+    fn common(&self, at: &str) -> Result<InterfaceCommon, DescriptionError> {
+        Ok(InterfaceCommon {
+            model_identifier: required(self.model_identifier.clone(), "modelIdentifier", at)?,
+            needs_execution_tool: flag(&self.needs_execution_tool, "needsExecutionTool", at)?,
+            can_be_instantiated_only_once_per_process: flag(
+                &self.can_be_instantiated_only_once_per_process,
+                "canBeInstantiatedOnlyOncePerProcess",
+                at,
+            )?,
+            can_not_use_memory_management_functions: flag(
+                &self.can_not_use_memory_management_functions,
+                "canNotUseMemoryManagementFunctions",
+                at,
+            )?,
+            can_get_and_set_fmu_state: flag(&self.can_get_and_set_fmu_state, "canGetAndSetFMUstate", at)?,
+            can_serialize_fmu_state: flag(&self.can_serialize_fmu_state, "canSerializeFMUstate", at)?,
+            provides_directional_derivative: flag(&self.provides_directional_derivative, "providesDirectionalDerivative", at)?,
+            source_files: source_files(self.source_files.as_ref(), at)?,
+        })
+    }
+
+    /// The mirror of the shared attributes; each interface adds its own.
+    fn from_common(c: &InterfaceCommon) -> Self {
+        RawInterface {
+            model_identifier: Some(c.model_identifier.clone()),
+            needs_execution_tool: flag_out(c.needs_execution_tool),
+            can_be_instantiated_only_once_per_process: flag_out(c.can_be_instantiated_only_once_per_process),
+            can_not_use_memory_management_functions: flag_out(c.can_not_use_memory_management_functions),
+            can_get_and_set_fmu_state: flag_out(c.can_get_and_set_fmu_state),
+            can_serialize_fmu_state: flag_out(c.can_serialize_fmu_state),
+            provides_directional_derivative: flag_out(c.provides_directional_derivative),
+            source_files: files_out(&c.source_files),
+            ..RawInterface::default()
+        }
+    }
+}
+
+impl RawReal {
+    /// The `fmi2RealAttributes` group, read once for variables and SimpleTypes.
+    fn attributes(&self, at: &str) -> Result<RealAttributes, DescriptionError> {
+        Ok(RealAttributes {
+            quantity: self.quantity.clone(),
+            unit: self.unit.clone(),
+            display_unit: self.display_unit.clone(),
+            relative_quantity: flag(&self.relative_quantity, "relativeQuantity", at)?,
+            min: real(&self.min, "min", at)?,
+            max: real(&self.max, "max", at)?,
+            nominal: real(&self.nominal, "nominal", at)?,
+            unbounded: flag(&self.unbounded, "unbounded", at)?,
+        })
+    }
+
+    /// The mirror of the group; a variable adds declaredType, start, derivative and reinit.
+    fn from_attributes(a: &RealAttributes) -> Self {
+        RawReal {
+            quantity: a.quantity.clone(),
+            unit: a.unit.clone(),
+            display_unit: a.display_unit.clone(),
+            relative_quantity: flag_out(a.relative_quantity),
+            min: opt_real(a.min),
+            max: opt_real(a.max),
+            nominal: opt_real(a.nominal),
+            unbounded: flag_out(a.unbounded),
+            ..RawReal::default()
+        }
+    }
+}
+
+impl RawInteger {
+    /// The `fmi2IntegerAttributes` group (quantity, min, max), read once for Integer variables
+    /// and SimpleTypes and Enumeration variables.
+    fn attributes(&self, at: &str) -> Result<IntegerAttributes, DescriptionError> {
+        Ok(IntegerAttributes { quantity: self.quantity.clone(), min: int(&self.min, "min", at)?, max: int(&self.max, "max", at)? })
+    }
+
+    /// The mirror of the group; a variable adds declaredType and start.
+    fn from_attributes(a: &IntegerAttributes) -> Self {
+        RawInteger { quantity: a.quantity.clone(), min: opt_display(a.min), max: opt_display(a.max), ..RawInteger::default() }
+    }
+}
+
+fn source_files(raw: Option<&RawSourceFiles>, interface: &str) -> Result<Vec<String>, DescriptionError> {
+    raw.map(|s| s.files.as_slice())
+        .unwrap_or_default()
+        .iter()
+        .filter_map(|child| match child {
+            FileChild::File(f) => Some(f),
+            FileChild::Other => None,
+        })
         .enumerate()
-        .map(|(i, f)| required(f.name, "name", &format!("{interface}/SourceFiles/File #{}", i + 1)))
+        .map(|(i, f)| required(f.name.clone(), "name", &format!("{interface}/SourceFiles/File #{}", i + 1)))
         .collect()
 }
 
@@ -780,25 +839,10 @@ impl RawSimpleType {
         let at = label("SimpleType", &self.name, position);
         let mut kinds = Vec::new();
         if let Some(r) = &self.real {
-            let at = format!("Real of {at}");
-            kinds.push(SimpleTypeKind::Real(RealType {
-                quantity: r.quantity.clone(),
-                unit: r.unit.clone(),
-                display_unit: r.display_unit.clone(),
-                relative_quantity: flag(&r.relative_quantity, "relativeQuantity", &at)?,
-                min: real(&r.min, "min", &at)?,
-                max: real(&r.max, "max", &at)?,
-                nominal: real(&r.nominal, "nominal", &at)?,
-                unbounded: flag(&r.unbounded, "unbounded", &at)?,
-            }));
+            kinds.push(SimpleTypeKind::Real(r.attributes(&format!("Real of {at}"))?));
         }
         if let Some(i) = &self.integer {
-            let at = format!("Integer of {at}");
-            kinds.push(SimpleTypeKind::Integer(IntegerType {
-                quantity: i.quantity.clone(),
-                min: int(&i.min, "min", &at)?,
-                max: int(&i.max, "max", &at)?,
-            }));
+            kinds.push(SimpleTypeKind::Integer(i.attributes(&format!("Integer of {at}"))?));
         }
         if self.boolean.is_some() {
             kinds.push(SimpleTypeKind::Boolean);
@@ -845,14 +889,7 @@ impl RawScalarVariable {
             let at = format!("{at} (Real)");
             kinds.push(VariableType::Real(RealVariable {
                 declared_type: r.declared_type.clone(),
-                quantity: r.quantity.clone(),
-                unit: r.unit.clone(),
-                display_unit: r.display_unit.clone(),
-                relative_quantity: flag(&r.relative_quantity, "relativeQuantity", &at)?,
-                min: real(&r.min, "min", &at)?,
-                max: real(&r.max, "max", &at)?,
-                nominal: real(&r.nominal, "nominal", &at)?,
-                unbounded: flag(&r.unbounded, "unbounded", &at)?,
+                attributes: r.attributes(&at)?,
                 start: real(&r.start, "start", &at)?,
                 derivative: uint(&r.derivative, "derivative", &at)?,
                 reinit: flag(&r.reinit, "reinit", &at)?,
@@ -862,9 +899,7 @@ impl RawScalarVariable {
             let at = format!("{at} (Integer)");
             kinds.push(VariableType::Integer(IntegerVariable {
                 declared_type: i.declared_type.clone(),
-                quantity: i.quantity.clone(),
-                min: int(&i.min, "min", &at)?,
-                max: int(&i.max, "max", &at)?,
+                attributes: i.attributes(&at)?,
                 start: int(&i.start, "start", &at)?,
             }));
         }
@@ -882,9 +917,7 @@ impl RawScalarVariable {
             let at = format!("{at} (Enumeration)");
             kinds.push(VariableType::Enumeration(EnumerationVariable {
                 declared_type: e.declared_type.clone(),
-                quantity: e.quantity.clone(),
-                min: int(&e.min, "min", &at)?,
-                max: int(&e.max, "max", &at)?,
+                attributes: e.attributes(&at)?,
                 start: int(&e.start, "start", &at)?,
             }));
         }
@@ -988,31 +1021,15 @@ impl RawModelDescription {
             variable_naming_convention: opt_display(m.variable_naming_convention),
             number_of_event_indicators: opt_display(m.number_of_event_indicators),
             model_exchange: m.model_exchange.as_ref().map(|me| RawInterface {
-                model_identifier: Some(me.model_identifier.clone()),
-                needs_execution_tool: flag_out(me.needs_execution_tool),
                 completed_integrator_step_not_needed: flag_out(me.completed_integrator_step_not_needed),
-                can_be_instantiated_only_once_per_process: flag_out(me.can_be_instantiated_only_once_per_process),
-                can_not_use_memory_management_functions: flag_out(me.can_not_use_memory_management_functions),
-                can_get_and_set_fmu_state: flag_out(me.can_get_and_set_fmu_state),
-                can_serialize_fmu_state: flag_out(me.can_serialize_fmu_state),
-                provides_directional_derivative: flag_out(me.provides_directional_derivative),
-                source_files: files_out(&me.source_files),
-                ..RawInterface::default()
+                ..RawInterface::from_common(&me.common)
             }),
             co_simulation: m.co_simulation.as_ref().map(|cs| RawInterface {
-                model_identifier: Some(cs.model_identifier.clone()),
-                needs_execution_tool: flag_out(cs.needs_execution_tool),
                 can_handle_variable_communication_step_size: flag_out(cs.can_handle_variable_communication_step_size),
                 can_interpolate_inputs: flag_out(cs.can_interpolate_inputs),
                 max_output_derivative_order: (cs.max_output_derivative_order != 0).then(|| cs.max_output_derivative_order.to_string()),
                 can_run_asynchronuously: flag_out(cs.can_run_asynchronuously),
-                can_be_instantiated_only_once_per_process: flag_out(cs.can_be_instantiated_only_once_per_process),
-                can_not_use_memory_management_functions: flag_out(cs.can_not_use_memory_management_functions),
-                can_get_and_set_fmu_state: flag_out(cs.can_get_and_set_fmu_state),
-                can_serialize_fmu_state: flag_out(cs.can_serialize_fmu_state),
-                provides_directional_derivative: flag_out(cs.provides_directional_derivative),
-                source_files: files_out(&cs.source_files),
-                ..RawInterface::default()
+                ..RawInterface::from_common(&cs.common)
             }),
             unit_definitions: (!m.unit_definitions.is_empty()).then(|| RawUnitDefinitions {
                 units: m.unit_definitions.iter().map(|u| UnitChild::Unit(RawUnit::from_model(u))).collect(),
@@ -1076,27 +1093,8 @@ impl RawSimpleType {
     fn from_model(t: &SimpleType) -> Self {
         let mut raw = RawSimpleType { name: Some(t.name.clone()), description: t.description.clone(), ..RawSimpleType::default() };
         match &t.kind {
-            SimpleTypeKind::Real(r) => {
-                raw.real = Some(RawReal {
-                    quantity: r.quantity.clone(),
-                    unit: r.unit.clone(),
-                    display_unit: r.display_unit.clone(),
-                    relative_quantity: flag_out(r.relative_quantity),
-                    min: opt_real(r.min),
-                    max: opt_real(r.max),
-                    nominal: opt_real(r.nominal),
-                    unbounded: flag_out(r.unbounded),
-                    ..RawReal::default()
-                })
-            }
-            SimpleTypeKind::Integer(i) => {
-                raw.integer = Some(RawInteger {
-                    quantity: i.quantity.clone(),
-                    min: opt_display(i.min),
-                    max: opt_display(i.max),
-                    ..RawInteger::default()
-                })
-            }
+            SimpleTypeKind::Real(r) => raw.real = Some(RawReal::from_attributes(r)),
+            SimpleTypeKind::Integer(i) => raw.integer = Some(RawInteger::from_attributes(i)),
             SimpleTypeKind::Boolean => raw.boolean = Some(RawPlain::default()),
             SimpleTypeKind::String => raw.string = Some(RawPlain::default()),
             SimpleTypeKind::Enumeration(e) => {
@@ -1136,26 +1134,17 @@ impl RawScalarVariable {
             VariableType::Real(r) => {
                 raw.real = Some(RawReal {
                     declared_type: r.declared_type.clone(),
-                    quantity: r.quantity.clone(),
-                    unit: r.unit.clone(),
-                    display_unit: r.display_unit.clone(),
-                    relative_quantity: flag_out(r.relative_quantity),
-                    min: opt_real(r.min),
-                    max: opt_real(r.max),
-                    nominal: opt_real(r.nominal),
-                    unbounded: flag_out(r.unbounded),
                     start: opt_real(r.start),
                     derivative: opt_display(r.derivative),
                     reinit: flag_out(r.reinit),
+                    ..RawReal::from_attributes(&r.attributes)
                 })
             }
             VariableType::Integer(i) => {
                 raw.integer = Some(RawInteger {
                     declared_type: i.declared_type.clone(),
-                    quantity: i.quantity.clone(),
-                    min: opt_display(i.min),
-                    max: opt_display(i.max),
                     start: opt_display(i.start),
+                    ..RawInteger::from_attributes(&i.attributes)
                 })
             }
             VariableType::Boolean(b) => {
@@ -1165,10 +1154,8 @@ impl RawScalarVariable {
             VariableType::Enumeration(e) => {
                 raw.enumeration = Some(RawInteger {
                     declared_type: e.declared_type.clone(),
-                    quantity: e.quantity.clone(),
-                    min: opt_display(e.min),
-                    max: opt_display(e.max),
                     start: opt_display(e.start),
+                    ..RawInteger::from_attributes(&e.attributes)
                 })
             }
         }

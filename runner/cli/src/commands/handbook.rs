@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use fmi_importer::{Fmu, Variable};
 use rayon::prelude::*;
 use runner_engine::metrics::{Formula, Metrics};
+use runner_engine::references::References;
 use runner_engine::run::{Grid, GridSettings};
 use runner_engine::sweep::{parse_range, Plan};
 use runner_engine::variables;
@@ -213,45 +214,48 @@ pub fn period(time: &[f64], values: &[f64]) -> Option<f64> {
     (c.len() >= 2).then(|| (c[c.len() - 1] - c[0]) / (c.len() - 1) as f64)
 }
 
-/// The exact period of a pendulum released from rest at `theta0`: 2 pi sqrt(L/g) / AGM(1,
-/// cos(theta0/2)) (the complete elliptic integral K through the arithmetic-geometric mean).
-pub fn pendulum_period_exact(length: f64, g: f64, theta0: f64) -> f64 {
-    let (mut a, mut b) = (1.0f64, (theta0 / 2.0).cos());
-    for _ in 0..60 {
-        if (a - b).abs() <= 1e-16 * a {
-            break;
+/// Model `id`'s closed forms (models/<id>/references.toml), the ones its Rust tests and
+/// tests/fmpy evaluate too.
+pub fn references(id: &str) -> Result<References, String> {
+    let path = workspace::root().join("models").join(id).join("references.toml");
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    References::from_toml(&text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The exact period of a pendulum released from rest at `theta0`: references.toml's
+/// 4 sqrt(L/g) K(sin²(theta0/2)).
+pub fn pendulum_period_exact(length: f64, g: f64, theta0: f64) -> Result<f64, String> {
+    references("pendulum")?.value("period", &[("L", length), ("g", g), ("theta0", theta0)])
+}
+
+/// The bumper's release time and its plate displacement x(t) in closed form (references.toml:
+/// the overdamped contact solution until the release, then B x' + K x = 0).
+struct BumperClosedForm {
+    references: References,
+    parameters: [(&'static str, f64); 4],
+    t_release: f64,
+}
+
+impl BumperClosedForm {
+    fn new(m: f64, k: f64, b: f64, v0: f64) -> Result<BumperClosedForm, String> {
+        let disc = b * b - 4.0 * m * k;
+        if disc <= 0.0 {
+            return Err(format!("the bumper's closed form here is the overdamped one, and B^2 - 4MK = {disc} is not positive"));
         }
-        (a, b) = ((a + b) / 2.0, (a * b).sqrt());
+        let references = references("bumper")?;
+        let parameters = [("M", m), ("K", k), ("B", b), ("V0", v0)];
+        let t_release = references.value("t_release", &parameters)?;
+        if !(t_release > 0.0 && t_release.is_finite()) {
+            return Err("with these parameters the contact force never vanishes".into());
+        }
+        Ok(BumperClosedForm { references, parameters, t_release })
     }
-    2.0 * PI * (length / g).sqrt() / a
-}
 
-/// The bumper in contact: M x'' + B x' + K x = 0, x(0) = 0, x'(0) = V0, overdamped for the
-/// handbook's values. Returns the roots r1 > r2 of M r^2 + B r + K.
-fn bumper_roots(m: f64, k: f64, b: f64) -> Result<(f64, f64), String> {
-    let disc = b * b - 4.0 * m * k;
-    if disc <= 0.0 {
-        return Err(format!("the bumper's closed form here is the overdamped one, and B^2 - 4MK = {disc} is not positive"));
+    fn x(&self, t: f64) -> Result<f64, String> {
+        let [m, k, b, v0] = self.parameters;
+        let name = if t <= self.t_release { "x_contact" } else { "x_separated" };
+        self.references.value(name, &[("t", t), m, k, b, v0])
     }
-    Ok(((-b + disc.sqrt()) / (2.0 * m), (-b - disc.sqrt()) / (2.0 * m)))
-}
-
-/// The release time: the contact force K x + B x' vanishes when
-/// exp((r1 - r2) t) = (K + B r2) / (K + B r1).
-pub fn bumper_release_time(m: f64, k: f64, b: f64) -> Result<f64, String> {
-    let (r1, r2) = bumper_roots(m, k, b)?;
-    let ratio = (k + b * r2) / (k + b * r1);
-    if ratio <= 1.0 {
-        return Err("with these parameters the contact force never vanishes".into());
-    }
-    Ok(ratio.ln() / (r1 - r2))
-}
-
-/// The plate's x(t) in closed form: the contact solution until `t_r`, then B x' + K x = 0.
-fn bumper_x(m: f64, k: f64, b: f64, v0: f64, t_r: f64, t: f64) -> Result<f64, String> {
-    let (r1, r2) = bumper_roots(m, k, b)?;
-    let contact = |t: f64| v0 / (r1 - r2) * ((r1 * t).exp() - (r2 * t).exp());
-    Ok(if t <= t_r { contact(t) } else { contact(t_r) * (-(k / b) * (t - t_r)).exp() })
 }
 
 /// Max over samples of |a - b| relative to max |b|.
@@ -370,14 +374,15 @@ fn exercise_2(ctx: &Context) -> Result<Section, String> {
         let theta0 = run.get("theta")?[0];
         let t = period(&run.time, run.get("theta")?).ok_or_else(|| format!("the {value} run crosses zero fewer than twice"))?;
         s.numbers.push(quoted(format!("period, {label} (Euler, from zero crossings)"), t, "s", Some(key)));
-        let exact = pendulum_period_exact(length, g, theta0);
+        let exact = pendulum_period_exact(length, g, theta0)?;
         s.numbers.push(quoted(format!("period, {label}, exact (elliptic integral)"), exact, "s", Some(&key.replace("_s", "_exact_s"))));
         s.numbers.push(quoted(format!("period, {label}: Euler / exact - 1"), t / exact - 1.0, "relative", None));
         let energy = run.get("energy")?;
         let drift = (energy.last().copied().unwrap_or(f64::NAN) - energy[0]) / energy[0];
         s.numbers.push(quoted(format!("energy change over 10 s, {label} (Euler's drift)"), drift, "relative", None));
     }
-    s.numbers.push(quoted("small-angle period 2 pi sqrt(L/g)", 2.0 * PI * (length / g).sqrt(), "s", Some("pendulum_period_small_angle_s")));
+    let small_angle = references(id)?.value("period_small_angle", &[("L", length), ("g", g)])?;
+    s.numbers.push(quoted("small-angle period 2 pi sqrt(L/g)", small_angle, "s", Some("pendulum_period_small_angle_s")));
     Ok(s)
 }
 
@@ -389,15 +394,16 @@ fn exercise_3(ctx: &Context) -> Result<Section, String> {
     let released = ctx.run(id, &RunSpec::default(), &[])?;
     let attached = ctx.run(id, &RunSpec { set: &["attached=true"], ..RunSpec::default() }, &[])?;
     let (m, k, b, v0) = (ctx.parameter(id, "M")?, ctx.parameter(id, "K")?, ctx.parameter(id, "B")?, ctx.parameter(id, "V0")?);
-    let t_r_exact = bumper_release_time(m, k, b)?;
+    let closed_form = BumperClosedForm::new(m, k, b, v0)?;
+    let t_r_exact = closed_form.t_release;
     let t_r = released.last("t_release")?;
     if t_r < 0.0 {
         return Err("the bumper FMU reports no release".into());
     }
     let analytic: Vec<(f64, f64)> =
-        (0..=600).map(|i| i as f64 * 0.005).map(|t| bumper_x(m, k, b, v0, t_r_exact, t).map(|x| (t, x))).collect::<Result<_, _>>()?;
+        (0..=600).map(|i| i as f64 * 0.005).map(|t| closed_form.x(t).map(|x| (t, x))).collect::<Result<_, _>>()?;
     let numeric: Vec<(f64, f64)> = released.series("x")?.into_iter().step_by(50).collect();
-    let exact_at: Vec<f64> = released.time.iter().map(|&t| bumper_x(m, k, b, v0, t_r_exact, t)).collect::<Result<_, _>>()?;
+    let exact_at: Vec<f64> = released.time.iter().map(|&t| closed_form.x(t)).collect::<Result<_, _>>()?;
     let x_error = relative_error(released.get("x")?, &exact_at);
     let release_line =
         |label: bool| VLine { x: t_r, label: label.then(|| format!("release, t_r = {} s", trace::short(t_r))), color: figure::color(3) };
@@ -1062,27 +1068,26 @@ mod tests {
         let t0 = 2.0 * PI * (0.75f64 / 9.81).sqrt();
         let a = 15f64.to_radians();
         let series = t0 * (1.0 + a * a / 16.0 + 11.0 * a.powi(4) / 3072.0);
-        assert!((pendulum_period_exact(0.75, 9.81, a) / series - 1.0).abs() < 1e-6);
+        assert!((pendulum_period_exact(0.75, 9.81, a).unwrap() / series - 1.0).abs() < 1e-6);
         let k = 2.156_515_647_5;
         let t = 4.0 * (0.75f64 / 9.81).sqrt() * k;
-        assert!((pendulum_period_exact(0.75, 9.81, 120f64.to_radians()) / t - 1.0).abs() < 1e-9);
+        assert!((pendulum_period_exact(0.75, 9.81, 120f64.to_radians()).unwrap() / t - 1.0).abs() < 1e-9);
     }
 
     /// The release time makes the contact force K x + B x' vanish, and only there.
     #[test]
     fn the_bumper_releases_where_the_contact_force_vanishes() {
         let (m, k, b, v0) = (1000.0, 9850.0, 12500.0, 1.0);
-        let t_r = bumper_release_time(m, k, b).unwrap();
+        let closed_form = BumperClosedForm::new(m, k, b, v0).unwrap();
+        let t_r = closed_form.t_release;
         let h = 1e-6;
-        let force = |t: f64| {
-            let x = bumper_x(m, k, b, v0, f64::INFINITY, t).unwrap();
-            let v =
-                (bumper_x(m, k, b, v0, f64::INFINITY, t + h).unwrap() - bumper_x(m, k, b, v0, f64::INFINITY, t - h).unwrap()) / (2.0 * h);
-            k * x + b * v
-        };
+        // The contact solution alone (x_contact), differentiated numerically here.
+        let contact = |t: f64| closed_form.references.value("x_contact", &[("t", t), ("M", m), ("K", k), ("B", b), ("V0", v0)]).unwrap();
+        let force = |t: f64| k * contact(t) + b * (contact(t + h) - contact(t - h)) / (2.0 * h);
         assert!(force(t_r).abs() < 1e-4, "{}", force(t_r));
         assert!(force(t_r * 0.9) > 0.0 && force(t_r * 1.1) < 0.0);
-        assert!(bumper_release_time(1000.0, 9850.0, 100.0).is_err(), "underdamped is refused, not guessed");
+        assert_eq!(closed_form.x(t_r).unwrap(), contact(t_r));
+        assert!(BumperClosedForm::new(1000.0, 9850.0, 100.0, 1.0).is_err(), "underdamped is refused, not guessed");
     }
 
     #[test]

@@ -48,38 +48,23 @@ fn start(v: Option<s::StartValue>) -> Option<Start> {
 
 /// The importer's description of an FMI 2.0 FMU.
 pub fn describe(md: &s::ModelDescription) -> Description {
-    let common = |model_identifier: &str, needs_execution_tool, once, state, serialize, derivatives| Capabilities {
-        model_identifier: model_identifier.to_owned(),
-        needs_execution_tool,
-        can_be_instantiated_only_once_per_process: once,
-        can_get_and_set_fmu_state: state,
-        can_serialize_fmu_state: serialize,
-        provides_directional_derivative: derivatives,
+    // The attributes both interfaces share, read the same way for either.
+    let common = |c: &s::InterfaceCommon| Capabilities {
+        model_identifier: c.model_identifier.clone(),
+        needs_execution_tool: c.needs_execution_tool,
+        can_be_instantiated_only_once_per_process: c.can_be_instantiated_only_once_per_process,
+        can_get_and_set_fmu_state: c.can_get_and_set_fmu_state,
+        can_serialize_fmu_state: c.can_serialize_fmu_state,
+        provides_directional_derivative: c.provides_directional_derivative,
         ..Default::default()
     };
     let co_simulation = md.co_simulation.as_ref().map(|cs| Capabilities {
         can_handle_variable_communication_step_size: cs.can_handle_variable_communication_step_size,
         can_interpolate_inputs: cs.can_interpolate_inputs,
         max_output_derivative_order: cs.max_output_derivative_order,
-        ..common(
-            &cs.model_identifier,
-            cs.needs_execution_tool,
-            cs.can_be_instantiated_only_once_per_process,
-            cs.can_get_and_set_fmu_state,
-            cs.can_serialize_fmu_state,
-            cs.provides_directional_derivative,
-        )
+        ..common(&cs.common)
     });
-    let model_exchange = md.model_exchange.as_ref().map(|me| {
-        common(
-            &me.model_identifier,
-            me.needs_execution_tool,
-            me.can_be_instantiated_only_once_per_process,
-            me.can_get_and_set_fmu_state,
-            me.can_serialize_fmu_state,
-            me.provides_directional_derivative,
-        )
-    });
+    let model_exchange = md.model_exchange.as_ref().map(|me| common(&me.common));
     let variables = md
         .model_variables
         .iter()

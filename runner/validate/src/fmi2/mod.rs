@@ -45,8 +45,8 @@ pub(crate) fn validate(xml: &str, dir: &Path, work: &Path, options: &Options, re
     report.findings.push(Finding::passed("description.xml", "modelDescription.xml is a well-formed FMI 2.0 description"));
     rules::check(&md, &mut report.findings);
     let declared: Vec<(Interface, String)> = [
-        (Interface::CoSimulation, md.co_simulation.as_ref().map(|c| c.model_identifier.clone())),
-        (Interface::ModelExchange, md.model_exchange.as_ref().map(|m| m.model_identifier.clone())),
+        (Interface::CoSimulation, md.co_simulation.as_ref().map(|c| c.common.model_identifier.clone())),
+        (Interface::ModelExchange, md.model_exchange.as_ref().map(|m| m.common.model_identifier.clone())),
     ]
     .into_iter()
     .filter_map(|(i, id)| Some((i, id?)))

@@ -106,10 +106,10 @@ impl Model {
                             s::SimpleTypeKind::Real(rt) => Some(rt),
                             _ => None,
                         });
-                        (r.min.or(declared.and_then(|t| t.min)), r.max.or(declared.and_then(|t| t.max)))
+                        (r.attributes.min.or(declared.and_then(|t| t.min)), r.attributes.max.or(declared.and_then(|t| t.max)))
                     }
-                    s::VariableType::Integer(n) => (n.min.map(f64::from), n.max.map(f64::from)),
-                    s::VariableType::Enumeration(e) => (e.min.map(f64::from), e.max.map(f64::from)),
+                    s::VariableType::Integer(n) => (n.attributes.min.map(f64::from), n.attributes.max.map(f64::from)),
+                    s::VariableType::Enumeration(e) => (e.attributes.min.map(f64::from), e.attributes.max.map(f64::from)),
                     _ => (None, None),
                 };
                 Var {

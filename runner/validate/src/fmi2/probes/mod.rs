@@ -432,14 +432,13 @@ fn fmu_state(ctx: &mut Ctx, serialized: bool) {
 /// probed interface.
 pub(crate) fn capabilities(fmu: &Fmu) -> (bool, bool, bool) {
     let md = &fmu.model.md;
-    match fmu.interface {
-        Interface::CoSimulation => md.co_simulation.as_ref().map_or((false, false, true), |c| {
-            (c.can_get_and_set_fmu_state, c.can_serialize_fmu_state, c.can_be_instantiated_only_once_per_process)
-        }),
-        Interface::ModelExchange => md.model_exchange.as_ref().map_or((false, false, true), |m| {
-            (m.can_get_and_set_fmu_state, m.can_serialize_fmu_state, m.can_be_instantiated_only_once_per_process)
-        }),
-    }
+    let common = match fmu.interface {
+        Interface::CoSimulation => md.co_simulation.as_ref().map(|c| &c.common),
+        Interface::ModelExchange => md.model_exchange.as_ref().map(|m| &m.common),
+    };
+    common.map_or((false, false, true), |c| {
+        (c.can_get_and_set_fmu_state, c.can_serialize_fmu_state, c.can_be_instantiated_only_once_per_process)
+    })
 }
 
 /// With canHandleVariableCommunicationStepSize, steps of varying size (0.25 to 1.75 times the

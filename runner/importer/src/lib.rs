@@ -1,9 +1,12 @@
 //! The FMU importer: unpacks any `.fmu` safely ([`archive`]), reads its description into one
 //! model whatever its FMI version ([`model`]), loads its binary and drives instances of it
-//! through the FMI bindings ([`fmi2`]). One [`Instance`] type runs an FMU whatever its version
-//! and interface. It depends on the FMI C interface and schema only, never on our exporter.
+//! through the FMI bindings ([`fmi2`], [`fmi3`]), and integrates Model Exchange FMUs of either
+//! version with the toolkit's solvers ([`exchange`]). One [`Instance`] type runs an FMU whatever
+//! its version and interface. It depends on the FMI C interface and schema only, never on our
+//! exporter.
 
 pub mod archive;
+pub mod exchange;
 pub mod fmi2;
 pub mod fmi3;
 mod logging;
@@ -243,10 +246,7 @@ impl Fmu {
     ) -> Result<Fmu, String> {
         let loaded = match description.fmi_version {
             FmiVersion::Fmi2 => Binding::Fmi2(fmi2::Binary::load(binary, interface).map_err(|e| format!("{}: {e}", path.display()))?),
-            FmiVersion::Fmi3 if interface == Interface::ModelExchange => {
-                return Err(format!("{}: FMI 3.0 Model Exchange is not supported yet: run it as Co-Simulation", path.display()))
-            }
-            FmiVersion::Fmi3 => Binding::Fmi3(fmi3::Binary::load(binary).map_err(|e| format!("{}: {e}", path.display()))?),
+            FmiVersion::Fmi3 => Binding::Fmi3(fmi3::Binary::load(binary, interface).map_err(|e| format!("{}: {e}", path.display()))?),
         };
         let resources = dir.join("resources");
         let resource_uri = match description.fmi_version {
@@ -264,9 +264,16 @@ impl Fmu {
         match &self.binding {
             Binding::Fmi2(binary) => Ok(match self.interface {
                 Interface::CoSimulation => Instance::Fmi2Cs(fmi2::CoSimulation::new(self, binary, name, debug_logging)?),
-                Interface::ModelExchange => Instance::Fmi2Me(Box::new(fmi2::ModelExchange::new(self, binary, name, debug_logging)?)),
+                Interface::ModelExchange => {
+                    Instance::Fmi2Me(Box::new(fmi2::instantiate_model_exchange(self, binary, name, debug_logging)?))
+                }
             }),
-            Binding::Fmi3(binary) => Ok(Instance::Fmi3Cs(fmi3::CoSimulation::new(self, binary, name, debug_logging)?)),
+            Binding::Fmi3(binary) => Ok(match self.interface {
+                Interface::CoSimulation => Instance::Fmi3Cs(fmi3::CoSimulation::new(self, binary, name, debug_logging)?),
+                Interface::ModelExchange => {
+                    Instance::Fmi3Me(Box::new(fmi3::instantiate_model_exchange(self, binary, name, debug_logging)?))
+                }
+            }),
         }
     }
 }
@@ -318,10 +325,12 @@ pub enum Step {
 /// communication point, and a match inlines where a virtual call cannot.
 pub enum Instance<'a> {
     Fmi2Cs(fmi2::CoSimulation<'a>),
-    /// Integrated by the runner (see [`fmi2::ModelExchange`]); boxed, as it carries the
+    /// Integrated by the runner (see [`exchange::ModelExchange`]); boxed, as it carries the
     /// integrator.
     Fmi2Me(Box<fmi2::ModelExchange<'a>>),
     Fmi3Cs(fmi3::CoSimulation<'a>),
+    /// Integrated by the runner, as FMI 2.0's.
+    Fmi3Me(Box<fmi3::ModelExchange<'a>>),
 }
 
 impl Instance<'_> {
@@ -331,6 +340,7 @@ impl Instance<'_> {
         match self {
             Instance::Fmi2Cs(_) | Instance::Fmi3Cs(_) => {}
             Instance::Fmi2Me(i) => i.set_solver(solver),
+            Instance::Fmi3Me(i) => i.set_solver(solver),
         }
     }
 
@@ -340,6 +350,7 @@ impl Instance<'_> {
             Instance::Fmi2Cs(i) => i.setup_experiment(tolerance, start, stop),
             Instance::Fmi3Cs(i) => i.setup_experiment(tolerance, start, stop),
             Instance::Fmi2Me(i) => i.setup_experiment(tolerance, start, stop),
+            Instance::Fmi3Me(i) => i.setup_experiment(tolerance, start, stop),
         }
     }
 
@@ -349,6 +360,7 @@ impl Instance<'_> {
             Instance::Fmi2Cs(i) => i.enter_initialization_mode(),
             Instance::Fmi3Cs(i) => i.enter_initialization_mode(),
             Instance::Fmi2Me(i) => i.enter_initialization_mode(),
+            Instance::Fmi3Me(i) => i.enter_initialization_mode(),
         }
     }
 
@@ -358,6 +370,7 @@ impl Instance<'_> {
             Instance::Fmi2Cs(i) => i.exit_initialization_mode(),
             Instance::Fmi3Cs(i) => i.exit_initialization_mode(),
             Instance::Fmi2Me(i) => i.exit_initialization_mode(),
+            Instance::Fmi3Me(i) => i.exit_initialization_mode(),
         }
     }
 
@@ -367,6 +380,7 @@ impl Instance<'_> {
             Instance::Fmi2Cs(i) => i.set(variable, value),
             Instance::Fmi3Cs(i) => i.set(variable, value),
             Instance::Fmi2Me(i) => i.set(variable, value),
+            Instance::Fmi3Me(i) => i.set(variable, value),
         }
     }
 
@@ -388,6 +402,7 @@ impl Instance<'_> {
             Instance::Fmi2Cs(i) => i.read(reader, out),
             Instance::Fmi3Cs(i) => i.read(reader, out),
             Instance::Fmi2Me(i) => i.read(reader, out),
+            Instance::Fmi3Me(i) => i.read(reader, out),
         }
     }
 
@@ -397,6 +412,7 @@ impl Instance<'_> {
         match self {
             Instance::Fmi2Cs(i) => i.do_step(t, h),
             Instance::Fmi2Me(i) => i.do_step(t, h),
+            Instance::Fmi3Me(i) => i.do_step(t, h),
             Instance::Fmi3Cs(i) => i.do_step(t, h),
         }
     }
@@ -407,6 +423,7 @@ impl Instance<'_> {
         match self {
             Instance::Fmi2Cs(_) | Instance::Fmi3Cs(_) => None,
             Instance::Fmi2Me(i) => Some(i.counters()),
+            Instance::Fmi3Me(i) => Some(i.counters()),
         }
     }
 
@@ -414,7 +431,7 @@ impl Instance<'_> {
     /// the simulation there.
     pub fn handle_event(&mut self, time: f64) -> Result<Option<String>, String> {
         match self {
-            Instance::Fmi2Cs(_) | Instance::Fmi2Me(_) => Ok(None),
+            Instance::Fmi2Cs(_) | Instance::Fmi2Me(_) | Instance::Fmi3Me(_) => Ok(None),
             Instance::Fmi3Cs(i) => i.handle_event(time),
         }
     }

@@ -309,6 +309,9 @@ pub struct Capabilities {
     pub has_event_mode: bool,
     /// FMI 3.0 Co-Simulation: `fmi3DoStep` may return early at an event.
     pub might_return_early_from_do_step: bool,
+    /// Model Exchange: the FMU needs `CompletedIntegratorStep` after every integrator step
+    /// (FMI 3.0's `needsCompletedIntegratorStep`; FMI 2.0 FMUs get the call anyway).
+    pub needs_completed_integrator_step: bool,
 }
 
 /// An FMU's description, whatever its version.

@@ -53,9 +53,19 @@ pub enum Call {
     Fmi3EnterStepMode,
     Fmi3Terminate,
     Fmi3FreeInstance,
+    // FMI 3.0 Model Exchange.
+    Fmi3InstantiateModelExchange,
+    Fmi3EnterContinuousTimeMode,
+    Fmi3CompletedIntegratorStep,
+    Fmi3SetTime,
+    Fmi3SetContinuousStates,
+    Fmi3GetContinuousStateDerivatives,
+    Fmi3GetEventIndicators,
+    Fmi3GetContinuousStates,
+    Fmi3GetNumberOfContinuousStates,
 }
 
-const ALL: [Call; 40] = [
+const ALL: [Call; 49] = [
     Call::None,
     Call::Load,
     Call::Instantiate,
@@ -96,6 +106,15 @@ const ALL: [Call; 40] = [
     Call::Fmi3EnterStepMode,
     Call::Fmi3Terminate,
     Call::Fmi3FreeInstance,
+    Call::Fmi3InstantiateModelExchange,
+    Call::Fmi3EnterContinuousTimeMode,
+    Call::Fmi3CompletedIntegratorStep,
+    Call::Fmi3SetTime,
+    Call::Fmi3SetContinuousStates,
+    Call::Fmi3GetContinuousStateDerivatives,
+    Call::Fmi3GetEventIndicators,
+    Call::Fmi3GetContinuousStates,
+    Call::Fmi3GetNumberOfContinuousStates,
 ];
 
 impl Call {
@@ -142,6 +161,15 @@ impl Call {
             Call::Fmi3EnterStepMode => "fmi3EnterStepMode",
             Call::Fmi3Terminate => "fmi3Terminate",
             Call::Fmi3FreeInstance => "fmi3FreeInstance",
+            Call::Fmi3InstantiateModelExchange => "fmi3InstantiateModelExchange",
+            Call::Fmi3EnterContinuousTimeMode => "fmi3EnterContinuousTimeMode",
+            Call::Fmi3CompletedIntegratorStep => "fmi3CompletedIntegratorStep",
+            Call::Fmi3SetTime => "fmi3SetTime",
+            Call::Fmi3SetContinuousStates => "fmi3SetContinuousStates",
+            Call::Fmi3GetContinuousStateDerivatives => "fmi3GetContinuousStateDerivatives",
+            Call::Fmi3GetEventIndicators => "fmi3GetEventIndicators",
+            Call::Fmi3GetContinuousStates => "fmi3GetContinuousStates",
+            Call::Fmi3GetNumberOfContinuousStates => "fmi3GetNumberOfContinuousStates (and EventIndicators)",
         }
     }
 

@@ -6,8 +6,8 @@
 //! arguments, FMU state, variable steps, threads, reproducibility, Model Exchange events),
 //! each in a child process ([`isolation`]) so that a crash or a hang is a finding.
 //!
-//! The FMI 2.0 set lives in `fmi2/`; an FMI 3.0 set goes beside it, chosen by the
-//! description's `fmiVersion`.
+//! The FMI 2.0 set lives in `fmi2/`, the FMI 3.0 set in `fmi3/`, chosen by the description's
+//! `fmiVersion`.
 
 // A probe's `Failure` (the findings' call, state, variable, value and log) is 160 bytes; it is
 // built once per finding, and boxing it would only add an allocation to the happy path's
@@ -16,6 +16,7 @@
 
 mod archive;
 mod fmi2;
+mod fmi3;
 mod isolation;
 pub mod report;
 
@@ -58,7 +59,7 @@ fn fmi_version(xml: &str) -> Option<String> {
 }
 
 /// Validates the FMU at `path`. `Err` when the validation could not run (the FMU file is
-/// missing, the validator cannot start its probes, FMI 3.0, an interrupt); everything wrong
+/// missing, the validator cannot start its probes, an interrupt); everything wrong
 /// with the FMU itself is a finding in the report.
 pub fn validate(path: &Path, options: &Options) -> Result<Report, String> {
     let started = Instant::now();
@@ -74,9 +75,7 @@ pub fn validate(path: &Path, options: &Options) -> Result<Report, String> {
     match archive.and_then(|a| a.xml) {
         None => report.findings.push(Finding::skipped("dynamic checks", "not run: the archive or its modelDescription.xml is unusable")),
         Some(xml) => match fmi_version(&xml) {
-            Some(v) if v.starts_with('3') => {
-                return Err(format!("{}: FMI {v}: runner validate checks FMI 2.0 FMUs so far", path.display()));
-            }
+            Some(v) if v.starts_with('3') => fmi3::validate(&xml, &dir, work.path(), options, &mut report)?,
             _ => fmi2::validate(&xml, &dir, work.path(), options, &mut report)?,
         },
     }
@@ -100,10 +99,11 @@ pub fn probe_main(args: &[OsString]) -> i32 {
     }
     // SAFETY: a descriptor this process just created and owns.
     let out = fmi2::probes_out(unsafe { std::fs::File::from_raw_fd(protocol) });
-    // The FMI version's own probes (an FMI 3.0 set goes beside the 2.0 one).
+    // The FMI version's own probes.
     let version = args.iter().position(|a| a == "--fmi").and_then(|i| args.get(i + 1)).map(|v| v.to_string_lossy().into_owned());
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match version.as_deref() {
         Some("2") => fmi2::child(args, &out),
+        Some("3") => fmi3::child(args, &out),
         other => Err(format!("no probes for FMI version {other:?}")),
     }));
     match result {

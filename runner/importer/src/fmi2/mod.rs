@@ -13,9 +13,11 @@ use std::path::Path;
 use fmi_c::fmi2 as c;
 use libloading::os::unix::{Library, Symbol, RTLD_LOCAL, RTLD_NOW};
 
+pub use crate::exchange::MAX_EVENT_ITERATIONS;
 pub use cosimulation::CoSimulation;
 pub use description::describe;
-pub use model_exchange::{ModelExchange, MAX_EVENT_ITERATIONS};
+pub(crate) use model_exchange::instantiate as instantiate_model_exchange;
+pub use model_exchange::{Exchange2, ModelExchange};
 
 use crate::logging::LogContext;
 use crate::model::Interface;

@@ -3,53 +3,36 @@
 //! a communication step is then a loop of `fmi3DoStep` calls, each event handled in Event Mode
 //! (`fmi3UpdateDiscreteStates` until no update is needed), until the step's end is reached.
 
-use std::ffi::{c_int, c_void, CStr, CString};
+use std::ffi::{c_void, CString};
 
-use fmi_c::fmi3 as c;
-
-use super::{log_message, Binary, Environment};
+use super::component::Component;
+use super::{log_message, Binary, CoSimulationApi, Environment};
 use crate::logging::LogContext;
-use crate::model::{Causality, Kind, Variable};
-use crate::reader::Buffer;
 use crate::trace::{self, Call};
-use crate::{Fmu, Reader, Step, Value};
-
-const OK: c_int = c::Status::Ok as c_int;
-const WARNING: c_int = c::Status::Warning as c_int;
-const ERROR: c_int = c::Status::Error as c_int;
-const FATAL: c_int = c::Status::Fatal as c_int;
+use crate::{Fmu, Reader, Step, Value, Variable};
 
 /// More rounds of `fmi3UpdateDiscreteStates` than this at one event means the FMU never settles.
 pub const MAX_EVENT_ITERATIONS: usize = 1000;
 
 /// One Co-Simulation instance of an FMI 3.0 FMU.
 pub struct CoSimulation<'a> {
-    binary: &'a Binary,
-    name: String,
-    instance: c::Instance,
-    // Must stay at a fixed address while the instance lives: the FMU keeps the pointer.
-    env: Box<Environment>,
+    component: Component<'a>,
+    cs: CoSimulationApi,
     event_mode: bool,
     early_return: bool,
-    /// Setup values, passed on by fmi3EnterInitializationMode.
-    experiment: (Option<f64>, f64, f64),
-    /// fmi3Terminate is allowed (initialized, and no fmi3Error since).
-    terminate_allowed: bool,
-    fatal: bool,
-    /// Instantiated and not yet initializing: structural parameters are set in Configuration Mode.
-    instantiated: bool,
 }
 
 impl<'a> CoSimulation<'a> {
     /// fmi3InstantiateCoSimulation; `debug_logging` sets loggingOn.
     pub(crate) fn new(fmu: &'a Fmu, binary: &'a Binary, name: &str, debug_logging: bool) -> Result<CoSimulation<'a>, String> {
         let caps = fmu.description.co_simulation.clone().unwrap_or_default();
+        let cs = binary.api.co_simulation.expect("resolved for Co-Simulation");
         let env = Box::new(Environment { name: name.to_owned(), log: LogContext::default() });
         let c_name = CString::new(name).map_err(|_| format!("instance name {name:?} contains a NUL byte"))?;
         trace::enter(Call::Fmi3Instantiate, f64::NAN);
         // SAFETY: every pointer is valid for the call; the environment outlives the instance.
         let instance = unsafe {
-            (binary.api.instantiate_co_simulation)(
+            (cs.instantiate)(
                 c_name.as_ptr(),
                 fmu.token.as_ptr(),
                 fmu.resource_uri.as_ptr(),
@@ -64,82 +47,31 @@ impl<'a> CoSimulation<'a> {
                 None,
             )
         };
-        let instance = CoSimulation {
-            binary,
-            name: name.to_owned(),
-            instance,
-            env,
-            event_mode: caps.has_event_mode,
-            early_return: caps.might_return_early_from_do_step,
-            experiment: (None, 0.0, 0.0),
-            terminate_allowed: false,
-            fatal: false,
-            instantiated: true,
-        };
-        if instance.instance.is_null() {
-            return Err(instance.failure("fmi3InstantiateCoSimulation", "returned NULL"));
-        }
-        Ok(instance)
-    }
-
-    fn failure(&self, call: &str, what: &str) -> String {
-        match self.env.log.take_problem() {
-            Some(message) => format!("{}: {call} {what}: {message}", self.name),
-            None => format!("{}: {call} {what} (the FMU logged no reason)", self.name),
-        }
-    }
-
-    #[inline]
-    fn check(&mut self, call: &str, status: c_int) -> Result<(), String> {
-        match status {
-            OK | WARNING => Ok(()),
-            _ => Err(self.refused(call, status)),
-        }
-    }
-
-    #[cold]
-    fn refused(&mut self, call: &str, status: c_int) -> String {
-        if status == FATAL {
-            self.fatal = true;
-        }
-        if status == ERROR || status == FATAL {
-            self.terminate_allowed = false;
-        }
-        self.failure(call, &format!("returned {}", c::status_name(status)))
+        let component = Component::new(binary, name, instance, env, "fmi3InstantiateCoSimulation")?;
+        Ok(CoSimulation { component, cs, event_mode: caps.has_event_mode, early_return: caps.might_return_early_from_do_step })
     }
 
     /// Keeps tolerance, start and stop time for fmi3EnterInitializationMode.
     pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
-        self.experiment = (tolerance, start, stop);
-        Ok(())
+        self.component.setup_experiment(tolerance, start, stop)
     }
 
     /// fmi3EnterInitializationMode with the experiment's tolerance, start and stop time.
     pub fn enter_initialization_mode(&mut self) -> Result<(), String> {
-        let (tolerance, start, stop) = self.experiment;
-        trace::enter(Call::Fmi3EnterInitializationMode, start);
-        let status = unsafe {
-            (self.binary.api.enter_initialization_mode)(self.instance, tolerance.is_some(), tolerance.unwrap_or(0.0), start, true, stop)
-        };
-        self.instantiated = false;
-        self.check("fmi3EnterInitializationMode", status)
+        self.component.enter_initialization_mode()
     }
 
     /// fmi3ExitInitializationMode, then (with Event Mode) the initial event iteration and
     /// fmi3EnterStepMode.
     pub fn exit_initialization_mode(&mut self) -> Result<(), String> {
-        trace::enter(Call::Fmi3ExitInitializationMode, self.experiment.1);
-        let status = unsafe { (self.binary.api.exit_initialization_mode)(self.instance) };
-        self.check("fmi3ExitInitializationMode", status)?;
-        self.terminate_allowed = true;
+        self.component.exit_initialization_mode()?;
         if self.event_mode {
             if self.update_discrete_states("after initialization")? {
-                return Err(format!("{}: the FMU asked to terminate the simulation during initialization", self.name));
+                return Err(format!("{}: the FMU asked to terminate the simulation during initialization", self.component.name));
             }
             trace::enter(Call::Fmi3EnterStepMode, f64::NAN);
-            trace::enter(Call::Fmi3EnterStepMode, f64::NAN);
-            let status = unsafe { (self.binary.api.enter_step_mode)(self.instance) };
-            self.check("fmi3EnterStepMode", status)?;
+            let status = unsafe { (self.cs.enter_step_mode)(self.component.instance) };
+            self.component.check("fmi3EnterStepMode", status)?;
         }
         Ok(())
     }
@@ -148,182 +80,32 @@ impl<'a> CoSimulation<'a> {
     /// terminate the simulation.
     fn update_discrete_states(&mut self, when: &str) -> Result<bool, String> {
         for _ in 0..MAX_EVENT_ITERATIONS {
-            let (mut again, mut terminate, mut nominals, mut values, mut next_defined, mut next) = (false, false, false, false, false, 0.0);
             trace::enter(Call::Fmi3UpdateDiscreteStates, f64::NAN);
-            let status = unsafe {
-                (self.binary.api.update_discrete_states)(
-                    self.instance,
-                    &mut again,
-                    &mut terminate,
-                    &mut nominals,
-                    &mut values,
-                    &mut next_defined,
-                    &mut next,
-                )
-            };
-            self.check("fmi3UpdateDiscreteStates", status)?;
-            if terminate {
+            let (status, update) = self.component.update_discrete_states();
+            self.component.check("fmi3UpdateDiscreteStates", status)?;
+            if update.terminate {
                 return Ok(true);
             }
-            if !again {
+            if !update.again {
                 return Ok(false);
             }
         }
-        Err(format!("{}: event iteration {when} did not converge: fmi3UpdateDiscreteStates still asked for an update after {MAX_EVENT_ITERATIONS} rounds", self.name))
+        Err(format!(
+            "{}: event iteration {when} did not converge: fmi3UpdateDiscreteStates still asked for an update after {MAX_EVENT_ITERATIONS} rounds",
+            self.component.name
+        ))
     }
 
     /// Sets one variable (a scalar, or an array whole); structural parameters are set in
     /// Configuration Mode, which this enters and leaves around the call.
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
-        let configure = self.instantiated && variable.causality == Causality::StructuralParameter;
-        if configure {
-            trace::enter(Call::Fmi3EnterConfigurationMode, f64::NAN);
-            let status = unsafe { (self.binary.api.enter_configuration_mode)(self.instance) };
-            self.check("fmi3EnterConfigurationMode", status)?;
-        }
-        // A refused value is the error to report: after it the FMU may refuse leaving too.
-        self.set_values(variable, value)?;
-        if configure {
-            trace::enter(Call::Fmi3ExitConfigurationMode, f64::NAN);
-            let status = unsafe { (self.binary.api.exit_configuration_mode)(self.instance) };
-            self.check("fmi3ExitConfigurationMode", status)?;
-        }
-        Ok(())
-    }
-
-    fn set_values(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
-        let items: Vec<&Value> = match value {
-            Value::List(items) => items.iter().collect(),
-            single => vec![single],
-        };
-        let vr = [variable.value_reference];
-        trace::enter(Call::Fmi3Set, f64::NAN);
-        let (inst, api, n) = (self.instance, &self.binary.api, items.len());
-        let wrong = || format!("{}: {value:?} is not a value of its type {}", variable.name, variable.kind);
-        macro_rules! set {
-            ($f:ident, $conv:expr) => {{
-                let values = items.iter().map(|v| $conv(*v)).collect::<Option<Vec<_>>>().ok_or_else(wrong)?;
-                // SAFETY: one value reference and `n` values of its type.
-                unsafe { (api.$f)(inst, vr.as_ptr(), 1, values.as_ptr(), n) }
-            }};
-        }
-        let int = |v: &Value| match v {
-            Value::Integer(i) => Some(i128::from(*i)),
-            Value::Int(i) => Some(*i),
-            _ => None,
-        };
-        let status = match variable.kind {
-            Kind::Real => set!(set_float64, |v: &Value| if let Value::Real(x) = v { Some(*x) } else { None }),
-            Kind::Float32 => set!(set_float32, |v: &Value| if let Value::Real(x) = v { Some(*x as f32) } else { None }),
-            Kind::Int8 => set!(set_int8, |v| int(v).and_then(|i| i8::try_from(i).ok())),
-            Kind::UInt8 => set!(set_uint8, |v| int(v).and_then(|i| u8::try_from(i).ok())),
-            Kind::Int16 => set!(set_int16, |v| int(v).and_then(|i| i16::try_from(i).ok())),
-            Kind::UInt16 => set!(set_uint16, |v| int(v).and_then(|i| u16::try_from(i).ok())),
-            Kind::Integer => set!(set_int32, |v| int(v).and_then(|i| i32::try_from(i).ok())),
-            Kind::UInt32 => set!(set_uint32, |v| int(v).and_then(|i| u32::try_from(i).ok())),
-            Kind::Int64 | Kind::Enumeration => set!(set_int64, |v| int(v).and_then(|i| i64::try_from(i).ok())),
-            Kind::UInt64 => set!(set_uint64, |v| int(v).and_then(|i| u64::try_from(i).ok())),
-            Kind::Boolean => set!(set_boolean, |v: &Value| if let Value::Boolean(b) = v { Some(*b) } else { None }),
-            Kind::String => {
-                let texts = items
-                    .iter()
-                    .map(|v| match v {
-                        Value::String(s) => {
-                            CString::new(s.as_str()).map_err(|_| format!("the value of {} contains a NUL byte", variable.name))
-                        }
-                        _ => Err(wrong()),
-                    })
-                    .collect::<Result<Vec<CString>, String>>()?;
-                let pointers: Vec<*const std::ffi::c_char> = texts.iter().map(|t| t.as_ptr()).collect();
-                unsafe { (api.set_string)(inst, vr.as_ptr(), 1, pointers.as_ptr(), n) }
-            }
-            Kind::Binary => {
-                let bytes = items
-                    .iter()
-                    .map(|v| if let Value::Binary(b) = v { Some(b) } else { None })
-                    .collect::<Option<Vec<&Vec<u8>>>>()
-                    .ok_or_else(wrong)?;
-                let sizes: Vec<usize> = bytes.iter().map(|b| b.len()).collect();
-                let pointers: Vec<*const u8> = bytes.iter().map(|b| b.as_ptr()).collect();
-                unsafe { (api.set_binary)(inst, vr.as_ptr(), 1, sizes.as_ptr(), pointers.as_ptr(), n) }
-            }
-            Kind::Clock => return Err(format!("{} is a Clock: clocks are not supported", variable.name)),
-        };
-        self.check(&format!("fmi3Set{} of {}", variable.kind, variable.name), status)
+        self.component.set(variable, value)
     }
 
     /// Reads the variables of `reader` into `out` (one f64 per element, Booleans as 0/1).
     #[inline]
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
-        if reader.direct {
-            if let Some(group) = reader.groups.first() {
-                trace::enter(Call::Fmi3Get, f64::NAN);
-                let status = unsafe {
-                    (self.binary.api.get_float64)(self.instance, group.vrs.as_ptr(), group.vrs.len(), out.as_mut_ptr(), out.len())
-                };
-                self.check("fmi3GetFloat64", status)?;
-            }
-            return Ok(());
-        }
-        self.read_groups(reader)?;
-        reader.gather(out);
-        Ok(())
-    }
-
-    fn read_groups(&mut self, reader: &mut Reader) -> Result<(), String> {
-        let inst = self.instance;
-        trace::enter(Call::Fmi3Get, f64::NAN);
-        for group in &mut reader.groups {
-            let (vrs, nvr) = (group.vrs.as_ptr(), group.vrs.len());
-            let api = &self.binary.api;
-            macro_rules! get {
-                ($f:ident, $b:expr) => {
-                    // SAFETY: the buffer holds every element of the group's variables.
-                    unsafe { (api.$f)(inst, vrs, nvr, $b.as_mut_ptr(), $b.len()) }
-                };
-            }
-            let status = match &mut group.buffer {
-                Buffer::F64(b) => get!(get_float64, b),
-                Buffer::F32(b) => get!(get_float32, b),
-                Buffer::I8(b) => get!(get_int8, b),
-                Buffer::U8(b) => get!(get_uint8, b),
-                Buffer::I16(b) => get!(get_int16, b),
-                Buffer::U16(b) => get!(get_uint16, b),
-                Buffer::I32(b) => get!(get_int32, b),
-                Buffer::U32(b) => get!(get_uint32, b),
-                Buffer::I64(b) => get!(get_int64, b),
-                Buffer::U64(b) => get!(get_uint64, b),
-                Buffer::Bool(b) => get!(get_boolean, b),
-                Buffer::Text(texts) => {
-                    let mut pointers = vec![std::ptr::null::<std::ffi::c_char>(); texts.len()];
-                    let status = unsafe { (api.get_string)(inst, vrs, nvr, pointers.as_mut_ptr(), pointers.len()) };
-                    if status == OK || status == WARNING {
-                        for (t, p) in texts.iter_mut().zip(&pointers) {
-                            // SAFETY: the FMU returned NUL-terminated strings valid until its next call.
-                            *t = if p.is_null() { String::new() } else { unsafe { CStr::from_ptr(*p) }.to_string_lossy().into_owned() };
-                        }
-                    }
-                    status
-                }
-                Buffer::Bytes(bytes) => {
-                    let mut sizes = vec![0usize; bytes.len()];
-                    let mut pointers = vec![std::ptr::null::<u8>(); bytes.len()];
-                    let status = unsafe { (api.get_binary)(inst, vrs, nvr, sizes.as_mut_ptr(), pointers.as_mut_ptr(), pointers.len()) };
-                    if status == OK || status == WARNING {
-                        for ((b, p), n) in bytes.iter_mut().zip(&pointers).zip(&sizes) {
-                            // SAFETY: the FMU returned `n` bytes at `p`, valid until its next call.
-                            *b = if p.is_null() { Vec::new() } else { unsafe { std::slice::from_raw_parts(*p, *n) }.to_vec() };
-                        }
-                    }
-                    status
-                }
-                Buffer::IntBool(_) => return Err(format!("{}: an FMI 2.0 Boolean buffer in an FMI 3.0 reader", self.name)),
-            };
-            if !(status == OK || status == WARNING) {
-                return Err(self.refused(&format!("fmi3Get{}", group.kind), status));
-            }
-        }
-        Ok(())
+        self.component.read(reader, out)
     }
 
     /// One `fmi3DoStep` from `t` over `h`: [`Step::Done`] at `t + h`; [`Step::Event`] when the
@@ -333,11 +115,11 @@ impl<'a> CoSimulation<'a> {
         let t_end = t + h;
         let (mut event, mut terminate, mut early, mut last) = (false, false, false, t);
         trace::enter(Call::Fmi3DoStep, t);
-        let status = unsafe { (self.binary.api.do_step)(self.instance, t, h, true, &mut event, &mut terminate, &mut early, &mut last) };
-        self.check("fmi3DoStep", status)?;
+        let status = unsafe { (self.cs.do_step)(self.component.instance, t, h, true, &mut event, &mut terminate, &mut early, &mut last) };
+        self.component.check("fmi3DoStep", status)?;
         let reached = if early && self.early_return { last } else { t_end };
         if terminate {
-            let reason = self.env.log.take_problem().unwrap_or_else(|| "the FMU asked to terminate the simulation".to_owned());
+            let reason = self.component.env.log.take_problem().unwrap_or_else(|| "the FMU asked to terminate the simulation".to_owned());
             return Ok(Step::Ended {
                 reason: format!("the model ended the simulation at t = {reached}: {reason}"),
                 last_time: Some(reached),
@@ -349,7 +131,7 @@ impl<'a> CoSimulation<'a> {
         if reached < t_end {
             // Returned early without asking for event handling: the rest of the step is still to do.
             if reached <= t || reached.is_nan() {
-                return Err(format!("{}: fmi3DoStep returned early at t = {reached} without advancing from t = {t}", self.name));
+                return Err(format!("{}: fmi3DoStep returned early at t = {reached} without advancing from t = {t}", self.component.name));
             }
             return Ok(Step::Event { time: reached });
         }
@@ -363,32 +145,15 @@ impl<'a> CoSimulation<'a> {
             return Ok(None);
         }
         trace::enter(Call::Fmi3EnterEventMode, time);
-        let status = unsafe { (self.binary.api.enter_event_mode)(self.instance) };
-        self.check("fmi3EnterEventMode", status)?;
+        let status = unsafe { (self.component.binary.api.enter_event_mode)(self.component.instance) };
+        self.component.check("fmi3EnterEventMode", status)?;
         if self.update_discrete_states(&format!("at t = {time}"))? {
-            let reason = self.env.log.take_problem().unwrap_or_else(|| "the FMU asked to terminate the simulation".to_owned());
+            let reason = self.component.env.log.take_problem().unwrap_or_else(|| "the FMU asked to terminate the simulation".to_owned());
             return Ok(Some(format!("the model ended the simulation at t = {time}: {reason}")));
         }
         trace::enter(Call::Fmi3EnterStepMode, time);
-        let status = unsafe { (self.binary.api.enter_step_mode)(self.instance) };
-        self.check("fmi3EnterStepMode", status)?;
+        let status = unsafe { (self.cs.enter_step_mode)(self.component.instance) };
+        self.component.check("fmi3EnterStepMode", status)?;
         Ok(None)
-    }
-}
-
-impl Drop for CoSimulation<'_> {
-    fn drop(&mut self) {
-        if self.fatal {
-            return;
-        }
-        // SAFETY: the instance is live; fmi3Terminate only where allowed; fmi3FreeInstance last.
-        unsafe {
-            if self.terminate_allowed {
-                trace::enter(Call::Fmi3Terminate, f64::NAN);
-                (self.binary.api.terminate)(self.instance);
-            }
-            trace::enter(Call::Fmi3FreeInstance, f64::NAN);
-            (self.binary.api.free_instance)(self.instance);
-        }
     }
 }

@@ -90,7 +90,10 @@ pub fn describe(md: &s::ModelDescription) -> Description {
         might_return_early_from_do_step: cs.might_return_early_from_do_step,
         ..common(&cs.common)
     });
-    let model_exchange = md.model_exchange.as_ref().map(|me| common(&me.common));
+    let model_exchange = md
+        .model_exchange
+        .as_ref()
+        .map(|me| Capabilities { needs_completed_integrator_step: me.needs_completed_integrator_step, ..common(&me.common) });
     let variables = md
         .model_variables
         .iter()

@@ -20,7 +20,8 @@ use crate::isolation::{self, CallRecord, End, Message, Progress};
 use crate::report::{Finding, Report, Severity};
 use crate::Options;
 use model::Model;
-use probes::{Ctx, Out};
+use probes::Ctx;
+pub(crate) use probes::Out;
 use table::{Function, Interface, State};
 
 /// FMI 2.0's platform folder for this machine (the importer's).
@@ -234,7 +235,7 @@ impl Prober<'_> {
 }
 
 /// The finding for a probe process that died or was killed.
-fn death(
+pub(crate) fn death(
     end: &End,
     in_call: Option<&CallRecord>,
     last_call: Option<&CallRecord>,

@@ -1,0 +1,578 @@
+//! The runner's integration of a Model Exchange FMU, the same for FMI 2.0 and 3.0: the FMU
+//! supplies derivatives and event indicators, the runner's integrator (crate `solvers`) steps
+//! through each communication interval and locates state events on its dense output by the sign
+//! changes of the indicators, and the FMU's event machinery runs at every state event, time
+//! event (`nextEventTime`) and step event (`CompletedIntegratorStep`): event mode, the discrete
+//! update (`fmi2NewDiscreteStates`, `fmi3UpdateDiscreteStates`) until no further one is needed
+//! (at most [`MAX_EVENT_ITERATIONS`] times), continuous-time mode, the states read back.
+//! `terminateSimulation` ends the run as an early end.
+//!
+//! What differs between the versions (the functions' names and arguments, how the instance is
+//! made and initialized, the sizes) is the [`Exchange`] trait, which each binding implements
+//! over its raw calls.
+
+use std::cell::{Cell, RefCell};
+use std::ffi::c_int;
+
+use solvers::{Advance, Integrator, OdeSystem, Settings};
+
+use crate::logging::LogContext;
+use crate::trace::{self, Call};
+use crate::{Reader, Solver, Step, Value, Variable};
+
+/// Most discrete-update calls one event may take before the run is stopped: an event iteration
+/// that does not settle in this many super-dense steps will not settle at all.
+pub const MAX_EVENT_ITERATIONS: usize = 1000;
+
+/// Most events one communication step may have (the FMU is then chattering).
+const MAX_EVENTS_PER_STEP: usize = 10_000;
+
+/// The relative tolerance when neither the run nor the FMU's DefaultExperiment gives one.
+const DEFAULT_TOLERANCE: f64 = 1e-6;
+
+// The status codes, the same numbers in FMI 2.0 and 3.0.
+const OK: c_int = 0;
+const WARNING: c_int = 1;
+const DISCARD: c_int = 2;
+const ERROR: c_int = 3;
+const FATAL: c_int = 4;
+
+/// What one discrete update (`fmi2NewDiscreteStates`, `fmi3UpdateDiscreteStates`) returned.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EventUpdate {
+    /// Another update is needed at the same time (`newDiscreteStatesNeeded`, `discreteStatesNeedUpdate`).
+    pub again: bool,
+    /// The model asks to end the simulation.
+    pub terminate: bool,
+    /// The next time event, when one is defined.
+    pub next_event_time: Option<f64>,
+}
+
+/// A call's trace code and its C name, for the supervisor and the messages.
+pub type Named = (Call, &'static str);
+
+/// The names of the calls the integration makes, in one FMI version.
+pub struct Names {
+    pub set_time: Named,
+    pub set_continuous_states: Named,
+    pub get_derivatives: Named,
+    pub get_event_indicators: Named,
+    pub get_continuous_states: Named,
+    pub enter_event_mode: Named,
+    pub update_discrete_states: Named,
+    pub enter_continuous_time_mode: Named,
+    pub completed_integrator_step: Named,
+    /// The update's flag that asks for another iteration.
+    pub again_flag: &'static str,
+}
+
+/// One Model Exchange instance as the integration drives it: the calls that differ between FMI
+/// 2.0 and 3.0 (names, argument conventions, instantiation and initialization). The raw calls
+/// return the FMU's status; the integration decides what a status means.
+pub trait Exchange {
+    /// The version's names of the calls.
+    const NAMES: Names;
+
+    /// The standard's name of a status (`fmi2Error`, `fmi3Error`).
+    fn status_name(status: c_int) -> &'static str;
+    /// The instance's name, for messages.
+    fn name(&self) -> &str;
+    /// What the FMU logged.
+    fn log(&self) -> &LogContext;
+    /// Ok for OK and Warning, else the failure of `call` with the FMU's logged reason.
+    fn check(&mut self, call: &str, status: c_int) -> Result<(), String>;
+    /// Records what a status other than OK or Warning means for the calls still allowed.
+    fn note_status(&mut self, status: c_int);
+
+    /// Sets the time.
+    fn set_time(&self, t: f64) -> c_int;
+    /// Sets the continuous states (all of them, in ModelStructure order).
+    fn set_continuous_states(&self, x: &[f64]) -> c_int;
+    /// The state derivatives.
+    fn get_derivatives(&self, dx: &mut [f64]) -> c_int;
+    /// The event indicators.
+    fn get_event_indicators(&self, z: &mut [f64]) -> c_int;
+    /// The continuous states.
+    fn get_continuous_states(&self, x: &mut [f64]) -> c_int;
+    /// Enters event mode.
+    fn enter_event_mode(&self) -> c_int;
+    /// One discrete update in event mode.
+    fn update_discrete_states(&self) -> (c_int, EventUpdate);
+    /// Enters continuous-time mode.
+    fn enter_continuous_time_mode(&self) -> c_int;
+    /// Whether the FMU needs `CompletedIntegratorStep` after every step (FMI 2.0 always; FMI
+    /// 3.0 when it declares `needsCompletedIntegratorStep`).
+    fn needs_completed_integrator_step(&self) -> bool;
+    /// `CompletedIntegratorStep` (with noSetFMUStatePriorToCurrentPoint true): the status,
+    /// enterEventMode and terminateSimulation.
+    fn completed_integrator_step(&self) -> (c_int, bool, bool);
+
+    /// Sets up the experiment (FMI 3.0 keeps it for initialization).
+    fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String>;
+    /// Enters initialization mode.
+    fn enter_initialization_mode(&mut self) -> Result<(), String>;
+    /// Leaves initialization mode, into event mode.
+    fn exit_initialization_mode(&mut self) -> Result<(), String>;
+    /// Sets one variable.
+    fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String>;
+    /// Reads the variables of `reader` into `out`.
+    fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String>;
+    /// The numbers of states and event indicators after initialization, given the
+    /// description's (FMI 3.0 asks the FMU: structural parameters may change them).
+    fn sizes(&mut self, nx: usize, nz: usize) -> Result<(usize, usize), String> {
+        Ok((nx, nz))
+    }
+}
+
+/// What went wrong inside the integrator's calls of the FMU, for the error message.
+#[derive(Debug, Clone)]
+struct Trouble {
+    /// The FMU's status (Discard, Error, ...) or OK for non-finite values.
+    status: c_int,
+    message: String,
+}
+
+/// The FMU seen as the integrator's ODE system: every right-hand side sets the time (when it
+/// changed) and the states and asks for the derivatives; every indicator evaluation likewise.
+/// A failing call cannot return an error through `OdeSystem`: it records the trouble and
+/// returns NaN, on which the integrator stops (an Error or Fatal poisons every later call, so
+/// the FMU is not called again).
+///
+/// `N` is the number of states when it is one of the small sizes the runner is compiled for
+/// (0 otherwise, and `nx` holds it): the integrator's stage loops then have a constant length,
+/// which the compiler unrolls, as in an FMU's own solver.
+struct System<'s, C, const N: usize> {
+    calls: &'s C,
+    nx: usize,
+    nz: usize,
+    /// The time last set.
+    time_set: Cell<f64>,
+    /// Set with the first Error or Fatal, or a non-finite event indicator: no further call.
+    /// Apart from `poisoned` so the hot path tests a flag.
+    stopped: Cell<bool>,
+    poisoned: RefCell<Option<Trouble>>,
+    /// The last Discard or non-finite derivative (the integrator may retry a smaller step).
+    last_discard: RefCell<Option<Trouble>>,
+}
+
+impl<C: Exchange, const N: usize> System<'_, C, N> {
+    /// Sets time and states for an evaluation at (t, x); false once poisoned or on failure.
+    #[inline(always)]
+    fn place(&self, t: f64, x: &[f64]) -> bool {
+        if self.stopped.get() {
+            return false;
+        }
+        if t != self.time_set.get() {
+            trace::enter(C::NAMES.set_time.0, t);
+            let status = self.calls.set_time(t);
+            if !accepted(status) {
+                self.trouble(C::NAMES.set_time.1, t, status, false);
+                return false;
+            }
+            self.time_set.set(t);
+        }
+        let nx = self.dim();
+        if nx > 0 {
+            trace::enter(C::NAMES.set_continuous_states.0, t);
+            let status = self.calls.set_continuous_states(&x[..nx]);
+            if !accepted(status) {
+                self.trouble(C::NAMES.set_continuous_states.1, t, status, false);
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Records a status other than OK and Warning: Discard as a refusal the integrator may
+    /// retry with a smaller step, unless `discard_stops`; worse stops the run.
+    #[cold]
+    #[inline(never)]
+    fn trouble(&self, call: &str, t: f64, status: c_int, discard_stops: bool) {
+        let reason = self.calls.log().take_problem().unwrap_or_else(|| "the FMU logged no reason".to_owned());
+        let trouble = Trouble { status, message: format!("{call} at t = {t} returned {}: {reason}", C::status_name(status)) };
+        if status == DISCARD && !discard_stops {
+            *self.last_discard.borrow_mut() = Some(trouble);
+        } else {
+            self.stopped.set(true);
+            *self.poisoned.borrow_mut() = Some(trouble);
+        }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn non_finite(&self, call: &str, t: f64, what: &str, values: &[f64], poison: bool) {
+        let i = values.iter().position(|v| !v.is_finite()).unwrap_or(0);
+        let trouble = Trouble { status: OK, message: format!("{call} at t = {t} returned {what}[{i}] = {}", values[i]) };
+        if poison {
+            self.stopped.set(true);
+            *self.poisoned.borrow_mut() = Some(trouble);
+        } else {
+            *self.last_discard.borrow_mut() = Some(trouble);
+        }
+    }
+}
+
+/// OK or Warning.
+#[inline(always)]
+fn accepted(status: c_int) -> bool {
+    status == OK || status == WARNING
+}
+
+impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
+    #[inline(always)]
+    fn dim(&self) -> usize {
+        if N > 0 {
+            N
+        } else {
+            self.nx
+        }
+    }
+
+    #[inline(always)]
+    fn rhs(&self, t: f64, x: &[f64], dx: &mut [f64]) {
+        if !self.place(t, x) {
+            dx.fill(f64::NAN);
+            return;
+        }
+        let nx = self.dim();
+        trace::enter(C::NAMES.get_derivatives.0, t);
+        let status = self.calls.get_derivatives(&mut dx[..nx]);
+        if !accepted(status) {
+            self.trouble(C::NAMES.get_derivatives.1, t, status, false);
+            dx.fill(f64::NAN);
+        } else if !dx[..nx].iter().fold(true, |ok, v| ok & v.is_finite()) {
+            self.non_finite(C::NAMES.get_derivatives.1, t, "derivatives", dx, false);
+        }
+    }
+
+    fn n_event_indicators(&self) -> usize {
+        self.nz
+    }
+
+    fn event_indicators(&self, t: f64, x: &[f64], z: &mut [f64]) {
+        if !self.place(t, x) {
+            z.fill(f64::NAN);
+            return;
+        }
+        trace::enter(C::NAMES.get_event_indicators.0, t);
+        let status = self.calls.get_event_indicators(&mut z[..self.nz]);
+        // A missed sign change would pass silently: indicators that cannot be evaluated stop
+        // the run, even with a Discard.
+        if !accepted(status) {
+            self.trouble(C::NAMES.get_event_indicators.1, t, status, true);
+            z.fill(f64::NAN);
+        } else if !z.iter().all(|v| v.is_finite()) {
+            self.non_finite(C::NAMES.get_event_indicators.1, t, "eventIndicators", z, true);
+        }
+    }
+}
+
+/// One Model Exchange instance with the runner's integrator, over either FMI version's calls.
+pub struct ModelExchange<C> {
+    component: C,
+    nx: usize,
+    nz: usize,
+    solver: Solver,
+    tolerance: Option<f64>,
+    /// The experiment's stop time: no step of the integrator goes past it.
+    stop: f64,
+    integrator: Option<Integrator>,
+    t: f64,
+    x: Vec<f64>,
+    next_event_time: Option<f64>,
+}
+
+/// The integrator from `t` towards `target` on the FMU as a [`System`] of `N` states (0: any
+/// number); the outcome and what went wrong in the FMU's calls, if anything.
+fn integrate<C: Exchange, const N: usize>(
+    integrator: &mut Integrator,
+    calls: &C,
+    nz: usize,
+    t: &mut f64,
+    x: &mut [f64],
+    target: f64,
+) -> (Result<Advance, solvers::SolverError>, Option<Trouble>, Option<Trouble>) {
+    let system = System::<C, N> {
+        calls,
+        nx: x.len(),
+        nz,
+        time_set: Cell::new(f64::NAN),
+        stopped: Cell::new(false),
+        poisoned: RefCell::new(None),
+        last_discard: RefCell::new(None),
+    };
+    let outcome = integrator.advance(&system, t, x, target);
+    (outcome, system.poisoned.into_inner(), system.last_discard.into_inner())
+}
+
+/// A time within rounding of `t` (a time event at a communication point, given by the FMU
+/// as a sum, may differ from the grid's product in the last bits).
+fn near(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-12 * a.abs().max(b.abs()).max(1.0)
+}
+
+impl<C: Exchange> ModelExchange<C> {
+    /// The integration of `component`, an instance with `nx` states and `nz` event indicators
+    /// as its description declares them.
+    pub(crate) fn new(component: C, nx: usize, nz: usize) -> ModelExchange<C> {
+        ModelExchange {
+            component,
+            nx,
+            nz,
+            solver: Solver::default(),
+            tolerance: None,
+            stop: f64::INFINITY,
+            integrator: None,
+            t: 0.0,
+            x: vec![0.0; nx],
+            next_event_time: None,
+        }
+    }
+
+    /// The integrator for this run (before initialization ends).
+    pub fn set_solver(&mut self, solver: Solver) {
+        self.solver = solver;
+    }
+
+    /// Sets up the experiment; the tolerance is also the integrator's relative tolerance.
+    pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
+        self.tolerance = tolerance;
+        self.t = start;
+        self.stop = stop;
+        self.component.setup_experiment(tolerance, start, stop)
+    }
+
+    /// Enters initialization mode.
+    pub fn enter_initialization_mode(&mut self) -> Result<(), String> {
+        self.component.enter_initialization_mode()
+    }
+
+    /// The integrator's settings for this run.
+    fn settings(&self) -> Settings {
+        Settings {
+            method: self.solver.method,
+            fixed_step: self.solver.fixed_step,
+            rtol: self.tolerance.unwrap_or(DEFAULT_TOLERANCE),
+            atol: self.solver.abs_tol,
+            max_step: 0.0,
+        }
+    }
+
+    /// Leaves initialization mode, then the initial event iteration and continuous-time mode:
+    /// the initial states are read and the integrator is started.
+    pub fn exit_initialization_mode(&mut self) -> Result<(), String> {
+        self.component.exit_initialization_mode()?;
+        let settings = self.settings();
+        settings.validate().map_err(|e| format!("{}: the runner's integrator: {e}", self.component.name()))?;
+        let (nx, nz) = self.component.sizes(self.nx, self.nz)?;
+        if nx != self.nx {
+            self.x = vec![0.0; nx];
+        }
+        (self.nx, self.nz) = (nx, nz);
+        if let Some(reason) = self.event_iteration()? {
+            return Err(format!("{}: the model ended the simulation during its initial event iteration: {reason}", self.component.name()));
+        }
+        let mut integrator = Integrator::new(settings, self.nx, self.nz);
+        // The adaptive methods step across communication points, never past the stop time.
+        integrator.set_stop_time(Some(self.stop));
+        self.integrator = Some(integrator);
+        Ok(())
+    }
+
+    /// Sets one variable.
+    pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
+        self.component.set(variable, value)
+    }
+
+    /// Reads the variables of `reader` into `out` (the FMU holds the time and states reached).
+    #[inline]
+    pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
+        self.component.read(reader, out)
+    }
+
+    /// Accepted steps and right-hand-side evaluations of the runner's integrator so far.
+    pub fn counters(&self) -> (u64, u64) {
+        self.integrator.as_ref().map_or((0, 0), |i| (i.n_steps(), i.n_rhs()))
+    }
+
+    /// Gives the FMU the time and states the integrator reached.
+    fn place(&mut self) -> Result<(), String> {
+        trace::enter(C::NAMES.set_time.0, self.t);
+        let status = self.component.set_time(self.t);
+        self.component.check(C::NAMES.set_time.1, status)?;
+        if self.nx > 0 {
+            trace::enter(C::NAMES.set_continuous_states.0, self.t);
+            let status = self.component.set_continuous_states(&self.x);
+            self.component.check(C::NAMES.set_continuous_states.1, status)?;
+        }
+        Ok(())
+    }
+
+    /// From event mode: discrete updates until no further one is needed, then continuous-time
+    /// mode and the states read back. `Some(reason)` when the model ended the simulation (the
+    /// instance stays in event mode, where terminating is allowed).
+    fn event_iteration(&mut self) -> Result<Option<String>, String> {
+        let names = &C::NAMES;
+        let mut update = EventUpdate::default();
+        let mut settled = false;
+        for _ in 0..MAX_EVENT_ITERATIONS {
+            trace::enter(names.update_discrete_states.0, self.t);
+            let (status, got) = self.component.update_discrete_states();
+            self.component.check(names.update_discrete_states.1, status)?;
+            update = got;
+            if update.terminate {
+                let reason = self.component.log().take_reason().unwrap_or_else(|| "terminateSimulation, no reason logged".to_owned());
+                return Ok(Some(reason));
+            }
+            if !update.again {
+                settled = true;
+                break;
+            }
+        }
+        if !settled {
+            return Err(format!(
+                "{}: the event iteration at t = {} did not converge: {} still asked for another iteration ({}) after {MAX_EVENT_ITERATIONS} calls",
+                self.component.name(),
+                self.t,
+                names.update_discrete_states.1,
+                names.again_flag
+            ));
+        }
+        trace::enter(names.enter_continuous_time_mode.0, self.t);
+        let status = self.component.enter_continuous_time_mode();
+        self.component.check(names.enter_continuous_time_mode.1, status)?;
+        // Read back whatever valuesOfContinuousStatesChanged says: one call per event, and an
+        // FMU that forgets the flag still continues from its own states.
+        if self.nx > 0 {
+            trace::enter(names.get_continuous_states.0, self.t);
+            let status = self.component.get_continuous_states(&mut self.x);
+            self.component.check(names.get_continuous_states.1, status)?;
+            if let Some(i) = self.x.iter().position(|v| !v.is_finite()) {
+                return Err(format!(
+                    "{}: {} at t = {} returned x[{i}] = {}",
+                    self.component.name(),
+                    names.get_continuous_states.1,
+                    self.t,
+                    self.x[i]
+                ));
+            }
+        }
+        self.next_event_time = update.next_event_time;
+        if let Some(te) = self.next_event_time {
+            if !te.is_finite() {
+                return Err(format!(
+                    "{}: {} at t = {} gave nextEventTime = {te}",
+                    self.component.name(),
+                    names.update_discrete_states.1,
+                    self.t
+                ));
+            }
+        }
+        if let Some(integrator) = self.integrator.as_mut() {
+            integrator.invalidate();
+        }
+        Ok(None)
+    }
+
+    /// Enters event mode at the current time and iterates the event.
+    fn event(&mut self) -> Result<Option<String>, String> {
+        trace::enter(C::NAMES.enter_event_mode.0, self.t);
+        let status = self.component.enter_event_mode();
+        self.component.check(C::NAMES.enter_event_mode.1, status)?;
+        self.event_iteration()
+    }
+
+    /// The early end of the run at the current time.
+    fn ended(&self, reason: String) -> Step {
+        Step::Ended { reason: format!("the model ended the simulation at t = {}: {reason}", self.t), last_time: Some(self.t) }
+    }
+
+    /// Integrates from the communication point `t` over `h` with the runner's integrator,
+    /// handling every event on the way.
+    pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
+        let t_end = t + h;
+        let mut events = 0usize;
+        while self.t < t_end {
+            let time_event_due = self.next_event_time.filter(|&te| te < t_end || near(te, t_end));
+            let target = match time_event_due {
+                Some(te) if !near(te, t_end) => te.max(self.t),
+                _ => t_end,
+            };
+            let outcome = self.advance(target)?;
+            let (step_event, terminate) = self.completed_step()?;
+            if terminate {
+                let reason = self
+                    .component
+                    .log()
+                    .take_reason()
+                    .unwrap_or_else(|| format!("terminateSimulation from {}", C::NAMES.completed_integrator_step.1));
+                return Ok(self.ended(reason));
+            }
+            let time_event = time_event_due.is_some_and(|te| self.t >= te || near(self.t, te));
+            let state_event = matches!(outcome, Advance::Event { .. });
+            if state_event || time_event || step_event {
+                events += 1;
+                if events > MAX_EVENTS_PER_STEP {
+                    return Err(format!(
+                        "{}: more than {MAX_EVENTS_PER_STEP} events between t = {t} and t = {t_end}: the model is chattering",
+                        self.component.name()
+                    ));
+                }
+                if let Some(reason) = self.event()? {
+                    return Ok(self.ended(reason));
+                }
+            }
+        }
+        Ok(Step::Done)
+    }
+
+    /// The integrator from the current time towards `target`, which it reaches or stops
+    /// short of at a state event; the FMU then holds the time and states reached.
+    fn advance(&mut self, target: f64) -> Result<Advance, String> {
+        let Some(integrator) = self.integrator.as_mut() else {
+            return Err(format!("{}: the run was not initialized", self.component.name()));
+        };
+        let t0 = self.t;
+        let (outcome, poisoned, discard) = if target > self.t {
+            let (calls, t, x) = (&self.component, &mut self.t, &mut self.x[..]);
+            // The sizes of the lab's models and of most small FMUs get a solver with loops of
+            // constant length; any other size the general one.
+            match self.nx {
+                1 => integrate::<C, 1>(integrator, calls, self.nz, t, x, target),
+                2 => integrate::<C, 2>(integrator, calls, self.nz, t, x, target),
+                3 => integrate::<C, 3>(integrator, calls, self.nz, t, x, target),
+                4 => integrate::<C, 4>(integrator, calls, self.nz, t, x, target),
+                5 => integrate::<C, 5>(integrator, calls, self.nz, t, x, target),
+                6 => integrate::<C, 6>(integrator, calls, self.nz, t, x, target),
+                _ => integrate::<C, 0>(integrator, calls, self.nz, t, x, target),
+            }
+        } else {
+            (Ok(Advance::Reached), None, None)
+        };
+        if let Some(trouble) = poisoned {
+            if trouble.status == ERROR || trouble.status == FATAL {
+                self.component.note_status(trouble.status);
+            }
+            return Err(format!("{}: {}", self.component.name(), trouble.message));
+        }
+        let name = self.component.name();
+        let outcome = outcome.map_err(|e| {
+            let method = self.solver.method.name();
+            let cause = discard.map_or(String::new(), |d| format!("; the cause: {}", d.message));
+            format!("{name}: the runner's {method} integration from t = {t0} failed: {e}{cause}")
+        })?;
+        self.place()?;
+        Ok(outcome)
+    }
+
+    /// `CompletedIntegratorStep`, where the FMU needs it: (enterEventMode, terminateSimulation).
+    fn completed_step(&mut self) -> Result<(bool, bool), String> {
+        if !self.component.needs_completed_integrator_step() {
+            return Ok((false, false));
+        }
+        trace::enter(C::NAMES.completed_integrator_step.0, self.t);
+        let (status, enter, terminate) = self.component.completed_integrator_step();
+        self.component.check(C::NAMES.completed_integrator_step.1, status)?;
+        Ok((enter, terminate))
+    }
+}

@@ -1,0 +1,314 @@
+//! An instantiated FMI 3.0 instance of either interface (fmi3Instantiate.. .. fmi3FreeInstance)
+//! and the calls both share: initialization, the discrete update, setting (structural
+//! parameters in Configuration Mode) and reading variables of every type, and the checks that
+//! turn a status into an error message with the FMU's logged reason.
+
+use std::ffi::{c_int, CStr, CString};
+
+use fmi_c::fmi3 as c;
+
+use super::{Binary, Environment};
+use crate::exchange::EventUpdate;
+use crate::model::{Causality, Kind, Variable};
+use crate::reader::Buffer;
+use crate::trace::{self, Call};
+use crate::{Reader, Value};
+
+pub(crate) const OK: c_int = c::Status::Ok as c_int;
+pub(crate) const WARNING: c_int = c::Status::Warning as c_int;
+pub(crate) const ERROR: c_int = c::Status::Error as c_int;
+pub(crate) const FATAL: c_int = c::Status::Fatal as c_int;
+
+/// One instance of an FMI 3.0 FMU, of either interface.
+pub(crate) struct Component<'a> {
+    pub(crate) binary: &'a Binary,
+    pub(crate) name: String,
+    pub(crate) instance: c::Instance,
+    // Must stay at a fixed address while the instance lives: the FMU keeps the pointer.
+    pub(crate) env: Box<Environment>,
+    /// Setup values, passed on by fmi3EnterInitializationMode.
+    experiment: (Option<f64>, f64, f64),
+    /// fmi3Terminate is allowed (initialized, and no fmi3Error since).
+    terminate_allowed: bool,
+    fatal: bool,
+    /// Instantiated and not yet initializing: structural parameters are set in Configuration Mode.
+    instantiated: bool,
+}
+
+impl<'a> Component<'a> {
+    /// The instance `instance` (NULL: the instantiation `call` failed, with the FMU's reason).
+    pub(crate) fn new(
+        binary: &'a Binary,
+        name: &str,
+        instance: c::Instance,
+        env: Box<Environment>,
+        call: &str,
+    ) -> Result<Component<'a>, String> {
+        let component = Component {
+            binary,
+            name: name.to_owned(),
+            instance,
+            env,
+            experiment: (None, 0.0, 0.0),
+            terminate_allowed: false,
+            fatal: false,
+            instantiated: true,
+        };
+        if component.instance.is_null() {
+            return Err(component.failure(call, "returned NULL"));
+        }
+        Ok(component)
+    }
+
+    fn failure(&self, call: &str, what: &str) -> String {
+        match self.env.log.take_problem() {
+            Some(message) => format!("{}: {call} {what}: {message}", self.name),
+            None => format!("{}: {call} {what} (the FMU logged no reason)", self.name),
+        }
+    }
+
+    #[inline]
+    pub(crate) fn check(&mut self, call: &str, status: c_int) -> Result<(), String> {
+        match status {
+            OK | WARNING => Ok(()),
+            _ => Err(self.refused(call, status)),
+        }
+    }
+
+    /// Records what a status other than OK or Warning means for the calls still allowed.
+    #[cold]
+    pub(crate) fn note_status(&mut self, status: c_int) {
+        if status == FATAL {
+            self.fatal = true;
+        }
+        if status == ERROR || status == FATAL {
+            self.terminate_allowed = false;
+        }
+    }
+
+    #[cold]
+    fn refused(&mut self, call: &str, status: c_int) -> String {
+        self.note_status(status);
+        self.failure(call, &format!("returned {}", c::status_name(status)))
+    }
+
+    /// Keeps tolerance, start and stop time for fmi3EnterInitializationMode.
+    pub(crate) fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
+        self.experiment = (tolerance, start, stop);
+        Ok(())
+    }
+
+    /// The start time of the experiment.
+    pub(crate) fn start_time(&self) -> f64 {
+        self.experiment.1
+    }
+
+    /// fmi3EnterInitializationMode with the experiment's tolerance, start and stop time.
+    pub(crate) fn enter_initialization_mode(&mut self) -> Result<(), String> {
+        let (tolerance, start, stop) = self.experiment;
+        trace::enter(Call::Fmi3EnterInitializationMode, start);
+        let status = unsafe {
+            (self.binary.api.enter_initialization_mode)(self.instance, tolerance.is_some(), tolerance.unwrap_or(0.0), start, true, stop)
+        };
+        self.instantiated = false;
+        self.check("fmi3EnterInitializationMode", status)
+    }
+
+    /// fmi3ExitInitializationMode.
+    pub(crate) fn exit_initialization_mode(&mut self) -> Result<(), String> {
+        trace::enter(Call::Fmi3ExitInitializationMode, self.experiment.1);
+        let status = unsafe { (self.binary.api.exit_initialization_mode)(self.instance) };
+        self.check("fmi3ExitInitializationMode", status)?;
+        self.terminate_allowed = true;
+        Ok(())
+    }
+
+    /// One fmi3UpdateDiscreteStates: its status and what it returned.
+    pub(crate) fn update_discrete_states(&self) -> (c_int, EventUpdate) {
+        let (mut again, mut terminate, mut nominals, mut values, mut next_defined, mut next) = (false, false, false, false, false, 0.0);
+        // SAFETY: valid out pointers.
+        let status = unsafe {
+            (self.binary.api.update_discrete_states)(
+                self.instance,
+                &mut again,
+                &mut terminate,
+                &mut nominals,
+                &mut values,
+                &mut next_defined,
+                &mut next,
+            )
+        };
+        (status, EventUpdate { again, terminate, next_event_time: next_defined.then_some(next) })
+    }
+
+    /// Sets one variable (a scalar, or an array whole); structural parameters are set in
+    /// Configuration Mode, which this enters and leaves around the call.
+    pub(crate) fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
+        let configure = self.instantiated && variable.causality == Causality::StructuralParameter;
+        if configure {
+            trace::enter(Call::Fmi3EnterConfigurationMode, f64::NAN);
+            let status = unsafe { (self.binary.api.enter_configuration_mode)(self.instance) };
+            self.check("fmi3EnterConfigurationMode", status)?;
+        }
+        // A refused value is the error to report: after it the FMU may refuse leaving too.
+        self.set_values(variable, value)?;
+        if configure {
+            trace::enter(Call::Fmi3ExitConfigurationMode, f64::NAN);
+            let status = unsafe { (self.binary.api.exit_configuration_mode)(self.instance) };
+            self.check("fmi3ExitConfigurationMode", status)?;
+        }
+        Ok(())
+    }
+
+    fn set_values(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
+        let items: Vec<&Value> = match value {
+            Value::List(items) => items.iter().collect(),
+            single => vec![single],
+        };
+        let vr = [variable.value_reference];
+        trace::enter(Call::Fmi3Set, f64::NAN);
+        let (inst, api, n) = (self.instance, &self.binary.api, items.len());
+        let wrong = || format!("{}: {value:?} is not a value of its type {}", variable.name, variable.kind);
+        macro_rules! set {
+            ($f:ident, $conv:expr) => {{
+                let values = items.iter().map(|v| $conv(*v)).collect::<Option<Vec<_>>>().ok_or_else(wrong)?;
+                // SAFETY: one value reference and `n` values of its type.
+                unsafe { (api.$f)(inst, vr.as_ptr(), 1, values.as_ptr(), n) }
+            }};
+        }
+        let int = |v: &Value| match v {
+            Value::Integer(i) => Some(i128::from(*i)),
+            Value::Int(i) => Some(*i),
+            _ => None,
+        };
+        let status = match variable.kind {
+            Kind::Real => set!(set_float64, |v: &Value| if let Value::Real(x) = v { Some(*x) } else { None }),
+            Kind::Float32 => set!(set_float32, |v: &Value| if let Value::Real(x) = v { Some(*x as f32) } else { None }),
+            Kind::Int8 => set!(set_int8, |v| int(v).and_then(|i| i8::try_from(i).ok())),
+            Kind::UInt8 => set!(set_uint8, |v| int(v).and_then(|i| u8::try_from(i).ok())),
+            Kind::Int16 => set!(set_int16, |v| int(v).and_then(|i| i16::try_from(i).ok())),
+            Kind::UInt16 => set!(set_uint16, |v| int(v).and_then(|i| u16::try_from(i).ok())),
+            Kind::Integer => set!(set_int32, |v| int(v).and_then(|i| i32::try_from(i).ok())),
+            Kind::UInt32 => set!(set_uint32, |v| int(v).and_then(|i| u32::try_from(i).ok())),
+            Kind::Int64 | Kind::Enumeration => set!(set_int64, |v| int(v).and_then(|i| i64::try_from(i).ok())),
+            Kind::UInt64 => set!(set_uint64, |v| int(v).and_then(|i| u64::try_from(i).ok())),
+            Kind::Boolean => set!(set_boolean, |v: &Value| if let Value::Boolean(b) = v { Some(*b) } else { None }),
+            Kind::String => {
+                let texts = items
+                    .iter()
+                    .map(|v| match v {
+                        Value::String(s) => {
+                            CString::new(s.as_str()).map_err(|_| format!("the value of {} contains a NUL byte", variable.name))
+                        }
+                        _ => Err(wrong()),
+                    })
+                    .collect::<Result<Vec<CString>, String>>()?;
+                let pointers: Vec<*const std::ffi::c_char> = texts.iter().map(|t| t.as_ptr()).collect();
+                unsafe { (api.set_string)(inst, vr.as_ptr(), 1, pointers.as_ptr(), n) }
+            }
+            Kind::Binary => {
+                let bytes = items
+                    .iter()
+                    .map(|v| if let Value::Binary(b) = v { Some(b) } else { None })
+                    .collect::<Option<Vec<&Vec<u8>>>>()
+                    .ok_or_else(wrong)?;
+                let sizes: Vec<usize> = bytes.iter().map(|b| b.len()).collect();
+                let pointers: Vec<*const u8> = bytes.iter().map(|b| b.as_ptr()).collect();
+                unsafe { (api.set_binary)(inst, vr.as_ptr(), 1, sizes.as_ptr(), pointers.as_ptr(), n) }
+            }
+            Kind::Clock => return Err(format!("{} is a Clock: clocks are not supported", variable.name)),
+        };
+        self.check(&format!("fmi3Set{} of {}", variable.kind, variable.name), status)
+    }
+
+    /// Reads the variables of `reader` into `out` (one f64 per element, Booleans as 0/1).
+    #[inline]
+    pub(crate) fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
+        if reader.direct {
+            if let Some(group) = reader.groups.first() {
+                trace::enter(Call::Fmi3Get, f64::NAN);
+                let status = unsafe {
+                    (self.binary.api.get_float64)(self.instance, group.vrs.as_ptr(), group.vrs.len(), out.as_mut_ptr(), out.len())
+                };
+                self.check("fmi3GetFloat64", status)?;
+            }
+            return Ok(());
+        }
+        self.read_groups(reader)?;
+        reader.gather(out);
+        Ok(())
+    }
+
+    fn read_groups(&mut self, reader: &mut Reader) -> Result<(), String> {
+        let inst = self.instance;
+        trace::enter(Call::Fmi3Get, f64::NAN);
+        for group in &mut reader.groups {
+            let (vrs, nvr) = (group.vrs.as_ptr(), group.vrs.len());
+            let api = &self.binary.api;
+            macro_rules! get {
+                ($f:ident, $b:expr) => {
+                    // SAFETY: the buffer holds every element of the group's variables.
+                    unsafe { (api.$f)(inst, vrs, nvr, $b.as_mut_ptr(), $b.len()) }
+                };
+            }
+            let status = match &mut group.buffer {
+                Buffer::F64(b) => get!(get_float64, b),
+                Buffer::F32(b) => get!(get_float32, b),
+                Buffer::I8(b) => get!(get_int8, b),
+                Buffer::U8(b) => get!(get_uint8, b),
+                Buffer::I16(b) => get!(get_int16, b),
+                Buffer::U16(b) => get!(get_uint16, b),
+                Buffer::I32(b) => get!(get_int32, b),
+                Buffer::U32(b) => get!(get_uint32, b),
+                Buffer::I64(b) => get!(get_int64, b),
+                Buffer::U64(b) => get!(get_uint64, b),
+                Buffer::Bool(b) => get!(get_boolean, b),
+                Buffer::Text(texts) => {
+                    let mut pointers = vec![std::ptr::null::<std::ffi::c_char>(); texts.len()];
+                    let status = unsafe { (api.get_string)(inst, vrs, nvr, pointers.as_mut_ptr(), pointers.len()) };
+                    if status == OK || status == WARNING {
+                        for (t, p) in texts.iter_mut().zip(&pointers) {
+                            // SAFETY: the FMU returned NUL-terminated strings valid until its next call.
+                            *t = if p.is_null() { String::new() } else { unsafe { CStr::from_ptr(*p) }.to_string_lossy().into_owned() };
+                        }
+                    }
+                    status
+                }
+                Buffer::Bytes(bytes) => {
+                    let mut sizes = vec![0usize; bytes.len()];
+                    let mut pointers = vec![std::ptr::null::<u8>(); bytes.len()];
+                    let status = unsafe { (api.get_binary)(inst, vrs, nvr, sizes.as_mut_ptr(), pointers.as_mut_ptr(), pointers.len()) };
+                    if status == OK || status == WARNING {
+                        for ((b, p), n) in bytes.iter_mut().zip(&pointers).zip(&sizes) {
+                            // SAFETY: the FMU returned `n` bytes at `p`, valid until its next call.
+                            *b = if p.is_null() { Vec::new() } else { unsafe { std::slice::from_raw_parts(*p, *n) }.to_vec() };
+                        }
+                    }
+                    status
+                }
+                Buffer::IntBool(_) => return Err(format!("{}: an FMI 2.0 Boolean buffer in an FMI 3.0 reader", self.name)),
+            };
+            if !(status == OK || status == WARNING) {
+                return Err(self.refused(&format!("fmi3Get{}", group.kind), status));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Component<'_> {
+    fn drop(&mut self) {
+        if self.fatal {
+            return;
+        }
+        // SAFETY: the instance is live; fmi3Terminate only where allowed; fmi3FreeInstance last.
+        unsafe {
+            if self.terminate_allowed {
+                trace::enter(Call::Fmi3Terminate, f64::NAN);
+                (self.binary.api.terminate)(self.instance);
+            }
+            trace::enter(Call::Fmi3FreeInstance, f64::NAN);
+            (self.binary.api.free_instance)(self.instance);
+        }
+    }
+}

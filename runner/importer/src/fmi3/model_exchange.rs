@@ -1,0 +1,184 @@
+//! An FMI 3.0 Model Exchange instance, integrated by the runner with the toolkit's own solvers:
+//! the FMI 3.0 calls behind the integration the versions share ([`crate::exchange`]).
+//! `fmi3CompletedIntegratorStep` is called only when the FMU declares
+//! `needsCompletedIntegratorStep`, as the standard has it; the numbers of states and event
+//! indicators are asked of the FMU after initialization (structural parameters may change them).
+
+use std::ffi::{c_int, c_void, CString};
+
+use fmi_c::fmi3 as c;
+
+use super::component::Component;
+use super::{log_message, Binary, Environment, ModelExchangeApi};
+use crate::exchange::{EventUpdate, Exchange, Names};
+use crate::logging::LogContext;
+use crate::trace::{self, Call};
+use crate::{Fmu, Reader, Value, Variable};
+
+/// One Model Exchange instance of an FMI 3.0 FMU, with the runner's integrator.
+pub type ModelExchange<'a> = crate::exchange::ModelExchange<Exchange3<'a>>;
+
+/// An FMI 3.0 instance made by fmi3InstantiateModelExchange, with its Model Exchange functions.
+pub struct Exchange3<'a> {
+    component: Component<'a>,
+    api: ModelExchangeApi,
+    needs_completed_integrator_step: bool,
+}
+
+/// fmi3InstantiateModelExchange; `debug_logging` sets loggingOn.
+pub(crate) fn instantiate<'a>(fmu: &'a Fmu, binary: &'a Binary, name: &str, debug_logging: bool) -> Result<ModelExchange<'a>, String> {
+    let api = binary.api.model_exchange.expect("resolved for Model Exchange");
+    let env = Box::new(Environment { name: name.to_owned(), log: LogContext::default() });
+    let c_name = CString::new(name).map_err(|_| format!("instance name {name:?} contains a NUL byte"))?;
+    trace::enter(Call::Fmi3InstantiateModelExchange, f64::NAN);
+    // SAFETY: every pointer is valid for the call; the environment outlives the instance.
+    let instance = unsafe {
+        (api.instantiate)(
+            c_name.as_ptr(),
+            fmu.token.as_ptr(),
+            fmu.resource_uri.as_ptr(),
+            false,
+            debug_logging,
+            &*env as *const Environment as *mut c_void,
+            Some(log_message),
+        )
+    };
+    let component = Component::new(binary, name, instance, env, "fmi3InstantiateModelExchange")?;
+    let needs = fmu.description.model_exchange.as_ref().is_some_and(|me| me.needs_completed_integrator_step);
+    let (nx, nz) = (fmu.description.number_of_continuous_states, fmu.description.number_of_event_indicators);
+    Ok(crate::exchange::ModelExchange::new(Exchange3 { component, api, needs_completed_integrator_step: needs }, nx, nz))
+}
+
+impl Exchange for Exchange3<'_> {
+    const NAMES: Names = Names {
+        set_time: (Call::Fmi3SetTime, "fmi3SetTime"),
+        set_continuous_states: (Call::Fmi3SetContinuousStates, "fmi3SetContinuousStates"),
+        get_derivatives: (Call::Fmi3GetContinuousStateDerivatives, "fmi3GetContinuousStateDerivatives"),
+        get_event_indicators: (Call::Fmi3GetEventIndicators, "fmi3GetEventIndicators"),
+        get_continuous_states: (Call::Fmi3GetContinuousStates, "fmi3GetContinuousStates"),
+        enter_event_mode: (Call::Fmi3EnterEventMode, "fmi3EnterEventMode"),
+        update_discrete_states: (Call::Fmi3UpdateDiscreteStates, "fmi3UpdateDiscreteStates"),
+        enter_continuous_time_mode: (Call::Fmi3EnterContinuousTimeMode, "fmi3EnterContinuousTimeMode"),
+        completed_integrator_step: (Call::Fmi3CompletedIntegratorStep, "fmi3CompletedIntegratorStep"),
+        again_flag: "discreteStatesNeedUpdate",
+    };
+
+    fn status_name(status: c_int) -> &'static str {
+        c::status_name(status)
+    }
+
+    fn name(&self) -> &str {
+        &self.component.name
+    }
+
+    fn log(&self) -> &LogContext {
+        &self.component.env.log
+    }
+
+    #[inline]
+    fn check(&mut self, call: &str, status: c_int) -> Result<(), String> {
+        self.component.check(call, status)
+    }
+
+    fn note_status(&mut self, status: c_int) {
+        self.component.note_status(status)
+    }
+
+    #[inline(always)]
+    fn set_time(&self, t: f64) -> c_int {
+        // SAFETY: a live instance and a scalar argument.
+        unsafe { (self.api.set_time)(self.component.instance, t) }
+    }
+
+    #[inline(always)]
+    fn set_continuous_states(&self, x: &[f64]) -> c_int {
+        // SAFETY: an array of x.len() states.
+        unsafe { (self.api.set_continuous_states)(self.component.instance, x.as_ptr(), x.len()) }
+    }
+
+    #[inline(always)]
+    fn get_derivatives(&self, dx: &mut [f64]) -> c_int {
+        // SAFETY: an array of dx.len() derivatives.
+        unsafe { (self.api.get_continuous_state_derivatives)(self.component.instance, dx.as_mut_ptr(), dx.len()) }
+    }
+
+    #[inline(always)]
+    fn get_event_indicators(&self, z: &mut [f64]) -> c_int {
+        // SAFETY: an array of z.len() indicators.
+        unsafe { (self.api.get_event_indicators)(self.component.instance, z.as_mut_ptr(), z.len()) }
+    }
+
+    fn get_continuous_states(&self, x: &mut [f64]) -> c_int {
+        // SAFETY: an array of x.len() states.
+        unsafe { (self.api.get_continuous_states)(self.component.instance, x.as_mut_ptr(), x.len()) }
+    }
+
+    fn enter_event_mode(&self) -> c_int {
+        // SAFETY: a live instance.
+        unsafe { (self.component.binary.api.enter_event_mode)(self.component.instance) }
+    }
+
+    fn update_discrete_states(&self) -> (c_int, EventUpdate) {
+        self.component.update_discrete_states()
+    }
+
+    fn enter_continuous_time_mode(&self) -> c_int {
+        // SAFETY: a live instance.
+        unsafe { (self.api.enter_continuous_time_mode)(self.component.instance) }
+    }
+
+    fn needs_completed_integrator_step(&self) -> bool {
+        self.needs_completed_integrator_step
+    }
+
+    fn completed_integrator_step(&self) -> (c_int, bool, bool) {
+        let (mut enter, mut terminate) = (false, false);
+        // SAFETY: valid out pointers.
+        let status = unsafe { (self.api.completed_integrator_step)(self.component.instance, true, &mut enter, &mut terminate) };
+        (status, enter, terminate)
+    }
+
+    fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
+        self.component.setup_experiment(tolerance, start, stop)
+    }
+
+    fn enter_initialization_mode(&mut self) -> Result<(), String> {
+        self.component.enter_initialization_mode()
+    }
+
+    fn exit_initialization_mode(&mut self) -> Result<(), String> {
+        self.component.exit_initialization_mode()
+    }
+
+    fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
+        self.component.set(variable, value)
+    }
+
+    #[inline]
+    fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
+        self.component.read(reader, out)
+    }
+
+    /// fmi3GetNumberOfContinuousStates and fmi3GetNumberOfEventIndicators (allowed in Event
+    /// Mode, where initialization leaves the instance): structural parameters may have changed
+    /// the description's numbers.
+    fn sizes(&mut self, nx: usize, nz: usize) -> Result<(usize, usize), String> {
+        let (mut states, mut indicators) = (nx, nz);
+        let start = self.component.start_time();
+        trace::enter(Call::Fmi3GetNumberOfContinuousStates, start);
+        // SAFETY: valid out pointers.
+        let status = unsafe { (self.api.get_number_of_continuous_states)(self.component.instance, &mut states) };
+        self.component.check("fmi3GetNumberOfContinuousStates", status)?;
+        let status = unsafe { (self.api.get_number_of_event_indicators)(self.component.instance, &mut indicators) };
+        self.component.check("fmi3GetNumberOfEventIndicators", status)?;
+        // A count past any description's sizes is a broken answer, not an array to allocate.
+        const MOST: usize = 1 << 24;
+        if states > MOST || indicators > MOST {
+            return Err(format!(
+                "{}: the FMU reports {states} continuous states and {indicators} event indicators, more than the {MOST} the runner accepts",
+                self.component.name
+            ));
+        }
+        Ok((states, indicators))
+    }
+}

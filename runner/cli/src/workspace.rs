@@ -41,3 +41,8 @@ pub fn target_dir(root: &Path) -> PathBuf {
 pub fn fmu_path(root: &Path, id: &str) -> PathBuf {
     target_dir(root).join("fmu").join(format!("{id}.fmu"))
 }
+
+/// Where `runner build` writes model `id`'s FMI 3.0 FMU.
+pub fn fmu3_path(root: &Path, id: &str) -> PathBuf {
+    target_dir(root).join("fmu3").join(format!("{id}.fmu"))
+}

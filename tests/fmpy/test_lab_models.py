@@ -3,12 +3,15 @@ here with numpy/scipy, independently of the Rust code (derivations in each model
 derivation.md)."""
 
 import numpy as np
-from fmpy import simulate_fmu
+import pytest
 from scipy.linalg import expm
 from scipy.optimize import brentq
 from scipy.special import ellipk
 
-from conftest import fmu_path
+from conftest import fmu_path, simulate
+
+# Every test here runs on the FMI 2.0 and on the FMI 3.0 FMU, against the same references.
+pytestmark = pytest.mark.usefixtures("fmi_version")
 
 
 def zero_crossings(t, theta, omega):
@@ -30,7 +33,7 @@ def test_pendulum_period_matches_the_elliptic_integral():
     L, g = 0.75, 9.81
     for deg in (15.0, 120.0):
         theta0 = np.radians(deg)
-        r = simulate_fmu(str(fmu_path("pendulum")), fmi_type="CoSimulation", relative_tolerance=1e-11,
+        r = simulate(str(fmu_path("pendulum")), fmi_type="CoSimulation", relative_tolerance=1e-11,
                          output_interval=1e-3, start_values={"theta0": theta0, "abs_tol": 1e-13},
                          output=["theta", "omega", "energy"])
         # scipy's ellipk takes the parameter m = k^2, k = sin(theta0 / 2).
@@ -55,7 +58,7 @@ def bumper_contact(t, M, K, B, V0):
 
 def test_bumper_releases_at_the_closed_form_time():
     M, K, B, V0 = 1000.0, 9850.0, 12500.0, 1.0
-    r = simulate_fmu(str(fmu_path("bumper")), fmi_type="CoSimulation", relative_tolerance=1e-11,
+    r = simulate(str(fmu_path("bumper")), fmi_type="CoSimulation", relative_tolerance=1e-11,
                      output_interval=1e-3, start_values={"abs_tol": 1e-13},
                      output=["x", "v", "a", "x_mass", "v_mass", "in_contact", "t_release"])
     force = lambda t: K * bumper_contact(t, M, K, B, V0)[0] + B * bumper_contact(t, M, K, B, V0)[1]
@@ -81,7 +84,7 @@ def test_quarter_car_matches_the_matrix_exponential():
     ms, mu, ks, bs, kt, bt = 200.0, 30.0, 18000.0, 1300.0, 125000.0, 10.0
     speed, amp, lam = 30.0, 0.04, 3.0
     dt = 1e-3
-    r = simulate_fmu(str(fmu_path("quarter_car")), fmi_type="CoSimulation", relative_tolerance=1e-12,
+    r = simulate(str(fmu_path("quarter_car")), fmi_type="CoSimulation", relative_tolerance=1e-12,
                      output_interval=dt, start_values={"abs_tol": 1e-15},
                      output=["z_s", "z_u", "z_r", "z_s_dot", "z_u_dot", "z_s_ddot"])
     w = 2 * np.pi * speed / lam
@@ -108,7 +111,7 @@ def test_quarter_car_matches_the_matrix_exponential():
 def test_quarter_car_transmissibility_at_body_resonance():
     ms, mu, ks, bs, kt, bt = 200.0, 30.0, 18000.0, 1300.0, 125000.0, 10.0
     speed, lam = 4.25, 3.0
-    r = simulate_fmu(str(fmu_path("quarter_car")), fmi_type="CoSimulation", relative_tolerance=1e-10,
+    r = simulate(str(fmu_path("quarter_car")), fmi_type="CoSimulation", relative_tolerance=1e-10,
                      output_interval=1e-4, start_values={"speed": speed, "abs_tol": 1e-12},
                      output=["z_s", "z_r"])
     s = 2j * np.pi * speed / lam

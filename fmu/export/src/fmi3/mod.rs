@@ -272,14 +272,17 @@ impl<M: Model> Instance<M> {
 
     /// `fmi3DoStep` from `current` over `h` (see the module documentation for the three
     /// ways). The model ending the experiment inside the step (a landing, a limit position)
-    /// answers `terminateSimulation` at the time it ended, with `fmi3OK`.
+    /// answers `terminateSimulation` at the time it ended, with `fmi3OK`, and so does every
+    /// later step.
     pub fn do_step(&mut self, current: f64, h: f64) -> CallResult<StepResult> {
         self.check(Call::DoStep)?;
         if self.core.terminated() {
-            return Err(Failure::error(format!(
-                "fmi3DoStep: the model ended the simulation at t = {} s (terminateSimulation); only fmi3Terminate, fmi3Reset or fmi3FreeInstance can follow",
-                self.core.last_successful_time()
-            )));
+            // The model ended the experiment (a landing in Event Mode, say) and the importer
+            // stepped on regardless (fmpy 0.3 does, after fmi3UpdateDiscreteStates said so):
+            // the answer repeats terminateSimulation, and nothing moves.
+            let t = self.core.last_successful_time();
+            let early_return = self.setup.early_return_allowed && t < current + h;
+            return Ok(StepResult { event_handling_needed: false, terminate_simulation: true, early_return, last_successful_time: t });
         }
         let t_end = current + h;
         let Setup { event_mode_used, early_return_allowed, .. } = self.setup;
@@ -306,7 +309,11 @@ impl<M: Model> Instance<M> {
                 let end = self.settle(result)?.unwrap_or(StepEnd::Completed);
                 let t = self.core.time();
                 let mut r = self.step_result(end, t_end, true);
-                r.early_return = t < t_end;
+                if end == StepEnd::Completed {
+                    // Handled, and back to the importer at the event's time.
+                    r.early_return = t < t_end;
+                    r.last_successful_time = t;
+                }
                 Ok(r)
             }
         }
@@ -561,5 +568,157 @@ impl<M: Model> Instance<M> {
     pub fn number_of_continuous_states(&self) -> CallResult<usize> {
         self.check(Call::GetNumberOfContinuousStates)?;
         Ok(M::N_STATES)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{EventOutcome, ModelError, ModelInfo, Variable, Variables};
+    use serde::{Deserialize, Serialize};
+
+    /// A ball dropped from 1 m that bounces with restitution 0.5 (an event: v <- -v/2).
+    #[derive(Debug, Clone, Default, Serialize, Deserialize)]
+    struct Ball {
+        bounces: i32,
+    }
+
+    impl Variables for Ball {
+        fn variables() -> Vec<Variable<Self>> {
+            vec![Variable::state("h", "", 0), Variable::state("v", "", 1), Variable::integer_output("bounces", "", |m| m.bounces)]
+        }
+    }
+
+    impl Model for Ball {
+        const N_STATES: usize = 2;
+        const N_EVENT_INDICATORS: usize = 1;
+
+        fn info() -> ModelInfo {
+            ModelInfo {
+                identifier: "ball3",
+                description: "a bouncing ball",
+                stop_time: 2.0,
+                tolerance: 1e-8,
+                output_interval: 0.1,
+                documentation: "",
+            }
+        }
+
+        fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
+            x.copy_from_slice(&[1.0, 0.0]);
+            Ok(())
+        }
+
+        fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
+            dx[0] = x[1];
+            dx[1] = -9.81;
+        }
+
+        fn event_indicators(&self, _t: f64, x: &[f64], z: &mut [f64]) {
+            z[0] = x[0];
+        }
+
+        fn on_event(&mut self, _t: f64, x: &mut [f64], fired: &[bool]) -> Result<EventOutcome, ModelError> {
+            if fired[0] && x[1] < 0.0 {
+                self.bounces += 1;
+                x[1] *= -0.5;
+            }
+            Ok(EventOutcome::Continue)
+        }
+    }
+
+    fn started(event_mode_used: bool, early_return_allowed: bool) -> Instance<Ball> {
+        let setup = Setup { interface: Interface::CoSimulation, event_mode_used, early_return_allowed };
+        let mut i = Instance::<Ball>::new("ball", Logger::new(None, false), setup);
+        i.enter_initialization_mode(None, 0.0, None).unwrap();
+        i.exit_initialization_mode().unwrap();
+        if event_mode_used {
+            assert_eq!(i.state(), FmiState::EventMode);
+            assert!(!i.update_discrete_states().unwrap().terminate_simulation);
+            i.enter_step_mode().unwrap();
+        }
+        assert_eq!(i.state(), FmiState::StepMode);
+        i
+    }
+
+    fn h_v(i: &mut Instance<Ball>) -> [f64; 2] {
+        let mut x = [0.0; 2];
+        i.get_float64(&[0, 1], &mut x).unwrap();
+        x
+    }
+
+    /// The first bounce, at sqrt(2/g) = 0.4515 s, inside the step from 0.4 to 0.5: with Event
+    /// Mode the step stops there unhandled, Event Mode handles it, and stepping on to 0.5 ends
+    /// where the step that handles it inside (FMI 2.0's way) ends, to rounding.
+    #[test]
+    fn a_step_stops_at_the_event_and_event_mode_handles_it() {
+        let mut inside = started(false, false);
+        let mut stops = started(true, true);
+        for k in 0..4 {
+            let t = f64::from(k) * 0.1;
+            assert!(!inside.do_step(t, 0.1).unwrap().event_handling_needed);
+            assert!(!stops.do_step(t, 0.1).unwrap().event_handling_needed);
+        }
+        let r = stops.do_step(0.4, 0.1).unwrap();
+        let t_bounce = (2.0 / 9.81_f64).sqrt();
+        assert!(r.event_handling_needed && r.early_return && !r.terminate_simulation);
+        assert!((r.last_successful_time - t_bounce).abs() < 1e-9, "{}", r.last_successful_time);
+        assert!(stops.enter_step_mode().is_err(), "the pending event must be handled first");
+        let mut bounces = [0];
+        stops.get_int32(&[2], &mut bounces).unwrap();
+        assert_eq!(bounces, [0]);
+        stops.enter_event_mode().unwrap();
+        let u = stops.update_discrete_states().unwrap();
+        assert!(u.values_of_continuous_states_changed && !u.terminate_simulation && !u.discrete_states_need_update);
+        stops.get_int32(&[2], &mut bounces).unwrap();
+        assert_eq!(bounces, [1]);
+        stops.enter_step_mode().unwrap();
+        // On from the bounce; the ball, located just below the ground, crosses it upwards
+        // right after (an event the model ignores), as inside the FMI 2.0 step.
+        let mut t = r.last_successful_time;
+        let mut more = 0;
+        loop {
+            let r = stops.do_step(t, 0.5 - t).unwrap();
+            if !r.event_handling_needed {
+                assert!(!r.early_return);
+                break;
+            }
+            more += 1;
+            stops.enter_event_mode().unwrap();
+            assert!(!stops.update_discrete_states().unwrap().values_of_continuous_states_changed);
+            stops.enter_step_mode().unwrap();
+            t = r.last_successful_time;
+        }
+        assert!(more <= 1);
+        assert!((inside.do_step(0.4, 0.1).unwrap().last_successful_time - 0.5).abs() < 1e-15);
+        let (a, b) = (h_v(&mut inside), h_v(&mut stops));
+        assert!((a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12, "{a:?} {b:?}");
+    }
+
+    /// Early return without Event Mode: the model handles the event, and the step returns at
+    /// its time with the handled state.
+    #[test]
+    fn early_return_without_event_mode_returns_the_handled_event() {
+        let mut i = started(false, true);
+        for k in 0..4 {
+            i.do_step(f64::from(k) * 0.1, 0.1).unwrap();
+        }
+        let r = i.do_step(0.4, 0.1).unwrap();
+        assert!(!r.event_handling_needed && r.early_return && r.last_successful_time < 0.5);
+        assert!(h_v(&mut i)[1] > 0.0, "the ball goes up again");
+        assert!(i.enter_event_mode().is_err(), "no Event Mode without eventModeUsed");
+    }
+
+    /// The event indicator is a Float64 variable after the table's, readable and not settable.
+    #[test]
+    fn the_event_indicator_is_a_variable() {
+        let mut i = started(false, false);
+        let n = i.table().rows.len() as u32;
+        let mut z = [0.0; 2];
+        i.get_float64(&[n, 0], &mut z).unwrap();
+        assert_eq!(z, [1.0, 1.0]);
+        let e = i.set_float64(&[n], &[0.0]).unwrap_err().message;
+        assert!(e.contains("event_indicator_0"), "{e}");
+        assert!(i.get_float64(&[n + 1], &mut z[..1]).is_err());
     }
 }

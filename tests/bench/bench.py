@@ -47,6 +47,9 @@ CVODE = "fmpy CVODE on Model Exchange, 1 process"
 RUNNER = ROOT / "target/release/runner"
 BARE = ROOT / "target/release/bare_loop"
 FMU = ROOT / "target/fmu/quarter_car.fmu"
+# The same model as an FMI 3.0 FMU (same binary, FMI 3.0 calls).
+FMU3 = ROOT / "target/fmu3/quarter_car.fmu"
+FMI3 = "runner sweep, FMI 3.0 FMU, 1 thread"
 PEERS = Path(__file__).with_name("peers.py")
 
 # The handbook's sweep: 99 speeds.
@@ -100,11 +103,11 @@ def peak_rss_kib(cmd, cwd=None):
     return timed(cmd, cwd)[2].ru_maxrss
 
 
-def runner_sweep(speeds_arg, threads, workdir, cpu=None, extra=()):
+def runner_sweep(speeds_arg, threads, workdir, cpu=None, extra=(), fmu=FMU):
     """One `runner sweep` (with `extra` options): (seconds, {speed: transmissibility}); appends
     its CPU seconds to `cpu`."""
-    out_csv = Path(workdir) / f"sweep_{threads}{'_'.join(extra)}.csv"
-    cmd = [RUNNER, "sweep", FMU, "--param", f"speed={speeds_arg}", *EX4, "--threads", str(threads), *extra, "--out", out_csv]
+    out_csv = Path(workdir) / f"sweep_{threads}{'_'.join(extra)}{'_3' if fmu == FMU3 else ''}.csv"
+    cmd = [RUNNER, "sweep", fmu, "--param", f"speed={speeds_arg}", *EX4, "--threads", str(threads), *extra, "--out", out_csv]
     wall, _, usage = timed(cmd)
     if cpu is not None:
         cpu.append((wall, usage.ru_utime + usage.ru_stime))
@@ -199,9 +202,9 @@ def main():
                 return sec, (r["runs"], r["transmissibility"], r.get("rhs", {}))
             return run
 
-        def runner(threads, extra=()):
+        def runner(threads, extra=(), fmu=FMU):
             def run():
-                sec, t = runner_sweep(all_speeds, threads, work, extra=extra)
+                sec, t = runner_sweep(all_speeds, threads, work, extra=extra, fmu=fmu)
                 return sec, (len(t), t, {})
             return run
 
@@ -211,6 +214,7 @@ def main():
             ("runner sweep, 1 thread", runner(1)),
             ("runner sweep, 2 threads", runner(2)),
             ("runner sweep, Model Exchange, 1 thread", runner(1, ("--interface", "model-exchange"))),
+            (FMI3, runner(1, fmu=FMU3)),
             ("fmpy simulate_fmu, 1 process", tool([*peer, "fmpy", "--fmu", FMU, "--speeds", fmpy_speeds, "--processes", "1"], own_clock=True)),
             ("fmpy simulate_fmu, 2 processes", tool([*peer, "fmpy", "--fmu", FMU, "--speeds", fmpy_speeds, "--processes", "2"], own_clock=True)),
             ("scipy solve_ivp RK45 (Python port)", tool([*peer, "scipy", "--speeds", scipy_speeds], own_clock=True)),
@@ -325,6 +329,7 @@ def main():
     checks = [
         ("runner (1 thread) within 1.3x of the bare loop", r1 / per["bare loop (the limit)"], "<=", 1.3),
         ("runner on Model Exchange within 1.5x of its Co-Simulation run", per["runner sweep, Model Exchange, 1 thread"] / r1, "<=", 1.5),
+        ("runner on the FMI 3.0 FMU within 1.05x of the FMI 2.0 FMU (1 thread)", per[FMI3] / r1, "<=", 1.05),
         ("fmpy (1 process) per run / runner (1 thread)", per["fmpy simulate_fmu, 1 process"] / r1, ">=", 40),
         ("scipy RK45 per run / runner (1 thread)", per["scipy solve_ivp RK45 (Python port)"] / r1, ">=", 500),
         ("rhs evaluations per run, runner / scipy RK45, worst speed", max(work_ratio.values()), "<=", 1.0),

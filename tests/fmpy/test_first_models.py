@@ -6,14 +6,14 @@ import math
 
 import numpy as np
 import pytest
-from fmpy import simulate_fmu
 
 from closed_form import Formula, reference
-from conftest import fmu_path
+from conftest import fmu_path, simulate
 
 
+@pytest.mark.usefixtures("fmi_version")
 def test_second_order_matches_the_closed_form():
-    r = simulate_fmu(str(fmu_path("second_order")), fmi_type="CoSimulation", relative_tolerance=1e-10,
+    r = simulate(str(fmu_path("second_order")), fmi_type="CoSimulation", relative_tolerance=1e-10,
                      output_interval=0.01, start_values={"abs_tol": 1e-12})
     t = r["time"]
     q, q_dot, u = (reference("second_order", name)(t=t) for name in ("q", "q_dot", "u"))
@@ -25,13 +25,14 @@ def test_second_order_matches_the_closed_form():
     assert (q[0], q_dot[0]) == (2.0, 1.0) and abs(u[50] - math.exp(-1.5)) < 1e-16
 
 
+@pytest.mark.usefixtures("fmi_version")
 def test_mass_spring_damper_step_force_from_fmpy_input():
     lbf, inch = 4.4482216152605, 0.0254
     k, m, b = 10 * lbf / inch, 2 * lbf / inch, lbf / inch
     f0 = 100.0
     # fmpy drives the input F as a signal table: a constant 100 N step from t = 0.
     signals = np.array([(0.0, f0), (10.0, f0)], dtype=[("time", np.float64), ("F", np.float64)])
-    r = simulate_fmu(str(fmu_path("mass_spring_damper")), fmi_type="CoSimulation", relative_tolerance=1e-10,
+    r = simulate(str(fmu_path("mass_spring_damper")), fmi_type="CoSimulation", relative_tolerance=1e-10,
                      output_interval=0.01, input=signals, start_values={"abs_tol": 1e-13})
     t = r["time"]
     # From rest under a constant f0: the free vibration about the shifted equilibrium f0/k.

@@ -4,12 +4,15 @@
 computed here with scipy."""
 
 import numpy as np
-from fmpy import simulate_fmu
+import pytest
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
 from closed_form import references
-from conftest import fmu_path
+from conftest import fmu_path, simulate
+
+# Every test here runs on the FMI 2.0 and on the FMI 3.0 FMU, against the same references.
+pytestmark = pytest.mark.usefixtures("fmi_version")
 
 
 def zero_crossings(t, theta, omega):
@@ -32,7 +35,7 @@ def test_pendulum_period_matches_the_elliptic_integral():
     ref = references("pendulum")
     for deg in (15.0, 120.0):
         theta0 = np.radians(deg)
-        r = simulate_fmu(str(fmu_path("pendulum")), fmi_type="CoSimulation", relative_tolerance=1e-11,
+        r = simulate(str(fmu_path("pendulum")), fmi_type="CoSimulation", relative_tolerance=1e-11,
                          output_interval=1e-3, start_values={"theta0": theta0, "abs_tol": 1e-13},
                          output=["theta", "omega", "energy"])
         period = ref["period"](L=L, g=g, theta0=theta0)
@@ -50,7 +53,7 @@ def test_bumper_releases_at_the_closed_form_time():
     params = dict(M=1000.0, K=9850.0, B=12500.0, V0=1.0)
     K, B = params["K"], params["B"]
     ref = references("bumper")
-    r = simulate_fmu(str(fmu_path("bumper")), fmi_type="CoSimulation", relative_tolerance=1e-11,
+    r = simulate(str(fmu_path("bumper")), fmi_type="CoSimulation", relative_tolerance=1e-11,
                      output_interval=1e-3, start_values={"abs_tol": 1e-13},
                      output=["x", "v", "a", "x_mass", "v_mass", "in_contact", "t_release"])
     t_r = ref["t_release"](**params)
@@ -78,7 +81,7 @@ def test_quarter_car_matches_the_matrix_exponential():
     car = dict(m_s=200.0, m_u=30.0, k_s=18000.0, b_s=1300.0, k_t=125000.0, b_t=10.0, road_wavelength=3.0, speed=30.0,
                road_amplitude=0.04, z_r_dot_ext=0.0)
     dt = 1e-3
-    r = simulate_fmu(str(fmu_path("quarter_car")), fmi_type="CoSimulation", relative_tolerance=1e-12,
+    r = simulate(str(fmu_path("quarter_car")), fmi_type="CoSimulation", relative_tolerance=1e-12,
                      output_interval=dt, start_values={"abs_tol": 1e-15},
                      output=["z_s", "z_u", "z_r", "z_s_dot", "z_u_dot", "z_s_ddot"])
     # references.toml's y' = F y, y = [z_s, z_u, z_r, z_s', z_u', p, q, c], solved exactly here
@@ -101,7 +104,7 @@ def test_quarter_car_matches_the_matrix_exponential():
 def test_quarter_car_transmissibility_at_body_resonance():
     car = dict(m_s=200.0, m_u=30.0, k_s=18000.0, b_s=1300.0, k_t=125000.0, b_t=10.0, road_wavelength=3.0)
     speed = 4.25
-    r = simulate_fmu(str(fmu_path("quarter_car")), fmi_type="CoSimulation", relative_tolerance=1e-10,
+    r = simulate(str(fmu_path("quarter_car")), fmi_type="CoSimulation", relative_tolerance=1e-10,
                      output_interval=1e-4, start_values={"speed": speed, "abs_tol": 1e-12},
                      output=["z_s", "z_r"])
     H = references("quarter_car")["transmissibility"](speed=speed, **car)

@@ -115,6 +115,7 @@ def test_initial_unknowns_declare_what_initialization_reads():
     assert q["z_s"] == [] and q["n_rhs"] == []
 
 
+@pytest.mark.usefixtures("fmi_version")
 def test_second_order_matches_the_closed_form():
     r = me("second_order", relative_tolerance=1e-11, output_interval=0.01)
     t = r["time"]
@@ -125,6 +126,7 @@ def test_second_order_matches_the_closed_form():
     assert np.max(np.abs(r["q_dot"] - q_dot)) < 1e-8
 
 
+@pytest.mark.usefixtures("fmi_version")
 def test_mass_spring_damper_step_force_from_fmpy_input():
     lbf, inch = 4.4482216152605, 0.0254
     k, m, b = 10 * lbf / inch, 2 * lbf / inch, lbf / inch
@@ -138,6 +140,7 @@ def test_mass_spring_damper_step_force_from_fmpy_input():
     assert np.max(np.abs(r["x"] - x)) < 1e-9
 
 
+@pytest.mark.usefixtures("fmi_version")
 def test_pendulum_period_matches_the_elliptic_integral():
     L, g, m = 0.75, 9.81, 0.5
     ref = references("pendulum")
@@ -160,6 +163,7 @@ def test_pendulum_period_matches_the_elliptic_integral():
 BUMPER = dict(M=1000.0, K=9850.0, B=12500.0, V0=1.0)
 
 
+@pytest.mark.usefixtures("fmi_version")
 def test_bumper_releases_at_the_closed_form_time():
     ref, K, B = references("bumper"), BUMPER["K"], BUMPER["B"]
     r = me("bumper", relative_tolerance=1e-11, output_interval=1e-3, record_events=False,
@@ -182,6 +186,7 @@ def test_bumper_releases_at_the_closed_form_time():
     np.testing.assert_allclose(r["a"][after], (K / B) ** 2 * r["x"][after], rtol=1e-12, atol=0)
 
 
+@pytest.mark.usefixtures("fmi_version")
 def test_attached_bumper_keeps_contact():
     r = me("bumper", relative_tolerance=1e-11, output_interval=1e-2, start_values={"attached": True},
            output=["x", "in_contact", "t_release", "F_contact"])
@@ -190,6 +195,7 @@ def test_attached_bumper_keeps_contact():
     assert r["F_contact"][-1] < 0, "the fastened plate pulls the mass back"
 
 
+@pytest.mark.usefixtures("fmi_version")
 def test_quarter_car_transmissibility_at_body_resonance():
     car = dict(m_s=200.0, m_u=30.0, k_s=18000.0, b_s=1300.0, k_t=125000.0, b_t=10.0, road_wavelength=3.0)
     speed = 4.25
@@ -234,6 +240,7 @@ def test_trebuchet_lands_where_its_co_simulation_lands(tmp_path):
     assert 0 < t_landing < r["time"][-1]
 
 
+@pytest.mark.usefixtures("fmi_version")
 def test_offset_crank_slider_reaches_its_limit_position():
     l_oa, l_ab, y_oc, omega, theta0 = 0.080, 0.100, 0.080, 15 * RPM, np.radians(60)
     limit = np.pi + np.arcsin(0.25)
@@ -256,6 +263,7 @@ def test_offset_crank_slider_reaches_its_limit_position():
     assert np.max(r["loop_residual"][ok]) < 2e-7
 
 
+@pytest.mark.usefixtures("fmi_version")
 def test_double_rocker_reaches_its_limit_position():
     dims = (0.400, 0.100, 0.410, 0.190, np.radians(90))
     theta0, omega = np.radians(150), 8 * RPM
@@ -273,6 +281,7 @@ def test_double_rocker_reaches_its_limit_position():
         assert np.max(np.abs(wrap(r["theta4"][ok] - th4[ok]))) < 5e-6
 
 
+@pytest.mark.usefixtures("fmi_version")
 @pytest.mark.parametrize("model", ["crank_slider", "crank_rocker", "inverted_crank_slider"])
 def test_full_turn_linkages_follow_their_closed_forms(model):
     r = me(model, relative_tolerance=1e-10, output_interval=0.01)
@@ -299,6 +308,7 @@ def test_full_turn_linkages_follow_their_closed_forms(model):
     assert np.max(r["loop_residual"]) < 1e-7
 
 
+@pytest.mark.usefixtures("fmi_version")
 @pytest.mark.parametrize("model", MODELS)
 def test_default_model_exchange_run_through_fmpy_is_finite(model):
     md = read_model_description(str(fmu_path(model)))

@@ -4,10 +4,14 @@ ballistic closed form of references.toml (closed_form.py evaluates it) from the 
 read from the FMU's outputs."""
 
 import numpy as np
-from fmpy import read_model_description, simulate_fmu
+import pytest
+from fmpy import read_model_description
 
 from closed_form import references
-from conftest import fmu_path
+from conftest import fmu_path, simulate
+
+# Every test here runs on the FMI 2.0 and on the FMI 3.0 FMU, against the same references.
+pytestmark = pytest.mark.usefixtures("fmi_version")
 
 G = 9.81
 OUT = ["regime", "E_x", "E_y", "x_p", "y_p", "vx_p", "vy_p", "projectile_speed", "t_release",
@@ -15,7 +19,7 @@ OUT = ["regime", "E_x", "E_y", "x_p", "y_p", "vx_p", "vy_p", "projectile_speed",
 
 
 def launch(**start):
-    return simulate_fmu(str(fmu_path("trebuchet")), fmi_type="CoSimulation", relative_tolerance=1e-10,
+    return simulate(str(fmu_path("trebuchet")), fmi_type="CoSimulation", relative_tolerance=1e-10,
                         output_interval=1e-3, start_values={"abs_tol": 1e-12, **start}, output=OUT)
 
 

@@ -6,12 +6,16 @@
 //! the variable rules and FMU-state capture, independently of the FMI version and interface;
 //! the front end [`fmi2`] puts the FMI 2.0 Co-Simulation and Model Exchange state machines and
 //! all 44 `fmi2*` C functions over it and writes `modelDescription.xml` (its ModelStructure
-//! dependencies found by [`structure`]); [`documentation`] renders the page from the same table.
+//! dependencies found by [`structure`]); the front end [`fmi3`] does the same for FMI 3.0 (all
+//! 75 `fmi3*` functions, in the same binary); [`documentation`] renders the page from the same
+//! table.
 
 pub mod catalogue;
 pub mod core;
 pub mod documentation;
 pub mod fmi2;
+pub mod fmi3;
+mod glue;
 pub mod harness;
 pub mod logging;
 pub mod model;

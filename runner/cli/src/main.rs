@@ -84,7 +84,8 @@ fn integration(interface: InterfaceArgs, solver: Option<SolverArgs>) -> Integrat
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Build model crates in release mode and pack target/fmu/<MODEL>.fmu.
+    /// Build model crates in release mode and pack target/fmu/<MODEL>.fmu (FMI 2.0) and
+    /// target/fmu3/<MODEL>.fmu (FMI 3.0).
     ///
     /// Example: `runner build quarter_car pendulum` (no MODEL: every crate under models/).
     Build {

@@ -17,7 +17,9 @@ fn fmus() -> &'static (PathBuf, PathBuf) {
         let here = Path::new(env!("CARGO_MANIFEST_DIR"));
         let out = ok(runner(here, &["build", "quarter_car", "second_order"]));
         let paths: Vec<PathBuf> = out.lines().map(PathBuf::from).collect();
-        assert_eq!(paths.len(), 2, "runner build prints one path per model: {out}");
+        // The FMI 2.0 FMUs first, then the FMI 3.0 ones (target/fmu3).
+        assert_eq!(paths.len(), 4, "runner build prints two paths per model: {out}");
+        assert!(paths[2].ends_with("fmu3/quarter_car.fmu") && paths[3].ends_with("fmu3/second_order.fmu"), "{out}");
         (paths[0].clone(), paths[1].clone())
     })
 }

@@ -172,6 +172,16 @@ pub enum StepEnd {
     EndedEarly,
 }
 
+/// How a step that stops at events ended ([`Core::step_to_event`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum StepStop {
+    /// The step reached its end, or the model ended the experiment inside it.
+    Ended(StepEnd),
+    /// An event was located at the current time and waits for the model to handle it;
+    /// `fired[i]` marks each indicator that changed sign.
+    Event { fired: Vec<bool> },
+}
+
 /// Where the importer is in the lifecycle, as far as the variable rules care.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Phase {
@@ -704,6 +714,14 @@ impl<M: Model> Core<M> {
                 }
             }
         }
+        self.finish_step(t0, t_end)
+    }
+
+    /// The end of a communication step that reached `t_end`: time lands exactly on it, the
+    /// model's communication-point work (a constraint projection) runs, and the step's status
+    /// is recorded. Shared by [`Core::do_step`] and [`Core::step_to_event`].
+    #[inline(always)]
+    fn finish_step(&mut self, t0: f64, t_end: f64) -> CallResult<StepEnd> {
         // Land exactly on the communication point whatever the solver's rounding.
         self.state.t = t_end;
         // A projection here that changes x is seen by the integrator at the next step, which
@@ -722,6 +740,59 @@ impl<M: Model> Core<M> {
             Ok(EventOutcome::Stop { reason }) => self.stop_early(t0, &reason),
             Err(e) => Err(self.fail_step(t0, format!("the model failed at t = {t_end}: {e}"))),
         }
+    }
+
+    /// A communication step from `current` over `h` that stops at the first located event
+    /// (for FMI 3.0's Event Mode and early return; either version could use it): the step
+    /// reaches `t_end` ([`StepStop::Ended`], as [`Core::do_step`] ends it), or time and states
+    /// are at the event, before the model has handled it ([`StepStop::Event`]); the caller then
+    /// hands `fired` to [`Core::handle_located_event`] and steps on from there. No
+    /// communication-point work runs at the event, so the arithmetic is that of `do_step`,
+    /// which handles the event at the same place and goes on.
+    pub fn step_to_event(&mut self, current: f64, h: f64) -> CallResult<StepStop> {
+        if !(current == self.state.t && h > 0.0 && h <= f64::MAX) {
+            self.check_step_arguments(current, h)?;
+            if h == 0.0 {
+                return Ok(StepStop::Ended(StepEnd::Completed));
+            }
+        }
+        let t0 = self.state.t;
+        let t_end = current + h;
+        if let Some(stop) = self.state.stop_time {
+            if t_end > stop + 1e-9 * stop.abs().max(1.0) {
+                return Err(self.past_stop(t_end, stop));
+            }
+        }
+        let n = M::N_STATES;
+        self.x_start[..n].copy_from_slice(&self.state.x[..n]);
+        if self.state.t < t_end {
+            let State { model, x, t, integrator, .. } = &mut self.state;
+            let integrator = integrator.as_mut().expect("the integrator exists once started");
+            match integrator.advance(Equations::of(&*model), t, x, t_end) {
+                Ok(Advance::Reached) => {}
+                Ok(Advance::Event { fired }) => {
+                    self.state.outputs_dirty = true;
+                    self.state.last_successful_time = self.state.t;
+                    self.state.last_step_status = Status::Ok;
+                    return Ok(StepStop::Event { fired });
+                }
+                Err(e) => return Err(self.fail_step(t0, format!("the solver failed between t = {t0} and t = {t_end}: {e}"))),
+            }
+        }
+        self.finish_step(t0, t_end).map(StepStop::Ended)
+    }
+
+    /// The model's response to the event [`Core::step_to_event`] stopped at (`fired`: the
+    /// indicators that changed sign), at the current time: `Some(EndedEarly)` when the model
+    /// ends the experiment there (logged as `do_step` logs it).
+    pub fn handle_located_event(&mut self, fired: &[bool]) -> CallResult<Option<StepEnd>> {
+        let t = self.state.t;
+        // A failure restores the state before the event.
+        let n = M::N_STATES;
+        self.x_start[..n].copy_from_slice(&self.state.x[..n]);
+        let end = self.handle_event(t, t, 1, fired)?;
+        self.state.outputs_dirty = true;
+        Ok(end)
     }
 
     /// The status of the last step.

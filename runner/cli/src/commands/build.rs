@@ -1,5 +1,7 @@
 //! `runner build`: compiles model crates in release mode and packs each into
-//! `target/fmu/<id>.fmu` with the XML and HTML the compiled library generates from its table.
+//! `target/fmu/<id>.fmu` (FMI 2.0) and `target/fmu3/<id>.fmu` (FMI 3.0) with the XML and HTML
+//! the compiled library generates from its table. One binary exports both versions' functions
+//! (their names do not collide), so both archives hold the same library and the same page.
 //! The one place that runs cargo: the import path only ever loads built FMUs.
 
 use std::ffi::c_char;
@@ -46,12 +48,14 @@ pub fn cargo_build(root: &Path, ids: &[String]) -> Result<(), String> {
     }
 }
 
-/// Packs the already-built library of model `id` into its `.fmu`; returns the path.
-pub fn pack(root: &Path, id: &str) -> Result<PathBuf, String> {
+/// Packs the already-built library of model `id` into its FMI 2.0 and FMI 3.0 `.fmu`s;
+/// returns their paths.
+pub fn pack(root: &Path, id: &str) -> Result<[PathBuf; 2], String> {
     let so = workspace::target_dir(root).join("release").join(format!("lib{id}.so"));
     // SAFETY: our own model library, just built: loading it runs no code but Rust's.
     let lib = unsafe { Library::new(&so) }.map_err(|e| format!("cannot load {}: {e}", so.display()))?;
     let xml = text_export(&lib, "fmu_model_description")?;
+    let xml3 = text_export(&lib, "fmu3_model_description")?;
     let html = text_export(&lib, "fmu_documentation")?;
     let description = fmi_schema::fmi2::ModelDescription::from_xml(&xml)
         .map_err(|e| format!("{id}: generated modelDescription.xml does not parse: {e}"))?;
@@ -59,24 +63,38 @@ pub fn pack(root: &Path, id: &str) -> Result<PathBuf, String> {
     if !problems.is_empty() {
         return Err(format!("{id}: generated modelDescription.xml has problems:\n  {}", problems.join("\n  ")));
     }
+    let description3 = fmi_schema::fmi3::ModelDescription::from_xml(&xml3)
+        .map_err(|e| format!("{id}: generated FMI 3.0 modelDescription.xml does not parse: {e}"))?;
+    let problems = description3.check();
+    if !problems.is_empty() {
+        return Err(format!("{id}: generated FMI 3.0 modelDescription.xml has problems:\n  {}", problems.join("\n  ")));
+    }
     let binary = std::fs::read(&so).map_err(|e| format!("cannot read {}: {e}", so.display()))?;
-    let dest = workspace::fmu_path(root, id);
-    let bin_path = format!("binaries/{PLATFORM}/{id}.so");
+    let fmu2 = workspace::fmu_path(root, id);
+    write_fmu(&fmu2, &xml, &format!("binaries/{PLATFORM}/{id}.so"), &binary, &html)?;
+    let fmu3 = workspace::fmu3_path(root, id);
+    write_fmu(&fmu3, &xml3, &format!("binaries/{}/{id}.so", fmi_importer::fmi3::PLATFORM), &binary, &html)?;
+    Ok([fmu2, fmu3])
+}
+
+/// Writes one `.fmu` archive at `dest`.
+fn write_fmu(dest: &Path, xml: &str, bin_path: &str, binary: &[u8], html: &str) -> Result<(), String> {
     let dir = dest.parent().ok_or_else(|| format!("{} has no parent directory", dest.display()))?;
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     write_zip(
-        ResultFile::create(&dest)?,
+        ResultFile::create(dest)?,
         &[
             Entry { path: "modelDescription.xml", bytes: xml.as_bytes() },
-            Entry { path: &bin_path, bytes: &binary },
+            Entry { path: bin_path, bytes: binary },
             Entry { path: "documentation/index.html", bytes: html.as_bytes() },
         ],
     )?
     .commit()?;
-    Ok(dest)
+    Ok(())
 }
 
-/// `runner build [MODEL...]`: all models when none is named.
+/// `runner build [MODEL...]`: all models when none is named; the FMI 2.0 paths, then the FMI
+/// 3.0 ones.
 pub fn build(requested: &[String]) -> Result<Vec<PathBuf>, String> {
     let root = workspace::root();
     let known = workspace::models(&root)?;
@@ -87,5 +105,8 @@ pub fn build(requested: &[String]) -> Result<Vec<PathBuf>, String> {
         }
     }
     cargo_build(&root, &ids)?;
-    ids.iter().map(|id| pack(&root, id)).collect()
+    let packed = ids.iter().map(|id| pack(&root, id)).collect::<Result<Vec<_>, String>>()?;
+    // The FMI 2.0 FMUs first, as before, then the FMI 3.0 ones.
+    let (fmi2, fmi3): (Vec<PathBuf>, Vec<PathBuf>) = packed.into_iter().map(|[a, b]| (a, b)).unzip();
+    Ok(fmi2.into_iter().chain(fmi3).collect())
 }

@@ -42,6 +42,16 @@ struct RunArgs {
     set: Vec<String>,
 }
 
+/// Inputs that change over the run.
+#[derive(Args)]
+struct InputArgs {
+    /// Drive inputs from a CSV file in fmpy's convention: `time` first, then input names; Reals
+    /// interpolated linearly, Integers, Booleans and discrete values held, a repeated time a
+    /// discontinuity (steps are shortened to land on it).
+    #[arg(long, value_name = "FILE.csv")]
+    input_file: Option<PathBuf>,
+}
+
 impl RunArgs {
     fn defaults(self) -> RunDefaults {
         RunDefaults { stop_time: self.stop_time, output_interval: self.output_interval, tolerance: self.tolerance, set: self.set }
@@ -142,6 +152,8 @@ enum Cmd {
         record_events: bool,
         #[command(flatten)]
         isolation: SimulateIsolation,
+        #[command(flatten)]
+        inputs: InputArgs,
     },
     /// Run a parameter sweep: one FMU instance per point, in parallel; metrics per point as CSV.
     ///
@@ -187,6 +199,8 @@ enum Cmd {
         plot: Option<PathBuf>,
         #[command(flatten)]
         isolation: SweepIsolation,
+        #[command(flatten)]
+        inputs: InputArgs,
     },
     /// Compare solvers: steps, rhs evaluations and time each needs to reach a target error.
     ///
@@ -369,7 +383,7 @@ fn main() {
         Cmd::Info { fmu } => {
             experiment::resolve(&fmu).and_then(|t| fmi_importer::Fmu::load(&t.path)).map(|f| print!("{}", info::report(&f.description)))
         }
-        Cmd::Simulate { fmu, run, interface, solver, out, plot, log, plot_vars, plot_x, overlay, record_events, isolation } => {
+        Cmd::Simulate { fmu, run, interface, solver, out, plot, log, plot_vars, plot_x, overlay, record_events, isolation, inputs } => {
             simulate::run(&simulate::Options {
                 fmu,
                 run: run.defaults(),
@@ -383,9 +397,10 @@ fn main() {
                 integration: integration(interface, Some(solver)),
                 timeout: isolation.timeout,
                 in_process: isolation.in_process,
+                input_file: inputs.input_file,
             })
         }
-        Cmd::Sweep { fmu, params, metrics, threads, run, interface, solver, out, plot, isolation } => {
+        Cmd::Sweep { fmu, params, metrics, threads, run, interface, solver, out, plot, isolation, inputs } => {
             match sweep::run(&sweep::Options {
                 fmu,
                 params,
@@ -400,6 +415,7 @@ fn main() {
                 worker_memory: isolation.worker_memory,
                 resume: isolation.resume,
                 command_line: std::env::args().collect(),
+                input_file: inputs.input_file,
             }) {
                 Ok(s) if s.failed == 0 => Ok(()),
                 Ok(s) => Err(format!("{} of {} sweep point(s) failed; see the status column", s.failed, s.points)),

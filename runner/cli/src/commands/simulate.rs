@@ -44,6 +44,8 @@ pub struct Options {
     pub timeout: Option<f64>,
     /// Runs the FMU in this process.
     pub in_process: bool,
+    /// Inputs over time (`--input-file`: fmpy's CSV convention).
+    pub input_file: Option<PathBuf>,
 }
 
 /// One run of an overlay: its label and the assignment that makes it.
@@ -200,6 +202,7 @@ pub fn run(options: &Options) -> Result<(), String> {
     let mut set_texts = target.experiment.simulate.set.clone();
     set_texts.extend(options.run.set.iter().cloned());
     let assignments = variables::parse_sets(md, &set_texts)?;
+    let inputs = workers::input_file(options.input_file.as_deref(), md, held.interface())?;
 
     let (overlaid, cases) = match &options.overlay {
         Some(text) => {
@@ -255,19 +258,28 @@ pub fn run(options: &Options) -> Result<(), String> {
         let recording = Trace::recording(md, &recorded, &case_assignments, options.record_events)?;
         let mut trace = Trace::empty(&recording, &grid);
         let keep = options.plot.is_some();
-        let outcome = executor.run(md, identifier, &grid, &case_assignments, &recording, options.log, |t, values, texts| {
-            if keep {
-                trace.push(t, values);
-            }
-            row.clear();
-            if overlaid.is_some() {
-                row.push(format!("{:?}", case.si));
-            }
-            row.push(format!("{t:?}"));
-            // Exactly as the FMU gave them: 64-bit integers in full, Binary in hexadecimal.
-            row.extend((0..output_columns.len()).map(|c| texts.text(c, values)));
-            writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
-        })?;
+        let outcome = executor.run_with_inputs(
+            md,
+            identifier,
+            &grid,
+            &case_assignments,
+            inputs.as_ref(),
+            &recording,
+            options.log,
+            |t, values, texts| {
+                if keep {
+                    trace.push(t, values);
+                }
+                row.clear();
+                if overlaid.is_some() {
+                    row.push(format!("{:?}", case.si));
+                }
+                row.push(format!("{t:?}"));
+                // Exactly as the FMU gave them: 64-bit integers in full, Binary in hexadecimal.
+                row.extend((0..output_columns.len()).map(|c| texts.text(c, values)));
+                writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
+            },
+        )?;
         trace.ended_early = outcome.ended_early;
         if let Some(reason) = &trace.ended_early {
             let which = case.label.as_ref().map(|l| format!(" ({l})")).unwrap_or_default();

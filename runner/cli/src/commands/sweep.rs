@@ -50,6 +50,8 @@ pub struct Options {
     pub resume: bool,
     /// The command line as given, for the "continue with" message.
     pub command_line: Vec<String>,
+    /// Inputs over time for every point (`--input-file`: fmpy's CSV convention).
+    pub input_file: Option<PathBuf>,
 }
 
 /// What a finished sweep reports.
@@ -121,6 +123,18 @@ fn record(
         put("solver", format!("{} (fixed step {:?} s, abs_tol {:?})", s.method.name(), s.fixed_step, s.abs_tol));
     }
     put("point_timeout", timeout.map_or("none".to_owned(), |t| format!("{t:?} s")));
+    if let Some(inputs) = &spec.inputs {
+        // The table itself, not the file's name: the same name may hold other inputs later.
+        let mut hash = Sha256::new();
+        for name in &inputs.names {
+            hash.update(name.as_bytes());
+            hash.update([0]);
+        }
+        for x in inputs.time.iter().chain(inputs.values.iter().flatten()) {
+            hash.update(x.to_bits().to_le_bytes());
+        }
+        put("input_file", format!("{} columns, {} rows (sha256 {:x})", inputs.names.len(), inputs.time.len(), hash.finalize()));
+    }
     Record { entries }
 }
 
@@ -178,7 +192,8 @@ pub fn run(options: &Options) -> Result<Summary, String> {
     grid.solver = solver;
     let mut set_texts = defaults.set.clone();
     set_texts.extend(options.run.set.iter().cloned());
-    let spec = SweepSpec { grid, sets: set_texts, ranges, metrics: metric_texts.clone(), inputs: None };
+    let inputs = workers::input_file(options.input_file.as_deref(), d, held.interface())?;
+    let spec = SweepSpec { grid, sets: set_texts, ranges, metrics: metric_texts.clone(), inputs };
     let plan = spec.plan(d, held.identifier(), held.interface())?;
     let (space, metrics, swept) = (&plan.space, &plan.metrics, &plan.swept);
     let n = space.len;

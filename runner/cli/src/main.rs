@@ -42,7 +42,7 @@ struct RunArgs {
     set: Vec<String>,
 }
 
-/// Inputs that change over the run.
+/// Inputs that change over the run, and the master of a system.
 #[derive(Args)]
 struct InputArgs {
     /// Drive inputs from a CSV file in fmpy's convention: `time` first, then input names; Reals
@@ -50,6 +50,11 @@ struct InputArgs {
     /// discontinuity (steps are shortened to land on it).
     #[arg(long, value_name = "FILE.csv")]
     input_file: Option<PathBuf>,
+    /// For a system (.ssp, .ssd or a folder holding SystemStructure.ssd): the co-simulation
+    /// master, jacobi (default: every component steps from t with the outputs at t) or
+    /// gauss-seidel (components step in data-flow order).
+    #[arg(long, value_name = "ALGORITHM")]
+    master: Option<String>,
 }
 
 impl RunArgs {
@@ -94,9 +99,11 @@ fn integration(interface: InterfaceArgs, solver: Option<SolverArgs>) -> Integrat
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Build model crates in release mode and pack target/fmu/<MODEL>.fmu.
+    /// Build model crates in release mode and pack target/fmu/<MODEL>.fmu; pack the systems
+    /// under systems/ into target/ssp/<SYSTEM>.ssp with the FMUs they use.
     ///
-    /// Example: `runner build quarter_car pendulum` (no MODEL: every crate under models/).
+    /// Example: `runner build quarter_car pendulum` (no name: every crate under models/ and
+    /// every system under systems/).
     Build {
         /// Model identifiers (crate names under models/).
         models: Vec<String>,
@@ -398,6 +405,7 @@ fn main() {
                 timeout: isolation.timeout,
                 in_process: isolation.in_process,
                 input_file: inputs.input_file,
+                master: inputs.master,
             })
         }
         Cmd::Sweep { fmu, params, metrics, threads, run, interface, solver, out, plot, isolation, inputs } => {
@@ -416,6 +424,7 @@ fn main() {
                 resume: isolation.resume,
                 command_line: std::env::args().collect(),
                 input_file: inputs.input_file,
+                master: inputs.master,
             }) {
                 Ok(s) if s.failed == 0 => Ok(()),
                 Ok(s) => Err(format!("{} of {} sweep point(s) failed; see the status column", s.failed, s.points)),

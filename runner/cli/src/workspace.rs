@@ -32,6 +32,22 @@ pub fn models(root: &Path) -> Result<Vec<String>, String> {
     Ok(names)
 }
 
+/// The systems under `systems/`: one folder holding a `SystemStructure.ssd` each.
+pub fn systems(root: &Path) -> Result<Vec<String>, String> {
+    let dir = root.join("systems");
+    if !dir.is_dir() {
+        return Ok(Vec::new());
+    }
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .map_err(|e| format!("cannot list {}: {e}", dir.display()))?
+        .filter_map(|e| e.ok())
+        .filter(|e| e.path().join("SystemStructure.ssd").is_file())
+        .filter_map(|e| e.file_name().to_str().map(str::to_owned))
+        .collect();
+    names.sort();
+    Ok(names)
+}
+
 /// Cargo's target directory for this workspace.
 pub fn target_dir(root: &Path) -> PathBuf {
     std::env::var_os("CARGO_TARGET_DIR").map(PathBuf::from).unwrap_or_else(|| root.join("target"))

@@ -46,6 +46,24 @@ pub struct Options {
     pub in_process: bool,
     /// Inputs over time (`--input-file`: fmpy's CSV convention).
     pub input_file: Option<PathBuf>,
+    /// The master algorithm for a system (`--master`).
+    pub master: Option<String>,
+}
+
+/// `runner simulate SYSTEM`, refusing the options that are for single FMUs.
+fn run_system(options: &Options) -> Result<(), String> {
+    let single = [
+        ("--plot", options.plot.is_some()),
+        ("--overlay", options.overlay.is_some()),
+        ("--input-file", options.input_file.is_some()),
+        ("--timeout", options.timeout.is_some()),
+        ("--record-events", options.record_events),
+        ("--log", options.log),
+    ];
+    if let Some((flag, _)) = single.iter().find(|(_, given)| *given) {
+        return Err(format!("{flag} is for single FMUs; a system takes --stop-time, --output-interval, --tolerance, --set COMPONENT.VARIABLE=VALUE, --master and --out"));
+    }
+    crate::commands::system::simulate(Path::new(&options.fmu), &options.run, options.master.as_deref(), options.out.as_deref())
 }
 
 /// One run of an overlay: its label and the assignment that makes it.
@@ -182,6 +200,9 @@ pub fn check_plot_path(path: &Path) -> Result<Format, String> {
 
 /// Runs `runner simulate`.
 pub fn run(options: &Options) -> Result<(), String> {
+    if fmi_systems::is_system(Path::new(&options.fmu)) {
+        return run_system(options);
+    }
     if let Some(plot) = &options.plot {
         check_plot_path(plot)?;
     } else if !options.plot_vars.is_empty() || options.plot_x.is_some() {

@@ -64,16 +64,36 @@ pub fn pack(root: &Path, id: &str) -> Result<PathBuf, String> {
     let bin_path = format!("binaries/{PLATFORM}/{id}.so");
     let dir = dest.parent().ok_or_else(|| format!("{} has no parent directory", dest.display()))?;
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-    write_zip(
-        ResultFile::create(&dest)?,
-        &[
-            Entry { path: "modelDescription.xml", bytes: xml.as_bytes() },
-            Entry { path: &bin_path, bytes: &binary },
-            Entry { path: "documentation/index.html", bytes: html.as_bytes() },
-        ],
-    )?
-    .commit()?;
+    let resources = model_resources(&root.join("models").join(id).join("resources"))?;
+    let mut entries = vec![
+        Entry { path: "modelDescription.xml", bytes: xml.as_bytes() },
+        Entry { path: &bin_path, bytes: &binary },
+        Entry { path: "documentation/index.html", bytes: html.as_bytes() },
+    ];
+    entries.extend(resources.iter().map(|(path, bytes)| Entry { path, bytes }));
+    write_zip(ResultFile::create(&dest)?, &entries)?.commit()?;
     Ok(dest)
+}
+
+/// The files of a model's `resources/` folder (the FMU's `resources/`, which the model reads
+/// at instantiation), as archive paths and bytes; none when the folder is absent.
+fn model_resources(dir: &Path) -> Result<Vec<(String, Vec<u8>)>, String> {
+    let mut files = Vec::new();
+    if !dir.is_dir() {
+        return Ok(files);
+    }
+    let mut entries: Vec<_> =
+        std::fs::read_dir(dir).map_err(|e| format!("cannot list {}: {e}", dir.display()))?.filter_map(|e| e.ok()).collect();
+    entries.sort_by_key(|e| e.file_name());
+    for e in entries {
+        let path = e.path();
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !path.is_file() {
+            return Err(format!("{}: resources are plain files; {name} is not", dir.display()));
+        }
+        files.push((format!("resources/{name}"), std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?));
+    }
+    Ok(files)
 }
 
 /// `runner build [NAME...]`: every model and every system under `systems/` when none is named;

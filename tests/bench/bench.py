@@ -4,14 +4,19 @@ Every way runs the same experiment: one run per road speed, relative tolerance 1
 10 s, samples every 1e-3 s, transmissibility = max(z_s) / max(z_r) over the run:
 
   bare     tests/bench/bare_loop: the toolkit's DOPRI5 called directly on quarter_car's
-           right-hand side, no FMI layer, no output handling (the limit).
+           right-hand side, no FMI layer, no output handling: the same steps across the 1 ms
+           points and the same dense output at them as in the FMU (the limit).
   runner   `runner sweep` on the FMU, 1 and 2 threads; and through its Model Exchange
            interface (`--interface model-exchange`, 1 thread): the runner's DOPRI5 on the
-           FMU's derivatives, the same steps and arithmetic, so the same numbers.
+           FMU's derivatives.
   fmpy     fmpy.simulate_fmu on the same FMU, 1 and 2 worker processes (peers.py); and its
            CVODE on the Model Exchange interface, a few speeds (a BDF method: its
            transmissibility differs by its own error, printed, not held to the others').
   scipy    solve_ivp RK45 on the equations ported to Python (peers.py), a few speeds.
+
+Then, untimed, the work and the accuracy at every speed: the runner's right-hand-side
+evaluations per run against scipy RK45's at the same tolerance, and its transmissibility
+against scipy's DOP853 at rtol 1e-12 (peers.py reference, 2 processes; a minute or two).
 
 Costs are wall-clock seconds per run, from the whole command (process start included, which
 favours nobody: it is milliseconds against seconds of work). The machine is noisy, so every
@@ -117,7 +122,8 @@ def json_tool(cmd, own_clock):
     interpreter's start and imports (in their favour)."""
     wall, out, _ = timed(cmd)
     result = json.loads(out)
-    result["transmissibility"] = {float(k): v for k, v in result["transmissibility"].items()}
+    if "transmissibility" in result:
+        result["transmissibility"] = {float(k): v for k, v in result["transmissibility"].items()}
     return (result["wall_seconds"] if own_clock else wall), result
 
 
@@ -166,6 +172,8 @@ def main():
     parser.add_argument("--fmpy-speeds", type=int, default=10, help="speeds run by fmpy (spread over 1..50 m/s)")
     parser.add_argument("--scipy-speeds", type=int, default=5, help="speeds run by scipy")
     parser.add_argument("--cvode-speeds", type=int, default=3, help="speeds run by fmpy's CVODE on Model Exchange")
+    parser.add_argument("--reference-speeds", type=int, default=len(SPEEDS),
+                        help="speeds of the untimed work and accuracy comparison (default: all 99)")
     args = parser.parse_args()
     become_subreaper()
 
@@ -174,6 +182,7 @@ def main():
     fmpy_speeds = ",".join(f"{s:g}" for s in pick(args.fmpy_speeds))
     scipy_speeds = ",".join(f"{s:g}" for s in pick(args.scipy_speeds))
     cvode_speeds = ",".join(f"{s:g}" for s in pick(args.cvode_speeds))
+    reference_speeds = ",".join(f"{s:g}" for s in pick(args.reference_speeds))
     print(f"machine: {machine()}")
     print(f"Ex. 4 sweep: rtol 1e-9, 10 s, samples every 1 ms; {len(SPEEDS)} speeds 1..50 m/s "
           f"(fmpy {args.fmpy_speeds}, fmpy CVODE {args.cvode_speeds}, scipy {args.scipy_speeds} of them); "
@@ -187,18 +196,18 @@ def main():
         def tool(cmd, own_clock):
             def run():
                 sec, r = json_tool(cmd, own_clock)
-                return sec, (r["runs"], r["transmissibility"])
+                return sec, (r["runs"], r["transmissibility"], r.get("rhs", {}))
             return run
 
         def runner(threads, extra=()):
             def run():
                 sec, t = runner_sweep(all_speeds, threads, work, extra=extra)
-                return sec, (len(t), t)
+                return sec, (len(t), t, {})
             return run
 
         peer = [args.python, PEERS]
         ways = [
-            ("bare DOPRI5 loop (the limit)", tool([BARE, all_speeds], own_clock=False)),
+            ("bare loop (the limit)", tool([BARE, all_speeds], own_clock=False)),
             ("runner sweep, 1 thread", runner(1)),
             ("runner sweep, 2 threads", runner(2)),
             ("runner sweep, Model Exchange, 1 thread", runner(1, ("--interface", "model-exchange"))),
@@ -215,7 +224,7 @@ def main():
                 if label not in best or sec < best[label][0]:
                     best[label] = (sec, result)
         for label, _ in ways:
-            sec, (runs, values) = best[label]
+            sec, (runs, values, _) = best[label]
             rows.append((label, runs, sec / runs, values))
 
         reference = rows[1][3]  # runner, 1 thread
@@ -224,6 +233,35 @@ def main():
         for label, runs, per_run, values in rows:
             print(f"{label:<38}{runs:>6}{per_run * 1e3:>13.3f}{per_run / base:>20.2f}{largest_difference(values, reference):>38.1e}")
         disagreement = max(largest_difference(values, reference) for label, *_, values in rows if label != CVODE)
+
+        # The work and the accuracy, untimed, at the reference speeds: the runner's evaluations
+        # per run (its n_rhs counter) against scipy RK45's at the same tolerance, speed by speed,
+        # and its transmissibility against scipy's DOP853 at rtol 1e-12.
+        print(f"\nwork and accuracy at {args.reference_speeds} speeds (untimed; scipy's reference in 2 processes) ...", flush=True)
+        counted = Path(work) / "counted.csv"
+        timed([RUNNER, "sweep", FMU, "--param", f"speed={reference_speeds}", *EX4, "--metric", "rhs=final(n_rhs)",
+               "--threads", "2", "--out", counted])
+        with open(counted) as f:
+            counted_rows = list(csv.DictReader(f))
+        runner_rhs = {float(r["speed"]): float(r["rhs"]) for r in counted_rows}
+        runner_tr = {float(r["speed"]): float(r["transmissibility"]) for r in counted_rows}
+        _, ref = json_tool([args.python, PEERS, "reference", "--speeds", reference_speeds, "--processes", "2"], own_clock=True)
+        scipy_nfev = {float(k): v for k, v in ref["nfev"].items()}
+        dop853 = {float(k): v for k, v in ref["dop853"].items()}
+        rk45 = {float(k): v for k, v in ref["rk45"].items()}
+        bare_rhs = {float(k): v for k, v in best["bare loop (the limit)"][1][2].items()}
+        work_ratio = {s: runner_rhs[s] / scipy_nfev[s] for s in scipy_nfev}
+        above = [s for s, r in work_ratio.items() if r > 1]
+        accuracy = largest_difference(runner_tr, dop853)
+        print(f"right-hand-side evaluations per run, runner / scipy RK45 (rtol 1e-9): {min(work_ratio.values()):.4f} to "
+              f"{max(work_ratio.values()):.4f} (mean runner {sum(runner_rhs.values()) / len(runner_rhs):.0f}, scipy "
+              f"{sum(scipy_nfev.values()) / len(scipy_nfev):.0f}); above scipy at {len(above)} of {len(work_ratio)} speeds"
+              f"{' ' + str(above[:10]) if above else ''}")
+        print(f"the bare loop's evaluations equal the runner's at every speed both ran: "
+              f"{all(bare_rhs[s] == runner_rhs[s] for s in runner_rhs if s in bare_rhs)}")
+        print(f"transmissibility against scipy DOP853 at rtol 1e-12: runner {accuracy:.2e}, scipy RK45 at rtol 1e-9 "
+              f"{largest_difference(rk45, dop853):.2e}, runner against scipy RK45 {largest_difference(runner_tr, rk45):.2e} "
+              f"(largest relative differences; reference computed in {ref['wall_seconds']:.0f} s)")
 
         # Thread scaling on 1000 points (speed 1..50.95 step 0.05), interleaved like the rest.
         # CPU time tells the program's share from the machine's: when both threads' CPU time
@@ -285,10 +323,12 @@ def main():
     per = {label: per_run for label, _, per_run, _ in rows}
     r1 = per["runner sweep, 1 thread"]
     checks = [
-        ("runner (1 thread) within 1.3x of the bare loop", r1 / per["bare DOPRI5 loop (the limit)"], "<=", 1.3),
+        ("runner (1 thread) within 1.3x of the bare loop", r1 / per["bare loop (the limit)"], "<=", 1.3),
         ("runner on Model Exchange within 1.5x of its Co-Simulation run", per["runner sweep, Model Exchange, 1 thread"] / r1, "<=", 1.5),
-        ("fmpy (1 process) per run / runner (1 thread)", per["fmpy simulate_fmu, 1 process"] / r1, ">=", 20),
-        ("scipy RK45 per run / runner (1 thread)", per["scipy solve_ivp RK45 (Python port)"] / r1, ">=", 300),
+        ("fmpy (1 process) per run / runner (1 thread)", per["fmpy simulate_fmu, 1 process"] / r1, ">=", 40),
+        ("scipy RK45 per run / runner (1 thread)", per["scipy solve_ivp RK45 (Python port)"] / r1, ">=", 500),
+        ("rhs evaluations per run, runner / scipy RK45, worst speed", max(work_ratio.values()), "<=", 1.0),
+        ("transmissibility against scipy DOP853 rtol 1e-12, worst speed", accuracy, "<=", 1e-7),
         ("2 threads against 1 on 1000 points", one / two, ">=", 1.8),
         ("peak RSS, 10,000 points / 100 points", rss_big / rss_small, "<=", 1.1),
         ("worker processes / --in-process, 99 points, 2 threads",

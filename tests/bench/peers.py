@@ -15,7 +15,11 @@ runner's CSV.
     scipy  The model's five equations ported by hand to a plain-Python rhs(t, y) and solved by
            scipy.integrate.solve_ivp(method='RK45'), a Dormand-Prince 5(4) like the FMU's default
            solver, at the FMU's tolerances (rtol 1e-9, atol = the FMU's abs_tol 1e-9), one speed
-           after another: what a student porting the lab to Python would write.
+           after another: what a student porting the lab to Python would write. Also reports
+           its right-hand-side evaluations (nfev) per speed.
+    reference  Not timed: per speed, scipy's RK45 as above (its nfev and transmissibility) and
+           scipy's DOP853 at rtol 1e-12 (atol 1e-14), the accuracy reference, in a Pool of
+           --processes worker processes.
 
 Fairness: every peer does the same work per run (same equations, method family, tolerances,
 horizon and sampling) and is set up the way a sensible user sets it up: fmpy unzips the FMU
@@ -27,6 +31,7 @@ wall_seconds. The adaptive solvers take more steps at higher speeds (more road p
 Usage:
     python peers.py fmpy --fmu target/fmu/quarter_car.fmu --speeds 1,5,10,20 [--processes 2]
     python peers.py scipy --speeds 1,5,10
+    python peers.py reference --speeds 1,1.5,2 [--processes 2]
 """
 
 import argparse
@@ -124,21 +129,50 @@ def make_rhs(speed, m_s, m_u, k_s, b_s, k_t, b_t, road_amplitude, road_wavelengt
     return rhs
 
 
-def _scipy_run(speed):
+def _solve(speed, method, rtol, atol):
+    """One 10 s run sampled every 1 ms: (transmissibility, right-hand-side evaluations)."""
     from scipy.integrate import solve_ivp
     t_eval = np.arange(10001) * OUTPUT_INTERVAL
-    sol = solve_ivp(make_rhs(speed, **PARAMS), (0.0, STOP_TIME), [0.0] * 5, method='RK45',
-                    t_eval=t_eval, rtol=RTOL, atol=ATOL)
+    sol = solve_ivp(make_rhs(speed, **PARAMS), (0.0, STOP_TIME), [0.0] * 5, method=method,
+                    t_eval=t_eval, rtol=rtol, atol=atol)
     if not sol.success:
         raise RuntimeError(f"speed {speed}: {sol.message}")
-    return speed, float(np.max(sol.y[0]) / np.max(sol.y[2]))
+    return float(np.max(sol.y[0]) / np.max(sol.y[2])), int(sol.nfev)
 
 
 def run_scipy(speeds):
     start = time.perf_counter()
-    results = [_scipy_run(s) for s in speeds]
+    runs = [(s, _solve(s, 'RK45', RTOL, ATOL)) for s in speeds]
     wall = time.perf_counter() - start
-    return report('scipy_rk45', 1, speeds, results, wall)
+    out = report('scipy_rk45', 1, speeds, [(s, tr) for s, (tr, _) in runs], wall)
+    out['nfev'] = {f'{s:g}': n for s, (_, n) in runs}
+    return out
+
+
+# The accuracy reference: DOP853 (8th order) at a tolerance 1000x tighter than the sweep's.
+REFERENCE_RTOL, REFERENCE_ATOL = 1e-12, 1e-14
+
+
+def _reference_run(speed):
+    rk45, nfev = _solve(speed, 'RK45', RTOL, ATOL)
+    reference, _ = _solve(speed, 'DOP853', REFERENCE_RTOL, REFERENCE_ATOL)
+    return speed, rk45, nfev, reference
+
+
+def run_reference(speeds, processes):
+    start = time.perf_counter()
+    with multiprocessing.Pool(processes) as pool:
+        runs = pool.map(_reference_run, speeds, chunksize=1)
+    wall = time.perf_counter() - start
+    return {
+        'tool': 'scipy_reference',
+        'processes': processes,
+        'runs': len(speeds),
+        'wall_seconds': wall,
+        'rk45': {f'{s:g}': tr for s, tr, _, _ in runs},
+        'nfev': {f'{s:g}': n for s, _, n, _ in runs},
+        'dop853': {f'{s:g}': ref for s, _, _, ref in runs},
+    }
 
 
 # ---------------------------------------------------------------------------------------------
@@ -172,12 +206,17 @@ def main(argv=None):
                    help='the interface fmpy drives (ModelExchange: its CVODE integrates)')
     p = sub.add_parser('scipy', help='hand port solved by scipy solve_ivp RK45')
     p.add_argument('--speeds', required=True, type=parse_speeds, help='comma-separated speeds (m/s)')
+    p = sub.add_parser('reference', help='untimed: RK45 nfev and a DOP853 rtol 1e-12 reference per speed')
+    p.add_argument('--speeds', required=True, type=parse_speeds, help='comma-separated speeds (m/s)')
+    p.add_argument('--processes', type=int, default=2, help='worker processes (default 2)')
     args = parser.parse_args(argv)
 
+    if args.tool in ('fmpy', 'reference') and args.processes < 1:
+        parser.error('--processes must be at least 1')
     if args.tool == 'fmpy':
-        if args.processes < 1:
-            parser.error('--processes must be at least 1')
         out = run_fmpy(args.fmu, args.speeds, args.processes, args.fmi_type)
+    elif args.tool == 'reference':
+        out = run_reference(args.speeds, args.processes)
     else:
         out = run_scipy(args.speeds)
     json.dump(out, sys.stdout)

@@ -48,7 +48,7 @@ def test_description_declares_what_we_promise(any_fmu):
     assert float(md.defaultExperiment.stopTime) > 0
     assert float(md.defaultExperiment.tolerance) == 1e-6
     names = {v.name for v in md.modelVariables}
-    for control in ("solver", "fixed_step", "abs_tol", "n_steps", "n_rhs"):
+    for control in ("solver", "fixed_step", "abs_tol", "max_step", "n_steps", "n_rhs"):
         assert control in names
     # Every output is listed in ModelStructure/Outputs, in order.
     outputs = [v for v in md.modelVariables if v.causality == "output"]
@@ -63,10 +63,10 @@ def test_default_run_through_fmpy_is_finite(any_fmu):
         assert np.all(np.isfinite(result[name].astype(float))), name
 
 
-def _slave(fmu_path, tmp_path):
+def _slave(fmu_path, tmp_path, name="slave"):
     md = read_model_description(str(fmu_path))
-    unzipdir = extract(str(fmu_path), unzipdir=str(tmp_path / "slave"))
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="rollback")
+    unzipdir = extract(str(fmu_path), unzipdir=str(tmp_path / name))
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
     slave.instantiate()
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
@@ -86,6 +86,8 @@ def _run(slave, vrs, t0, n, h):
 
 
 def test_rollback_reproduces_the_run_bit_for_bit(any_fmu, tmp_path):
+    """A rollback, and a serialized state restored in this and in a fresh instance, continue as
+    the run did, bit for bit (every model, default solver: DOPRI5 stepping across points)."""
     md, slave, vrs = _slave(any_fmu, tmp_path)
     h = float(md.defaultExperiment.stopTime) / 200
     _, t = _run(slave, vrs, 0.0, 20, h)
@@ -100,8 +102,19 @@ def test_rollback_reproduces_the_run_bit_for_bit(any_fmu, tmp_path):
     slave.setFMUstate(restored)
     third, _ = _run(slave, vrs, t, 20, h)
     assert np.array_equal(first, third)
+    # And in a fresh instance (another library load of the same binary): the state carries the
+    # adaptive solver's pending step, so the continuation is the same bit for bit.
+    _, fresh, _ = _slave(any_fmu, tmp_path, name="fresh")
+    copy = fresh.deSerializeFMUstate(blob)
+    fresh.setFMUstate(copy)
+    fourth, _ = _run(fresh, vrs, t, 20, h)
+    assert np.array_equal(first, fourth)
+    fresh.freeFMUstate(copy)
+    fresh.terminate()
+    fresh.freeInstance()
     slave.freeFMUstate(state)
     slave.freeFMUstate(restored)
     slave.terminate()
     slave.freeInstance()
     shutil.rmtree(tmp_path / "slave", ignore_errors=True)
+    shutil.rmtree(tmp_path / "fresh", ignore_errors=True)

@@ -35,7 +35,7 @@ from conftest import MODELS, fmu_path
 OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
 REFUSED = (DISCARD, ERROR)  # what the issue accepts for a refused value
 NAN, INF = float("nan"), float("inf")
-CONTROLS = {"solver", "fixed_step", "abs_tol", "n_steps", "n_rhs"}
+CONTROLS = {"solver", "fixed_step", "abs_tol", "max_step", "n_steps", "n_rhs"}
 
 C_TYPE = {"Real": c_double, "Integer": c_int, "Boolean": c_int, "String": c_char_p}
 
@@ -323,10 +323,10 @@ def test_branch_other_than_plus_or_minus_one_is_refused(probe, model):
 
 @pytest.mark.parametrize("model", MODELS)
 def test_unknown_solver_is_refused_at_set_integer(probe, model):
-    """`solver` takes 0, 1 or 2; other codes are refused by fmi2SetInteger, naming it and the
+    """`solver` takes 0 to 4; other codes are refused by fmi2SetInteger, naming it and the
     valid choices (test_fmi_boundary.py checks one model; this checks the table of every FMU)."""
     c = probe.new("Instantiated")
-    for value in (-1, 3, 7):
+    for value in (-1, 5, 7):
         assert probe.set(c, "Integer", [probe.vr("solver")], [value]) == ERROR
         assert names_variable(probe.messages(), "solver") and "forward Euler" in probe.messages()
 

@@ -152,9 +152,11 @@ def test_model_exchange_run_agrees_with_the_co_simulation_run(model, tmp_path):
     (measured: every output equal to the bit, for every model without constraints); the
     linkages project their loop closure at every communication point under Co-Simulation but
     at step events (a drift beyond rtol) under Model Exchange, and near a limit position, where
-    the rates grow like 1/cos, that difference is amplified to about 20 times rtol (measured
-    1.9e-8 and 1.4e-8 of the outputs' peaks for the offset crank-slider and the double rocker,
-    in proportion to rtol from 1e-6 to 1e-9): bound 100 rtol. The counters differ by design
+    the rates grow like 1/cos, that difference is amplified (measured 1.9e-8 and 1.4e-8 of the
+    outputs' peaks for the offset crank-slider and the double rocker when both stepped onto
+    every communication point; since the adaptive methods step across them, 1.6e-7 for the
+    double rocker's theta3_ddot in the row before its limit position, where it is 1,450 rad/s²
+    and rising like 1/cos³): bound 1000 rtol, still far below what a wrong equation gives. The counters differ by design
     (n_steps counts completed integrator steps, n_rhs derivative evaluations, in each
     interface's sense)."""
     tolerance = ["--tolerance", "1e-9"]
@@ -174,7 +176,7 @@ def test_model_exchange_run_agrees_with_the_co_simulation_run(model, tmp_path):
         if name in ("n_steps", "n_rhs"):
             continue
         scale = max(1.0, np.max(np.abs(cs[name][rows])))
-        assert np.max(np.abs(me[name][rows] - cs[name][rows])) <= 1e-7 * scale, name
+        assert np.max(np.abs(me[name][rows] - cs[name][rows])) <= 1e-6 * scale, name
 
 
 def test_step_events_project_the_linkages_drift(tmp_path):

@@ -78,9 +78,14 @@ pre {{ padding: 0.5em; overflow-x: auto; }}
 {rows}</table>
 <h2>Simulation</h2>
 <p>Default experiment: stop time {stop} s, relative tolerance {tol}, output interval {dt} s.
-The solver is chosen with <code>solver</code> (0 forward Euler, 1 classical RK4, 2 adaptive Dormand&ndash;Prince 5(4), the method of MATLAB's <code>ode45</code>);
-Euler and RK4 use <code>fixed_step</code>; Dormand&ndash;Prince uses the relative tolerance of <code>fmi2SetupExperiment</code> and <code>abs_tol</code>,
-and carries its step size across communication points without ever stepping over one. Inputs are held constant over each communication step.
+The solver is chosen with <code>solver</code>: 0 forward Euler, 1 classical RK4, 2 adaptive Dormand&ndash;Prince 5(4) (the method of MATLAB's <code>ode45</code>, the default),
+3 Bogacki&ndash;Shampine 3(2) (<code>ode23</code>'s), 4 Dormand&ndash;Prince 8(5,3) (DOP853).
+Euler and RK4 use <code>fixed_step</code>; a communication interval that is not a multiple of it ends with a shorter step.
+The adaptive methods use the relative tolerance of <code>fmi2SetupExperiment</code> and <code>abs_tol</code>, and take the steps their error control chooses,
+across communication points: the values at a communication point come from the dense output of the step that covers it, and integration goes on from that step's end.
+The step is thrown away and integration restarts from the communication point when an input, a parameter or a state is set to a new value, or an FMU state is restored
+(which brings back the step it captured, so a rollback continues bit for bit). No step goes past an event, nor past the stop time.
+<code>max_step</code> (s, 0 = unlimited, the default) bounds the adaptive steps, as <code>ode45</code>'s MaxStep. Inputs are held constant over each communication step.
 <code>n_steps</code> and <code>n_rhs</code> count accepted steps and right-hand-side evaluations.</p>
 <p>The same binary is a Model Exchange FMU: there the importer's solver integrates the states through
 <code>fmi2GetDerivatives</code> (the <code>der(x)</code> variables) and locates the zeros of the event indicators, the FMU's event

@@ -70,6 +70,10 @@ fn a_panic_becomes_fmi2_error_with_a_message() {
         assert!(!c.is_null());
         let vr = [0u32];
         assert_eq!(ffi::set_real::<Exploding>(c, vr.as_ptr(), 1, [0.25].as_ptr()), 0);
+        // Steps of at most 0.05 s: the adaptive solver steps across communication points, and
+        // the first step, to 0.1, must not reach the fuse at 0.25.
+        let max_step = [fmu_export::table::Table::<Exploding>::new().value_reference("max_step").unwrap()];
+        assert_eq!(ffi::set_real::<Exploding>(c, max_step.as_ptr(), 1, [0.05].as_ptr()), 0);
         assert_eq!(ffi::setup_experiment::<Exploding>(c, 0, 0.0, 0.0, 0, 0.0), 0);
         assert_eq!(ffi::enter_initialization_mode::<Exploding>(c), 0);
         assert_eq!(ffi::exit_initialization_mode::<Exploding>(c), 0);

@@ -1,6 +1,6 @@
-//! The solver controls every FMU of this toolkit exposes (`solver`, `fixed_step`, `abs_tol`, and
-//! the counters `n_steps`, `n_rhs`): their names, types, defaults, validation and messages, in
-//! one place. The export toolkit appends them to every variable table and applies them; the
+//! The solver controls every FMU of this toolkit exposes (`solver`, `fixed_step`, `abs_tol`,
+//! `max_step`, and the counters `n_steps`, `n_rhs`): their names, types, defaults, validation,
+//! descriptions and messages, in one place. The export toolkit appends them to every variable table and applies them; the
 //! runner's `compare` sets them through FMI by these names and codes.
 
 use serde::{Deserialize, Serialize};
@@ -15,10 +15,12 @@ pub enum Control {
     AbsTol,
     NSteps,
     NRhs,
+    MaxStep,
 }
 
-/// Every control, in the order they are appended to each model's variable table.
-pub const CONTROLS: [Control; 5] = [Control::Solver, Control::FixedStep, Control::AbsTol, Control::NSteps, Control::NRhs];
+/// Every control, in the order they are appended to each model's variable table (`max_step`,
+/// the latest, last: the others keep their value references).
+pub const CONTROLS: [Control; 6] = [Control::Solver, Control::FixedStep, Control::AbsTol, Control::NSteps, Control::NRhs, Control::MaxStep];
 
 /// The settable solver controls of one instance (parameters: fixed once initialization ends).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -26,11 +28,14 @@ pub struct Controls {
     pub solver: i32,
     pub fixed_step: f64,
     pub abs_tol: f64,
+    /// Largest adaptive step (s); 0 = unlimited.
+    pub max_step: f64,
 }
 
 impl Default for Controls {
     fn default() -> Self {
-        Controls { solver: Method::Dopri5.code(), fixed_step: 1e-3, abs_tol: 1e-9 }
+        let s = Settings::default();
+        Controls { solver: s.method.code(), fixed_step: s.fixed_step, abs_tol: s.atol, max_step: s.max_step }
     }
 }
 
@@ -48,7 +53,7 @@ impl Controls {
     pub fn settings(&self, rtol: f64) -> Result<Settings, String> {
         let method = Method::from_code(self.solver)
             .ok_or_else(|| format!("parameter solver = {} is not a solver: use {}", self.solver, solver_choices()))?;
-        let settings = Settings { method, fixed_step: self.fixed_step, rtol, atol: self.abs_tol };
+        let settings = Settings { method, fixed_step: self.fixed_step, rtol, atol: self.abs_tol, max_step: self.max_step };
         settings.validate().map_err(|e| e.to_string())?;
         Ok(settings)
     }
@@ -59,6 +64,7 @@ impl Controls {
             Control::Solver => Some(self.solver as f64),
             Control::FixedStep => Some(self.fixed_step),
             Control::AbsTol => Some(self.abs_tol),
+            Control::MaxStep => Some(self.max_step),
             Control::NSteps | Control::NRhs => None,
         }
     }
@@ -73,6 +79,7 @@ impl Control {
             Control::AbsTol => "abs_tol",
             Control::NSteps => "n_steps",
             Control::NRhs => "n_rhs",
+            Control::MaxStep => "max_step",
         }
     }
 
@@ -84,11 +91,20 @@ impl Control {
     /// Variable description.
     pub fn description(self) -> &'static str {
         match self {
-            Control::Solver => "Integration method: 0 = forward Euler, 1 = classical RK4, 2 = adaptive Dormand-Prince 5(4) (ode45)",
-            Control::FixedStep => "Step size of forward Euler and RK4",
-            Control::AbsTol => "Absolute tolerance of Dormand-Prince 5(4) (relative: fmi2SetupExperiment's tolerance)",
+            Control::Solver => {
+                "Integration method: 0 = forward Euler, 1 = classical RK4 (both with fixed_step), 2 = adaptive Dormand-Prince 5(4) \
+                 (ode45), 3 = Bogacki-Shampine 3(2) (ode23), 4 = Dormand-Prince 8(5,3) (DOP853). The adaptive methods step across \
+                 communication points, take the values there from the step's dense output and go on from the step's end; a new \
+                 input, parameter or state value, or a restored FMU state, restarts them from the communication point, and no \
+                 step crosses an event"
+            }
+            Control::FixedStep => {
+                "Step size of forward Euler and RK4; a communication interval that is not a multiple of it ends with a shorter step"
+            }
+            Control::AbsTol => "Absolute tolerance of the adaptive methods (relative: fmi2SetupExperiment's tolerance)",
             Control::NSteps => "Accepted internal solver steps since initialization",
             Control::NRhs => "Right-hand-side evaluations since initialization",
+            Control::MaxStep => "Largest step of the adaptive methods, as ode45's MaxStep; 0 = unlimited (the default)",
         }
     }
 
@@ -105,7 +121,7 @@ impl Control {
     /// SI unit, where it has one.
     pub fn unit(self) -> Option<&'static str> {
         match self {
-            Control::FixedStep => Some("s"),
+            Control::FixedStep | Control::MaxStep => Some("s"),
             _ => None,
         }
     }
@@ -127,6 +143,9 @@ impl Control {
                 Err(format!("{name} = {value} refused: the step must be greater than zero"))
             }
             Control::AbsTol if value < 0.0 => Err(format!("{name} = {value} refused: the tolerance must not be negative")),
+            Control::MaxStep if value < 0.0 => {
+                Err(format!("{name} = {value} refused: the largest step must not be negative (0 means unlimited)"))
+            }
             Control::NSteps | Control::NRhs => Err(format!("'{name}' is an output and cannot be set")),
             _ => Ok(()),
         }
@@ -138,6 +157,7 @@ impl Control {
             Control::Solver => controls.solver = value as i32,
             Control::FixedStep => controls.fixed_step = value,
             Control::AbsTol => controls.abs_tol = value,
+            Control::MaxStep => controls.max_step = value,
             Control::NSteps | Control::NRhs => {}
         }
     }
@@ -156,6 +176,11 @@ mod tests {
         assert!(Control::FixedStep.check(0.0).unwrap_err().contains("greater than zero"));
         assert!(Control::AbsTol.check(-1.0).unwrap_err().contains("must not be negative"));
         assert!(Control::AbsTol.check(0.0).is_ok());
+        assert!(Control::MaxStep.check(-1e-3).unwrap_err().contains("max_step = -0.001 refused"));
+        assert!(Control::MaxStep.check(0.0).is_ok());
+        assert_eq!(Control::MaxStep.default_value(), Some(0.0));
+        assert_eq!(Control::Solver.check(4.0), Ok(()));
+        assert!(e.ends_with("3 (Bogacki-Shampine 3(2)) or 4 (Dormand-Prince 8(5,3))"), "{e}");
         assert_eq!(Control::named("abs_tol"), Some(Control::AbsTol));
         assert_eq!(Control::FixedStep.default_value(), Some(1e-3));
         let mut c = Controls::default();

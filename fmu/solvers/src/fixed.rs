@@ -14,7 +14,7 @@ impl Integrator {
         // A remainder this small is rounding noise of t0 + k*h (or a negligible
         // sliver): merging it into the last step avoids a near-zero step.
         let merge = (1e-12 * h).max(16.0 * f64::EPSILON * t0.abs().max(t_end.abs()));
-        // The derivative cache is a Dopri5 concept; fixed methods always start a step fresh.
+        // The derivative cache is the adaptive methods' concept; fixed methods always start a step fresh.
         self.fsal_valid = false;
         let mut tc = t0;
         let mut k: u64 = 0;
@@ -30,12 +30,12 @@ impl Integrator {
             }
             let hs = tn - tc;
             let w = &mut self.work;
-            sys.rhs(tc, &w.cur, &mut self.k1);
+            sys.rhs(tc, &self.x_int, &mut self.k1);
             let finite = if rk4 {
                 let [k2, k3, k4, ..] = &mut w.k;
-                rk4_step(sys, tc, hs, tn, &w.cur, &self.k1, k2, k3, k4, &mut w.xs, &mut w.next)
+                rk4_step(sys, tc, hs, tn, &self.x_int, &self.k1, k2, k3, k4, &mut w.xs, &mut w.next)
             } else {
-                euler_step(hs, &w.cur, &self.k1, &mut w.next)
+                euler_step(hs, &self.x_int, &self.k1, &mut w.next)
             };
             self.n_rhs += if rk4 { 4 } else { 1 };
             if !finite {
@@ -49,7 +49,7 @@ impl Integrator {
                     let f1 = &mut w.k[5];
                     sys.rhs(tn, &w.next, f1);
                     self.n_rhs += 1;
-                    let (x0, x1, f0, f1) = (&w.cur, &w.next, &self.k1, &w.k[5]);
+                    let (x0, x1, f0, f1) = (&self.x_int, &w.next, &self.k1, &w.k[5]);
                     w.za.copy_from_slice(&self.z_left);
                     w.zb.copy_from_slice(&w.zn);
                     let xs = &mut w.xs;
@@ -58,10 +58,10 @@ impl Integrator {
                         sys.event_indicators(tm, xs, z);
                     });
                     if tb == tn {
-                        std::mem::swap(&mut w.cur, &mut w.next);
+                        std::mem::swap(&mut self.x_int, &mut w.next);
                     } else {
-                        hermite(tc, hs, tb, &w.cur, &w.next, &self.k1, &w.k[5], &mut w.xs);
-                        std::mem::swap(&mut w.cur, &mut w.xs);
+                        hermite(tc, hs, tb, &self.x_int, &w.next, &self.k1, &w.k[5], &mut w.xs);
+                        std::mem::swap(&mut self.x_int, &mut w.xs);
                     }
                     let fired = events::fired(&self.z_left, &w.zb);
                     self.z_left.copy_from_slice(&w.zb);
@@ -69,7 +69,7 @@ impl Integrator {
                 }
                 self.z_left.copy_from_slice(&w.zn);
             }
-            std::mem::swap(&mut w.cur, &mut w.next);
+            std::mem::swap(&mut self.x_int, &mut w.next);
             tc = tn;
             if tn == t_end {
                 return Ok((t_end, Advance::Reached));

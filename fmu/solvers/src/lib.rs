@@ -1,19 +1,32 @@
-//! ODE integrators for co-simulation: forward Euler, classic RK4 and adaptive
-//! Dormand–Prince 5(4), with dense output and event (zero-crossing) location.
-//! Used inside the exported FMUs and by the runner to integrate Model Exchange FMUs.
+//! ODE integrators for co-simulation: forward Euler and classic RK4 with a fixed step, and the
+//! adaptive Dormand–Prince 5(4), Bogacki–Shampine 3(2) and Dormand–Prince 8(5,3), with dense
+//! output and event (zero-crossing) location. Used inside the exported FMUs and by the runner to
+//! integrate Model Exchange FMUs.
 //!
-//! The integrator owns every buffer it needs, so `advance` never allocates
-//! (except the `fired` vector of an `Advance::Event`, and error messages).
-//! Its whole continuation-relevant state is `Clone` + serde, so an FMU can
-//! roll back with `fmi2GetFMUstate`/`fmi2SetFMUstate` and replay bit-identically
-//! (serde after `settle`, when the caller changed the state since the last advance).
+//! The adaptive methods take the steps their error control chooses, across the times `advance`
+//! is asked to reach: the state there comes from the dense output of the step that covers it,
+//! and the next `advance` goes on from that step's own end (the *pending step*). The pending
+//! step is thrown away, and integration restarts from the caller's point, when the caller
+//! changes that point (a state or time other than the one handed out), calls `invalidate`
+//! (new inputs or parameters), or changes the settings. No step goes past an event, nor past
+//! the stop time (`set_stop_time`).
+//!
+//! The integrator owns every buffer it needs, so `advance` never allocates (except the `fired`
+//! vector of an `Advance::Event`, and error messages). Its whole continuation-relevant state,
+//! the pending step included, is `Clone` + serde, so an FMU can roll back with
+//! `fmi2GetFMUstate`/`fmi2SetFMUstate`, or restore a serialized state in a fresh instance, and
+//! continue bit for bit.
 
 use serde::{Deserialize, Serialize};
 
+mod adaptive;
+mod bs23;
 pub mod controls;
+mod dop853;
 mod dopri5;
 mod events;
 mod fixed;
+mod root;
 #[cfg(test)]
 mod tests;
 
@@ -38,22 +51,22 @@ pub enum Method {
     Euler,
     /// Classic 4th-order Runge–Kutta with a fixed step.
     Rk4,
-    /// Adaptive Dormand–Prince 5(4) with error control.
+    /// Adaptive Dormand–Prince 5(4) with its 4th-order dense output (MATLAB's ode45).
     Dopri5,
+    /// Adaptive Bogacki–Shampine 3(2) with its cubic Hermite dense output (MATLAB's ode23).
+    Bs23,
+    /// Adaptive Dormand–Prince 8(5,3) with its 7th-order dense output (Hairer's DOP853).
+    Dop853,
 }
 
 impl Method {
     /// Every method, in the order of their codes.
-    pub const ALL: [Method; 3] = [Method::Euler, Method::Rk4, Method::Dopri5];
+    pub const ALL: [Method; 5] = [Method::Euler, Method::Rk4, Method::Dopri5, Method::Bs23, Method::Dop853];
 
-    /// Method for an integer code as exposed in the model description (0 Euler, 1 Rk4, 2 Dopri5).
+    /// Method for an integer code as exposed in the model description (0 Euler, 1 Rk4, 2 Dopri5,
+    /// 3 Bs23, 4 Dop853).
     pub fn from_code(code: i32) -> Option<Method> {
-        match code {
-            0 => Some(Method::Euler),
-            1 => Some(Method::Rk4),
-            2 => Some(Method::Dopri5),
-            _ => None,
-        }
+        Method::ALL.into_iter().find(|m| m.code() == code)
     }
 
     /// Integer code of this method (inverse of `from_code`).
@@ -62,15 +75,19 @@ impl Method {
             Method::Euler => 0,
             Method::Rk4 => 1,
             Method::Dopri5 => 2,
+            Method::Bs23 => 3,
+            Method::Dop853 => 4,
         }
     }
 
-    /// Lower-case name: "euler", "rk4" or "dopri5".
+    /// Lower-case name: "euler", "rk4", "dopri5", "bs23" or "dop853".
     pub fn name(self) -> &'static str {
         match self {
             Method::Euler => "euler",
             Method::Rk4 => "rk4",
             Method::Dopri5 => "dopri5",
+            Method::Bs23 => "bs23",
+            Method::Dop853 => "dop853",
         }
     }
 
@@ -80,6 +97,8 @@ impl Method {
             Method::Euler => "forward Euler",
             Method::Rk4 => "classical RK4",
             Method::Dopri5 => "Dormand-Prince 5(4)",
+            Method::Bs23 => "Bogacki-Shampine 3(2)",
+            Method::Dop853 => "Dormand-Prince 8(5,3)",
         }
     }
 
@@ -90,21 +109,42 @@ impl Method {
 
     /// True for the methods that use `fixed_step` (Euler, RK4).
     pub fn is_fixed_step(self) -> bool {
-        !matches!(self, Method::Dopri5)
+        matches!(self, Method::Euler | Method::Rk4)
+    }
+
+    /// The order of the method's solution (1, 4, 5, 3, 8).
+    pub fn order(self) -> u32 {
+        match self {
+            Method::Euler => 1,
+            Method::Rk4 => 4,
+            Method::Dopri5 => 5,
+            Method::Bs23 => 3,
+            Method::Dop853 => 8,
+        }
     }
 }
 
-/// Solver settings; `fixed_step` is used by Euler/RK4, `rtol`/`atol` by Dopri5.
+/// Solver settings; `fixed_step` is used by Euler/RK4, `rtol`/`atol`/`max_step` by the adaptive methods.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Settings {
     /// Integration method.
     pub method: Method,
     /// Step size in seconds for Euler and RK4 (FMU parameter `fixed_step`).
     pub fixed_step: f64,
-    /// Relative tolerance for Dopri5 (FMU parameter `tolerance`).
+    /// Relative tolerance of the adaptive methods (FMU parameter `tolerance`).
     pub rtol: f64,
-    /// Absolute tolerance for Dopri5 (FMU parameter `abs_tol`).
+    /// Absolute tolerance of the adaptive methods (FMU parameter `abs_tol`).
     pub atol: f64,
+    /// Largest step of the adaptive methods in seconds; 0 = unlimited (FMU parameter `max_step`).
+    pub max_step: f64,
+}
+
+impl Default for Settings {
+    /// The FMU controls' defaults: DOPRI5, rtol 1e-6 (the models' default experiment), atol
+    /// 1e-9, steps unlimited; `fixed_step` 1e-3 for Euler and RK4.
+    fn default() -> Self {
+        Settings { method: Method::Dopri5, fixed_step: 1e-3, rtol: 1e-6, atol: 1e-9, max_step: 0.0 }
+    }
 }
 
 /// Smallest accepted relative tolerance: below this the error estimate is rounding noise.
@@ -120,8 +160,8 @@ impl Settings {
                 self.fixed_step
             )));
         }
-        // Tolerances are checked for every method so that a bad value is
-        // reported when it is set, not later when someone switches to Dopri5.
+        // Tolerances and max_step are checked for every method so that a bad value is
+        // reported when it is set, not later when someone switches to an adaptive method.
         if !(self.rtol.is_finite() && self.rtol > 0.0) {
             return Err(SolverError::InvalidSettings(format!(
                 "tolerance (relative tolerance) must be a finite number greater than 0 (got {})",
@@ -140,7 +180,22 @@ impl Settings {
                 self.atol
             )));
         }
+        if !(self.max_step.is_finite() && self.max_step >= 0.0) {
+            return Err(SolverError::InvalidSettings(format!(
+                "max_step (largest adaptive step) must be a finite number >= 0, 0 meaning unlimited (got {})",
+                self.max_step
+            )));
+        }
         Ok(())
+    }
+
+    /// The largest step the adaptive methods may take (infinite when `max_step` is 0).
+    pub fn step_limit(&self) -> f64 {
+        if self.max_step > 0.0 {
+            self.max_step
+        } else {
+            f64::INFINITY
+        }
     }
 }
 
@@ -154,7 +209,7 @@ pub enum SolverError {
         /// Time at which the non-finite value appeared.
         t: f64,
     },
-    /// Dopri5 needed a step `h` at time `t` too small for double precision.
+    /// An adaptive method needed a step `h` at time `t` too small for double precision.
     StepSizeTooSmall {
         /// Time of the failing step.
         t: f64,
@@ -171,11 +226,11 @@ impl std::fmt::Display for SolverError {
                 f,
                 "the state or its derivative became NaN or infinite at t = {t} s \
                  (the model may be unstable, or the step too large: with euler or rk4 reduce \
-                 fixed_step, with dopri5 reduce tolerance/abs_tol)"
+                 fixed_step, with the adaptive methods reduce tolerance/abs_tol or set max_step)"
             ),
             SolverError::StepSizeTooSmall { t, h } => write!(
                 f,
-                "the dopri5 step size fell to {h:e} s at t = {t} s, too small to make progress \
+                "the adaptive step size fell to {h:e} s at t = {t} s, too small to make progress \
                  in double precision (the model may be stiff, or have a discontinuity that no \
                  event indicator signals; try a larger tolerance or a fixed-step method)"
             ),
@@ -200,75 +255,84 @@ pub enum Advance {
 /// Event location tolerance in seconds: the returned event time is at most this after the crossing.
 pub const EVENT_TOL: f64 = 1e-10;
 
+/// Number of stage-derivative buffers: DOP853's k2..k16 (the other methods use fewer).
+const STAGE_BUFFERS: usize = 15;
+/// Largest number of dense-output coefficient vectors (DOP853's 8).
+const DENSE_COEFFICIENTS: usize = 8;
+
 /// Work buffers: contents never carry information across `advance` calls,
 /// so they are skipped by serde and rebuilt on first use.
 #[derive(Debug, Clone, Default)]
 struct Work {
     /// The buffers are sized (false after deserialization, which skips them).
     ready: bool,
-    /// State at the current time.
-    cur: Vec<f64>,
     /// State at the end of the step being taken.
     next: Vec<f64>,
     /// Stage / interpolation scratch state.
     xs: Vec<f64>,
-    /// Stage derivatives k2..k7 (k1 lives in the serialized `Integrator::k1`).
-    k: [Vec<f64>; 6],
+    /// Stage derivatives k2, k3, ... (k1 lives in the serialized `Integrator::k1`).
+    k: [Vec<f64>; STAGE_BUFFERS],
     /// Indicator values at the step end, and the bracket ends/trial point of the root search.
     zn: Vec<f64>,
     za: Vec<f64>,
     zb: Vec<f64>,
     zm: Vec<f64>,
-    /// (err_old, err_old^BETA): while steps are clipped to communication points err_old does
-    /// not change, so the controller's second `powf` per step is usually a lookup.
-    err_old_pow: (f64, f64),
 }
 
 impl Work {
     fn new(dim: usize, n_ind: usize) -> Work {
         let v = || vec![0.0; dim];
         let z = || vec![0.0; n_ind];
-        Work {
-            ready: true,
-            cur: v(),
-            next: v(),
-            xs: v(),
-            k: [v(), v(), v(), v(), v(), v()],
-            zn: z(),
-            za: z(),
-            zb: z(),
-            zm: z(),
-            err_old_pow: (f64::NAN, f64::NAN),
-        }
+        Work { ready: true, next: v(), xs: v(), k: std::array::from_fn(|_| v()), zn: z(), za: z(), zb: z(), zm: z() }
     }
 }
 
 /// Integrator state carried between communication steps; Clone/serde give bit-identical continuations.
+///
+/// Two points matter: where integration has got to (`t_int`, `x_int`: the end of the last
+/// accepted step, or an event located inside it), and the point last handed to the caller
+/// (`t_out`, `x_out`), at or before it. Between them lies the pending step, whose dense output
+/// gives the state at any time in [`dense_t0`, `t_int`].
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Integrator {
     settings: Settings,
     dim: usize,
     n_ind: usize,
-    /// Dopri5 step-size proposal carried across `advance` calls (0 = not chosen yet).
+    /// Step-size proposal of the adaptive methods, carried across `advance` calls (0 = not chosen yet).
     h: f64,
-    /// Previous accepted error norm, the memory of the PI step-size controller.
-    err_old: f64,
     /// A rejection happened since the last accepted step: the next step may not grow.
     last_rejected: bool,
     n_steps: u64,
     n_rhs: u64,
     n_rejected: u64,
-    /// Time at which the last `advance` left the state (`work.cur`): a caller that moves time
-    /// or changes the state without `invalidate()` must not get a stale derivative or stale signs.
-    t_cur: f64,
-    /// Whether `k1` holds f(t_cur, x) (first-same-as-last reuse for Dopri5).
+    /// No step ends after this time unless the caller asks for a later one (infinite: no limit).
+    stop_time: f64,
+    /// False after `invalidate()` or a change of settings: the next `advance` restarts from
+    /// the caller's point.
+    resume: bool,
+    /// The time and state last handed to the caller; a caller that comes back with others has
+    /// moved time or changed the state, and integration restarts from there.
+    t_out: f64,
+    x_out: Vec<f64>,
+    /// Where integration has got to.
+    t_int: f64,
+    x_int: Vec<f64>,
+    /// Whether `k1` holds f(t_int, x_int) (first-same-as-last reuse of the adaptive methods).
     fsal_valid: bool,
     k1: Vec<f64>,
-    /// Whether `z_left` holds the reference indicator values at `t_cur`.
+    /// Whether `z_left` holds the reference indicator values at `t_int`.
     signs_valid: bool,
-    /// Indicator values at the current time; their signs are the reference
-    /// signs (0 = wait until the indicator becomes nonzero).
+    /// Indicator values at `t_int`; their signs are the reference signs (0 = wait until the
+    /// indicator becomes nonzero).
     z_left: Vec<f64>,
+    /// An event located at `t_int` and not yet handed out: one flag per indicator.
+    event: Option<Vec<bool>>,
+    /// Start and size of the step whose dense output `dense` holds (the pending step); it is
+    /// filled whenever `t_out < t_int`.
+    dense_t0: f64,
+    dense_h: f64,
+    /// The pending step's dense-output coefficient vectors, `dim` values each.
+    dense: Vec<f64>,
     /// The settings were checked, by the first `advance` (again after deserialization: a
     /// serialized state may carry any settings), not on every call.
     #[serde(skip)]
@@ -285,24 +349,57 @@ impl Integrator {
             dim,
             n_ind: n_event_indicators,
             h: 0.0,
-            err_old: dopri5::ERR_OLD_INIT,
             last_rejected: false,
             n_steps: 0,
             n_rhs: 0,
             n_rejected: 0,
-            t_cur: 0.0,
+            stop_time: f64::INFINITY,
+            resume: false,
+            t_out: 0.0,
+            x_out: vec![0.0; dim],
+            t_int: 0.0,
+            x_int: vec![0.0; dim],
             fsal_valid: false,
             k1: vec![0.0; dim],
             signs_valid: false,
             z_left: vec![0.0; n_event_indicators],
+            event: None,
+            dense_t0: 0.0,
+            dense_h: 0.0,
+            dense: vec![0.0; DENSE_COEFFICIENTS * dim],
             settings_checked: false,
             work: Work::new(dim, n_event_indicators),
         }
     }
 
-    /// The settings this integrator was built with.
+    /// The settings in use.
     pub fn settings(&self) -> &Settings {
         &self.settings
+    }
+
+    /// Replaces the settings. A change restarts integration from the caller's point at the next
+    /// `advance`, with the step size chosen afresh (the counters go on); the same settings
+    /// change nothing.
+    pub fn set_settings(&mut self, settings: Settings) {
+        if settings != self.settings {
+            self.settings = settings;
+            self.settings_checked = false;
+            self.h = 0.0;
+            self.last_rejected = false;
+            self.invalidate();
+        }
+    }
+
+    /// Steps of the adaptive methods end at `stop_time` at the latest (an `advance` to a later
+    /// time still gets there), so the right-hand side is never evaluated past the end of the
+    /// experiment; `None` (the default) sets no limit. A change restarts integration from the
+    /// caller's point at the next `advance`.
+    pub fn set_stop_time(&mut self, stop_time: Option<f64>) {
+        let stop = stop_time.unwrap_or(f64::INFINITY);
+        if stop.to_bits() != self.stop_time.to_bits() {
+            self.stop_time = stop;
+            self.invalidate();
+        }
     }
 
     /// Number of continuous states.
@@ -315,7 +412,8 @@ impl Integrator {
         self.n_ind
     }
 
-    /// Accepted internal steps since construction.
+    /// Accepted internal steps since construction (a step later thrown away by a restart counts:
+    /// its work was done).
     pub fn n_steps(&self) -> u64 {
         self.n_steps
     }
@@ -325,12 +423,13 @@ impl Integrator {
         self.n_rhs
     }
 
-    /// Rejected Dopri5 step attempts since construction.
+    /// Rejected step attempts of the adaptive methods since construction.
     pub fn n_rejected(&self) -> u64 {
         self.n_rejected
     }
 
-    /// Dopri5 step size proposed for the next internal step (0 before the first step; fixed methods: `fixed_step`).
+    /// Step size proposed for the next internal step (adaptive methods: 0 before the first
+    /// step, and not yet bounded by `max_step`; fixed methods: `fixed_step`).
     pub fn step_size(&self) -> f64 {
         if self.settings.method.is_fixed_step() {
             self.settings.fixed_step
@@ -339,70 +438,164 @@ impl Integrator {
         }
     }
 
-    /// The right-hand side changed discontinuously (new inputs, a mode switch at an event): drop any cached derivative (FSAL) and re-read the event indicator signs on the next advance. A changed time or state needs no call: `advance` compares them with where it left off.
+    /// The right-hand side changed discontinuously (new inputs or parameters, a mode switch at an
+    /// event): the pending step, the cached derivative and the event indicator signs are dropped,
+    /// and the next `advance` restarts from the point it is given. A changed time or state needs
+    /// no call: `advance` compares them with the point it handed out.
     pub fn invalidate(&mut self) {
+        self.resume = false;
+    }
+
+    /// Applies `advance`'s restart rule now: when (t, x) is not the point last handed out, the
+    /// pending step is dropped and integration will restart from (t, x). `advance` does this
+    /// itself, and serialization keeps everything the comparison needs, so callers need not;
+    /// it is kept for those that want a copy to hold no pending step it will not use. A state of
+    /// the wrong length is left to `advance` to refuse.
+    pub fn settle(&mut self, t: f64, x: &[f64]) {
+        if x.len() == self.dim && !self.resumes_at(t, x, self.dim) {
+            self.restart(t, x, self.dim);
+        }
+    }
+
+    /// Whether (t, x) is the point last handed out and nothing invalidated the pending step.
+    #[inline]
+    fn resumes_at(&self, t: f64, x: &[f64], n: usize) -> bool {
+        self.resume && t == self.t_out && same_bits(&x[..n], &self.x_out[..n])
+    }
+
+    /// Integration starts again from (t, x): no pending step, no cached derivative or signs.
+    /// The step-size proposal is kept (the solution's scale has not changed).
+    fn restart(&mut self, t: f64, x: &[f64], n: usize) {
+        self.t_int = t;
+        self.t_out = t;
+        self.x_int[..n].copy_from_slice(&x[..n]);
+        self.x_out[..n].copy_from_slice(&x[..n]);
+        self.dense_t0 = t;
+        self.dense_h = 0.0;
         self.fsal_valid = false;
         self.signs_valid = false;
-    }
-
-    /// Makes the cached derivative and indicator signs agree with (t, x): they are dropped when
-    /// time moved or the caller changed the state (a projection onto constraints, an event's
-    /// jump) since the last advance left off, compared bit for bit. `advance` does this itself;
-    /// a copy about to be serialized must have it done first, because serialization keeps
-    /// neither the work buffers nor the state they would be compared with.
-    pub fn settle(&mut self, t: f64, x: &[f64]) {
-        // The rule `advance` applies: buffers not built yet (deserialized and not advanced
-        // since) mean the serialized flags still describe (t, x). A state of the wrong length
-        // is left to `advance` to refuse.
-        if self.work.ready && x.len() == self.dim {
-            self.settle_at(t, x, self.dim);
-        }
-    }
-
-    /// [`Integrator::settle`] for a state of `n` = `dim` values (a constant in `advance`).
-    #[inline]
-    fn settle_at(&mut self, t: f64, x: &[f64], n: usize) {
-        if (self.fsal_valid || self.signs_valid) && (t != self.t_cur || !same_bits(&x[..n], &self.work.cur[..n])) {
-            self.invalidate();
-        }
+        self.event = None;
+        self.resume = true;
     }
 
     /// Advance from *t towards t_end (> *t). Returns Reached with *t == t_end exactly and x the state there, or Event with *t the located event time and x the state there.
     ///
     /// `t_end == *t` returns `Reached` at once; a `t_end` before `*t` is `InvalidSettings`.
     /// On error, `*t` and `x` are the last time and state that were reached with finite values.
+    /// The adaptive methods may evaluate the right-hand side past `t_end` (up to the stop time),
+    /// inside the step that covers it.
     pub fn advance<S: OdeSystem>(&mut self, sys: &S, t: &mut f64, x: &mut [f64], t_end: f64) -> Result<Advance, SolverError> {
+        // The usual call when steps are longer than communication intervals: the caller comes
+        // back with the point handed out and asks for one inside the pending step, which only
+        // interpolates. The tests below are the slow path's, in the order that rules out most
+        // (t_end < t_int is false for fixed-step methods, whose t_int is always t_out).
+        let n = sys.dim();
+        if t_end < self.t_int
+            && t_end > *t
+            && self.resume
+            && *t == self.t_out
+            && x.len() == n
+            && n == self.dim
+            && sys.n_event_indicators() == self.n_ind
+            && self.settings_checked
+            && self.work.ready
+            && same_bits(&x[..n], &self.x_out[..n])
+        {
+            self.interpolate_at(t_end, n);
+            x[..n].copy_from_slice(&self.x_out[..n]);
+            *t = t_end;
+            return Ok(Advance::Reached);
+        }
         self.check_call(sys, *t, x, t_end)?;
         if !self.settings_checked {
             self.settings.validate()?;
             self.settings_checked = true;
         }
-        // `check_call` made sure x has `sys.dim()` elements, a constant for a given model: the
+        // `check_call` made sure x has `sys.dim()` elements (n), a constant for a given model: the
         // comparison and the copies become a few moves instead of loops and calls to memcpy.
-        let n = sys.dim();
         if !self.work.ready {
-            // First use after deserialization: the serialized flags describe (t, x) (see `settle`).
+            // First use after deserialization: everything else was serialized.
             self.work = Work::new(self.dim, self.n_ind);
-        } else {
-            self.settle_at(*t, &x[..n], n);
         }
-        self.work.cur[..n].copy_from_slice(&x[..n]);
+        if !self.resumes_at(*t, x, n) {
+            self.restart(*t, x, n);
+        }
         if t_end == *t {
             return Ok(Advance::Reached);
         }
+        if self.settings.method.is_fixed_step() {
+            return self.advance_fixed_step(sys, t, x, t_end);
+        }
         if self.n_ind > 0 && !self.signs_valid {
-            sys.event_indicators(*t, &self.work.cur, &mut self.z_left);
+            sys.event_indicators(self.t_int, &self.x_int, &mut self.z_left);
             self.signs_valid = true;
         }
-        let result =
-            if self.settings.method.is_fixed_step() { self.advance_fixed(sys, *t, t_end) } else { self.advance_dopri5(sys, *t, t_end) };
+        if self.event.is_none() && self.t_int < t_end {
+            let stepped = match self.settings.method {
+                Method::Dopri5 => self.advance_adaptive::<S, dopri5::Dopri5>(sys, t_end),
+                Method::Bs23 => self.advance_adaptive::<S, bs23::Bs23>(sys, t_end),
+                Method::Dop853 => self.advance_adaptive::<S, dop853::Dop853>(sys, t_end),
+                Method::Euler | Method::Rk4 => unreachable!("fixed-step methods returned above"),
+            };
+            if let Err(e) = stepped {
+                self.hand_out_end(t, x, n);
+                return Err(e);
+            }
+        }
+        if self.t_int <= t_end {
+            if let Some(fired) = self.event.take() {
+                self.hand_out_end(t, x, n);
+                return Ok(Advance::Event { fired });
+            }
+        }
+        if self.t_int == t_end {
+            self.hand_out_end(t, x, n);
+        } else {
+            self.interpolate_at(t_end, n);
+            x[..n].copy_from_slice(&self.x_out[..n]);
+            *t = t_end;
+        }
+        Ok(Advance::Reached)
+    }
+
+    /// Hands out the pending step's dense output at `t_end` (inside it): into `x_out`. Inlined
+    /// into `advance`, where `n` is the model's constant (the loops unroll).
+    #[inline(always)]
+    fn interpolate_at(&mut self, t_end: f64, n: usize) {
+        let th = (t_end - self.dense_t0) / self.dense_h;
+        match self.settings.method {
+            Method::Dopri5 => adaptive::interpolate::<dopri5::Dopri5>(th, n, &self.dense, &mut self.x_out),
+            Method::Bs23 => adaptive::interpolate::<bs23::Bs23>(th, n, &self.dense, &mut self.x_out),
+            Method::Dop853 => adaptive::interpolate::<dop853::Dop853>(th, n, &self.dense, &mut self.x_out),
+            // Never pending: they land on every point they are asked for.
+            Method::Euler | Method::Rk4 => unreachable!("a fixed-step method has no pending step"),
+        }
+        self.t_out = t_end;
+    }
+
+    /// Hands out the point integration has got to (no pending step is left).
+    #[inline]
+    fn hand_out_end(&mut self, t: &mut f64, x: &mut [f64], n: usize) {
+        self.t_out = self.t_int;
+        self.x_out[..n].copy_from_slice(&self.x_int[..n]);
+        x[..n].copy_from_slice(&self.x_int[..n]);
+        *t = self.t_int;
+    }
+
+    /// Euler and RK4: they land on `t_end` (or stop at an event), so nothing is ever pending.
+    fn advance_fixed_step<S: OdeSystem>(&mut self, sys: &S, t: &mut f64, x: &mut [f64], t_end: f64) -> Result<Advance, SolverError> {
+        let n = sys.dim();
+        if self.n_ind > 0 && !self.signs_valid {
+            sys.event_indicators(self.t_int, &self.x_int, &mut self.z_left);
+            self.signs_valid = true;
+        }
+        let result = self.advance_fixed(sys, self.t_int, t_end);
         let (t_reached, outcome) = match result {
             Ok((tr, adv)) => (tr, Ok(adv)),
             Err((tr, e)) => (tr, Err(e)),
         };
-        x[..n].copy_from_slice(&self.work.cur[..n]);
-        *t = t_reached;
-        self.t_cur = t_reached;
+        self.t_int = t_reached;
+        self.hand_out_end(t, x, n);
         outcome
     }
 

@@ -180,14 +180,15 @@ mod tests {
         assert!(exact_period(&p, 120.0 * DEGREE) / exact_period(&p, 15.0 * DEGREE) > 1.36);
     }
 
-    /// c = 0: energy conserved over 10 s. At the default tolerance (rtol 1e-6) DOPRI5's drift
-    /// stays below 1e-6 of E0; at rtol 1e-11 below 1e-10 of E0 (local errors ~ rtol, ~1e3 steps).
+    /// c = 0: energy conserved over 10 s. DOPRI5 takes its own steps across the 10 ms
+    /// communication points, so the drift is its global error over six periods, about 10 rtol
+    /// (measured 9.0e-6 at the default rtol 1e-6, 9.1e-11 at 1e-11): bounds of 20 rtol.
     #[test]
     fn energy_is_conserved_without_friction() {
         for deg in [15.0, 120.0] {
             let theta0 = deg * DEGREE;
             let e0 = Pendulum::default().energy_at(theta0, 0.0);
-            for (tolerance, bound) in [(None, 1e-6), (Some(1e-11), 1e-10)] {
+            for (tolerance, bound) in [(None, 2e-5), (Some(1e-11), 2e-10)] {
                 let traj = run(&[("theta0", theta0), ("abs_tol", 1e-13)], tolerance, 0.01);
                 let e = traj.get("energy");
                 assert_eq!(e[0], e0);

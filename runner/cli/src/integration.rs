@@ -11,7 +11,7 @@ use fmi_importer::{Description, Fmu, Interface, Method, Solver};
 pub struct Integration {
     /// The interface to drive (`None`: Co-Simulation when the FMU offers it, else Model Exchange).
     pub interface: Option<Interface>,
-    /// The runner's integration method for Model Exchange: euler, rk4 or dopri5.
+    /// The runner's integration method for Model Exchange: euler, rk4, dopri5, bs23 or dop853.
     pub solver: Option<String>,
     /// The step of Euler and RK4 (s).
     pub fixed_step: Option<f64>,
@@ -93,7 +93,7 @@ mod tests {
     fn options_are_checked_with_their_names() {
         assert_eq!(parse_interface("model-exchange").unwrap(), Interface::ModelExchange);
         assert!(parse_interface("me").unwrap_err().contains("use model-exchange or co-simulation"));
-        assert!(parse_method("ode45").unwrap_err().contains("use euler, rk4, dopri5"));
+        assert!(parse_method("ode45").unwrap_err().contains("use euler, rk4, dopri5, bs23, dop853"));
         let bad = Integration { fixed_step: Some(0.0), ..Default::default() };
         assert!(bad.solver().unwrap_err().contains("--fixed-step 0 must be a positive number"));
         let bad = Integration { abs_tolerance: Some(-1.0), ..Default::default() };

@@ -75,14 +75,14 @@ struct InterfaceArgs {
 /// The runner's integrator for a Model Exchange run.
 #[derive(Args)]
 struct SolverArgs {
-    /// Model Exchange: the runner's integration method, euler, rk4 or dopri5 (default dopri5,
-    /// with --tolerance as its relative tolerance).
+    /// Model Exchange: the runner's integration method, euler, rk4, dopri5, bs23 or dop853
+    /// (default dopri5, with --tolerance as its relative tolerance).
     #[arg(long, value_name = "METHOD")]
     solver: Option<String>,
     /// Model Exchange: the step of euler and rk4 in seconds (default 1e-3).
     #[arg(long, value_name = "H", allow_negative_numbers = true)]
     fixed_step: Option<f64>,
-    /// Model Exchange: the absolute tolerance of dopri5 (default 1e-9).
+    /// Model Exchange: the absolute tolerance of the adaptive methods (default 1e-9).
     #[arg(long, value_name = "A", allow_negative_numbers = true)]
     abs_tolerance: Option<f64>,
 }
@@ -212,14 +212,18 @@ enum Cmd {
     /// Compare solvers: steps, rhs evaluations and time each needs to reach a target error.
     ///
     /// Runs the FMU with forward Euler and RK4 over fixed steps from the output interval down,
-    /// and DOPRI5 over tolerances 1e-3..1e-11, measures each run's error against a reference
-    /// (max over the compared outputs of |y - y_ref| / max|y_ref|): the closed-form solution of
-    /// the model's experiment.toml `[compare.reference]` when it has one and no --set changes
-    /// its parameters, else DOPRI5 at rtol 1e-12 over the continuous outputs. Prints the cheapest
-    /// setting that reaches --target-error per solver, and writes the work-precision table
-    /// (CSV) and plot (SVG). Answers Ex. 4's question on solver effort, for any of our models.
+    /// and the adaptive DOPRI5, BS23 and DOP853 over tolerances from 1e-2 down (they step
+    /// across communication points: their natural work), measures each run's error against a
+    /// reference (max over the compared outputs of |y - y_ref| / max|y_ref|): the closed-form
+    /// solution of the model's experiment.toml `[compare.reference]` when it has one and no
+    /// --set changes its parameters, else DOP853 at rtol 1e-13 over the continuous outputs.
+    /// Prints the cheapest setting that reaches --target-error per solver, and writes the
+    /// work-precision table (CSV) and plot (SVG) of each model. With several models it also
+    /// prints their step counts side by side: Ex. 4's discussion question 1. Under
+    /// --interface model-exchange the runner's own integrator runs the methods, on any Model
+    /// Exchange FMU.
     ///
-    /// Example: `runner compare quarter_car --solvers euler,rk4,dopri5 --target-error 1e-6`
+    /// Example: `runner compare quarter_car second_order --target-error 1e-6`
     Compare(CompareArgs),
     /// Check FMUs statically and dynamically: archive, description, exports, then every probe
     /// of the binary in a child process (lifecycle, state machine, NULL and unknown arguments,
@@ -338,10 +342,12 @@ struct AnimateArgs {
 /// Arguments of `runner compare`.
 #[derive(clap::Args)]
 struct CompareArgs {
-    /// Model name or path to a .fmu file of this toolkit (it needs the solver controls).
-    fmu: String,
+    /// Model names or paths to .fmu files (of this toolkit, which have the solver controls, or
+    /// any Model Exchange FMU with --interface model-exchange).
+    #[arg(required = true, value_name = "MODEL")]
+    models: Vec<String>,
     /// Solvers to compare, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "euler,rk4,dopri5")]
+    #[arg(long, value_delimiter = ',', default_value = "euler,rk4,dopri5,bs23,dop853")]
     solvers: Vec<String>,
     /// Error to reach: max over outputs of |y - y_ref| / max|y_ref|.
     #[arg(long, value_name = "E", default_value_t = 1e-6, allow_negative_numbers = true)]
@@ -350,10 +356,10 @@ struct CompareArgs {
     run: RunArgs,
     #[command(flatten)]
     interface: InterfaceArgs,
-    /// Work-precision table (default <MODEL>_compare.csv).
+    /// Work-precision table of a single model (default <MODEL>_compare.csv for each).
     #[arg(long, value_name = "FILE.csv")]
     out: Option<PathBuf>,
-    /// Work-precision plot (default <MODEL>_compare.svg).
+    /// Work-precision plot of a single model (default <MODEL>_compare.svg for each).
     #[arg(long, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
     /// Run in this process instead of a worker process (for trusted FMUs).
@@ -434,24 +440,18 @@ fn main() {
         Cmd::Validate { fmus, timeout, report, junit, strict } => {
             std::process::exit(validate::run(&validate::Options { fmus, timeout, report, junit, strict }))
         }
-        Cmd::Compare(a) => {
-            let stem =
-                std::path::Path::new(&a.fmu).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "compare".into());
-            let out = a.out.unwrap_or_else(|| PathBuf::from(format!("{stem}_compare.csv")));
-            let plot = a.plot.unwrap_or_else(|| PathBuf::from(format!("{stem}_compare.svg")));
-            compare::run(&compare::Options {
-                fmu: a.fmu,
-                solvers: a.solvers,
-                target_error: a.target_error,
-                run: a.run.defaults(),
-                out,
-                plot,
-                integration: integration(a.interface, None),
-                in_process: a.in_process,
-                point_timeout: a.point_timeout,
-            })
-            .map(|_| ())
-        }
+        Cmd::Compare(a) => compare::run(&compare::Options {
+            models: a.models,
+            solvers: a.solvers,
+            target_error: a.target_error,
+            run: a.run.defaults(),
+            out: a.out,
+            plot: a.plot,
+            integration: integration(a.interface, None),
+            in_process: a.in_process,
+            point_timeout: a.point_timeout,
+        })
+        .map(|_| ()),
         Cmd::Animate(a) => animate::run(&animate::Options {
             fmu: a.fmu,
             run: a.run.defaults(),

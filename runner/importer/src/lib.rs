@@ -23,7 +23,7 @@ pub use solvers::Method;
 /// relative tolerance is the run's (`fmi2SetupExperiment`'s).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Solver {
-    /// The method: Euler, RK4 or DOPRI5 (the toolkit's solvers).
+    /// The method: Euler, RK4, DOPRI5, BS23 or DOP853 (the toolkit's solvers).
     pub method: Method,
     /// The step of the fixed-step methods (s).
     pub fixed_step: f64,

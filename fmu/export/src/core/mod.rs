@@ -12,6 +12,8 @@
 mod exchange;
 
 pub mod snapshot;
+#[cfg(test)]
+mod tests;
 
 use ref_cast::RefCast;
 use serde::{Deserialize, Serialize};
@@ -64,7 +66,7 @@ const MAX_EVENTS_PER_STEP: usize = 10_000;
 
 /// What to try when a solution diverges, for the messages that say so.
 const DIVERGED_ADVICE: &str =
-    "the model may be unstable, or the step too large: with euler or rk4 reduce fixed_step, with dopri5 reduce tolerance/abs_tol";
+    "the model may be unstable, or the step too large: with euler or rk4 reduce fixed_step, with the adaptive methods reduce tolerance/abs_tol or set max_step";
 
 /// Everything an FMU state captures: enough to continue bit for bit from where it was taken.
 #[derive(Clone, Serialize, Deserialize)]
@@ -287,7 +289,10 @@ impl<M: Model> Core<M> {
         if let Some(bad) = self.first_non_finite() {
             return Err(Failure::error(format!("the parameters give {bad} at the start, which is not finite: check the parameters")));
         }
-        self.state.integrator = Some(Integrator::new(settings, M::N_STATES, M::N_EVENT_INDICATORS));
+        let mut integrator = Integrator::new(settings, M::N_STATES, M::N_EVENT_INDICATORS);
+        // No step beyond the experiment's end: the right-hand side is not evaluated past it.
+        integrator.set_stop_time(self.state.stop_time);
+        self.state.integrator = Some(integrator);
         self.state.last_successful_time = self.state.t;
         Ok(())
     }
@@ -463,15 +468,21 @@ impl<M: Model> Core<M> {
         Ok(vr as usize)
     }
 
-    /// Records that a settable value changed.
-    fn after_set(&mut self, phase: Phase) {
+    /// Records that settable values were set; `changed`: at least one to a value other than
+    /// the one it had (compared bit for bit).
+    fn after_set(&mut self, phase: Phase, changed: bool) {
         if phase == Phase::Initializing {
             self.state.initial_state_ready = false;
         }
         self.state.outputs_dirty = true;
-        // New inputs make any cached derivative stale.
-        if let Some(integrator) = self.state.integrator.as_mut() {
-            integrator.invalidate();
+        // A new input or parameter value changes the right-hand side from this communication
+        // point on: the solver's pending step (computed with the old value) and its cached
+        // derivative are thrown away, and integration restarts here. Setting the value it
+        // already had (an importer that sets every input at every step) changes nothing.
+        if changed {
+            if let Some(integrator) = self.state.integrator.as_mut() {
+                integrator.invalidate();
+            }
         }
     }
 
@@ -490,14 +501,21 @@ impl<M: Model> Core<M> {
                 _ => return Err(self.unknown(*vr, "settable Real")),
             }
         }
+        let mut changed = false;
         for (vr, value) in vrs.iter().zip(values.iter()) {
             match &self.table.rows[*vr as usize].slot {
-                Slot::Model(Access::Real { set: Some(set), .. }) => set(&mut self.state.model, *value),
-                Slot::Control(c) => c.store(&mut self.state.controls, *value),
+                Slot::Model(Access::Real { get, set: Some(set) }) => {
+                    changed |= get(&self.state.model).to_bits() != value.to_bits();
+                    set(&mut self.state.model, *value)
+                }
+                Slot::Control(c) => {
+                    changed |= self.state.controls.get(*c).map(f64::to_bits) != Some(value.to_bits());
+                    c.store(&mut self.state.controls, *value)
+                }
                 _ => unreachable!("checked above"),
             }
         }
-        self.after_set(phase);
+        self.after_set(phase, changed);
         Ok(())
     }
 
@@ -511,14 +529,21 @@ impl<M: Model> Core<M> {
                 _ => return Err(self.unknown(*vr, "settable Integer")),
             }
         }
+        let mut changed = false;
         for (vr, value) in vrs.iter().zip(values.iter()) {
             match &self.table.rows[*vr as usize].slot {
-                Slot::Model(Access::Integer { set: Some(set), .. }) => set(&mut self.state.model, *value),
-                Slot::Control(c) => c.store(&mut self.state.controls, f64::from(*value)),
+                Slot::Model(Access::Integer { get, set: Some(set) }) => {
+                    changed |= get(&self.state.model) != *value;
+                    set(&mut self.state.model, *value)
+                }
+                Slot::Control(c) => {
+                    changed |= self.state.controls.get(*c) != Some(f64::from(*value));
+                    c.store(&mut self.state.controls, f64::from(*value))
+                }
                 _ => unreachable!("checked above"),
             }
         }
-        self.after_set(phase);
+        self.after_set(phase, changed);
         Ok(())
     }
 
@@ -530,12 +555,14 @@ impl<M: Model> Core<M> {
                 return Err(self.unknown(*vr, "settable Boolean"));
             }
         }
+        let mut changed = false;
         for (vr, value) in vrs.iter().zip(values.iter()) {
-            if let Slot::Model(Access::Boolean { set: Some(set), .. }) = &self.table.rows[*vr as usize].slot {
+            if let Slot::Model(Access::Boolean { get, set: Some(set) }) = &self.table.rows[*vr as usize].slot {
+                changed |= get(&self.state.model) != *value;
                 set(&mut self.state.model, *value);
             }
         }
-        self.after_set(phase);
+        self.after_set(phase, changed);
         Ok(())
     }
 
@@ -732,19 +759,15 @@ impl<M: Model> Core<M> {
         self.state.terminated
     }
 
-    /// A copy of everything needed to continue from here.
+    /// A copy of everything needed to continue from here, the solver's pending step included
+    /// (so a rollback, or the copy serialized and restored in another instance, continues bit
+    /// for bit as this instance does).
     pub fn capture(&self) -> State<M> {
-        let mut state = self.state.clone();
-        // The copy may be serialized, which drops the buffers the integrator would compare a
-        // projected state with at its next step: have it compare now.
-        let State { integrator, t, x, .. } = &mut state;
-        if let Some(integrator) = integrator.as_mut() {
-            integrator.settle(*t, x);
-        }
-        state
+        self.state.clone()
     }
 
-    /// Continues from a captured state.
+    /// Continues from a captured state: this instance's pending step gives way to the one the
+    /// state captured.
     pub fn restore(&mut self, state: &State<M>) {
         self.state = state.clone();
     }

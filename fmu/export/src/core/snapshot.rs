@@ -12,8 +12,10 @@ use crate::model::Model;
 const MAGIC: &[u8; 4] = b"RFMS";
 /// Version 2: the state-machine state is the front end's, after the core's state (version 1
 /// had FMI 2.0's inside the core). Version 3: the core's Model Exchange fields and the Model
-/// Exchange states of the state machine.
-const FORMAT_VERSION: u16 = 3;
+/// Exchange states of the state machine. Version 4: the solver's state holds its pending step
+/// (the step across the communication point, its dense output and the point last handed out)
+/// and the new solver settings (`max_step`, the stop time).
+const FORMAT_VERSION: u16 = 4;
 const HEADER_LEN: usize = 4 + 2 + 8 + 8 + 4;
 
 /// Encodes `state` and the front end's `phase` with a header tying them to the model whose

@@ -3,8 +3,13 @@
 //! solver controls (`solver`, `fixed_step`, tolerance, `abs_tol`) and reads the counters
 //! `n_steps`, `n_rhs`; under Model Exchange (`--interface model-exchange`, any ME FMU) the
 //! runner's own integrator runs with those settings and counts its own steps and evaluations.
-//! Errors are measured against the model's closed-form solution where its experiment.toml gives
-//! one (`[compare.reference]`), else against DOPRI5 at a tolerance far below the table's.
+//! Every method does its natural work: Euler and RK4 their fixed steps, the adaptive methods
+//! the steps their error control takes across the communication points. Errors are measured
+//! against the model's closed-form solution where its experiment.toml gives one
+//! (`[compare.reference]`), else against DOP853 at a tolerance far below the table's. Given
+//! several models, it also answers Ex. 4's discussion question 1: how the step counts of
+//! Euler and DOPRI5 compare on each (the fifth-order quarter car against the second-order
+//! system of Ex. 1).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -26,29 +31,48 @@ use crate::report::plot::{self, Mark, Series};
 use crate::report::progress::Progress;
 use crate::workers::{self, Executor, Held};
 
-/// Relative tolerance of the reference run (DOPRI5): far below any error the table reports.
-pub const REFERENCE_RTOL: f64 = 1e-12;
+/// The method of the reference run: DOP853, whose error at `REFERENCE_RTOL` is far below any
+/// the table reports (its tightest tolerance is 1e-11).
+pub const REFERENCE_METHOD: Method = Method::Dop853;
+/// Relative tolerance of the reference run.
+pub const REFERENCE_RTOL: f64 = 1e-13;
 
 /// Options of `runner compare`.
 pub struct Options {
-    /// Model name or `.fmu` path (an FMU of this toolkit: it needs the solver controls).
-    pub fmu: String,
-    /// Solvers to compare, by name: euler, rk4, dopri5.
+    /// Model names or `.fmu` paths (FMUs of this toolkit: they need the solver controls).
+    pub models: Vec<String>,
+    /// Solvers to compare, by name: euler, rk4, dopri5, bs23, dop853.
     pub solvers: Vec<String>,
     /// The error each solver must reach (max over outputs of the error relative to the output's peak).
     pub target_error: f64,
     /// Grid and assignments from the command line.
     pub run: RunDefaults,
-    /// Work-precision table (CSV).
-    pub out: PathBuf,
-    /// Work-precision plot (SVG).
-    pub plot: PathBuf,
+    /// Work-precision table (CSV); `None`: `<MODEL>_compare.csv`. Only for a single model.
+    pub out: Option<PathBuf>,
+    /// Work-precision plot (SVG); `None`: `<MODEL>_compare.svg`. Only for a single model.
+    pub plot: Option<PathBuf>,
     /// The interface (the runner's integrator settings are the table's, not given here).
     pub integration: Integration,
     /// Runs in this process instead of a worker process.
     pub in_process: bool,
     /// A run taking longer (seconds) is recorded as timed out (needs a worker process).
     pub point_timeout: Option<f64>,
+}
+
+/// The comparison of one model.
+#[derive(Debug, Clone)]
+pub struct Comparison {
+    /// The model's name (its modelName).
+    pub model: String,
+    /// Every run, in the order of the solvers and their settings.
+    pub rows: Vec<Row>,
+}
+
+impl Comparison {
+    /// The cheapest run (fewest right-hand-side evaluations) of `solver` that reaches `target`.
+    pub fn cheapest(&self, solver: &str, target: f64) -> Option<&Row> {
+        self.rows.iter().filter(|r| r.solver == solver && r.error <= target).min_by(|a, b| a.n_rhs.total_cmp(&b.n_rhs))
+    }
 }
 
 /// One run of the work-precision table.
@@ -70,7 +94,9 @@ pub struct Row {
 type Trials = (i32, &'static str, Vec<f64>);
 
 /// The settings tried for each solver: fixed steps from the output interval down (Euler by 4x,
-/// RK4 by 2x, matching their orders), DOPRI5 tolerances by decades.
+/// RK4 by 2x, matching their orders), tolerances by decades from 1e-2 for the adaptive methods,
+/// to 1e-10 for BS23 (a third-order method needs 10x the steps per 1000x in tolerance) and
+/// 1e-11 for the others.
 fn settings(solver: &str, interval: f64) -> Result<Trials, String> {
     let method = Method::from_name(solver).ok_or_else(|| {
         let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
@@ -79,7 +105,8 @@ fn settings(solver: &str, interval: f64) -> Result<Trials, String> {
     Ok(match method {
         Method::Euler => (method.code(), Control::FixedStep.name(), (0..8).map(|k| interval / 4f64.powi(k)).collect()),
         Method::Rk4 => (method.code(), Control::FixedStep.name(), (0..6).map(|k| interval / 2f64.powi(k)).collect()),
-        Method::Dopri5 => (method.code(), "tolerance", (3..=11).map(|k| 10f64.powi(-k)).collect()),
+        Method::Dopri5 | Method::Dop853 => (method.code(), "tolerance", (2..=11).map(|k| 10f64.powi(-k)).collect()),
+        Method::Bs23 => (method.code(), "tolerance", (2..=10).map(|k| 10f64.powi(-k)).collect()),
     })
 }
 
@@ -206,25 +233,174 @@ fn relative_error(run: &[Vec<f64>], reference: &[Vec<f64>]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Runs the comparison and returns the table (also written to CSV and SVG).
-pub fn run(options: &Options) -> Result<Vec<Row>, String> {
+/// The table and plot files of each model: the options' for a single model, else
+/// `<MODEL>_compare.csv` and `.svg` (MODEL: the name or the `.fmu` file's stem).
+fn destinations(options: &Options) -> Result<Vec<(PathBuf, PathBuf)>, String> {
+    if options.models.len() > 1 && (options.out.is_some() || options.plot.is_some()) {
+        return Err(format!(
+            "--out and --plot name the files of one model, but {} models were given: leave them out to write <MODEL>_compare.csv and <MODEL>_compare.svg for each",
+            options.models.len()
+        ));
+    }
+    options
+        .models
+        .iter()
+        .map(|m| {
+            let stem = std::path::Path::new(m).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "compare".into());
+            let out = options.out.clone().unwrap_or_else(|| PathBuf::from(format!("{stem}_compare.csv")));
+            let plot = options.plot.clone().unwrap_or_else(|| PathBuf::from(format!("{stem}_compare.svg")));
+            // Both files are written after the runs.
+            output::check_destination(&out)?;
+            output::check_destination(&plot)?;
+            Ok((out, plot))
+        })
+        .collect()
+}
+
+/// Runs the comparison of every model (each table also written to CSV and SVG) and prints how
+/// their step counts compare (Ex. 4, discussion question 1).
+pub fn run(options: &Options) -> Result<Vec<Comparison>, String> {
     if !(options.target_error.is_finite() && options.target_error > 0.0) {
         return Err(format!("--target-error {} must be a positive number", options.target_error));
     }
-    // Both files are written after the runs.
-    output::check_destination(&options.out)?;
-    output::check_destination(&options.plot)?;
+    if options.models.is_empty() {
+        return Err("no model given: name one or more models or .fmu files".to_owned());
+    }
     if options.integration.solver.is_some() || options.integration.fixed_step.is_some() || options.integration.abs_tolerance.is_some() {
         return Err(
             "compare runs every solver of --solvers over its own settings: --solver, --fixed-step and --abs-tolerance do not apply"
                 .to_owned(),
         );
     }
-    let timeout = workers::timeout("--point-timeout", options.point_timeout)?;
-    if options.in_process && timeout.is_some() {
+    if options.in_process && options.point_timeout.is_some() {
         return Err("--point-timeout needs worker processes (a run in this process cannot be stopped): drop --in-process".to_owned());
     }
-    let target = experiment::resolve(&options.fmu)?;
+    let files = destinations(options)?;
+    let mut comparisons = Vec::new();
+    for (model, (out, plot)) in options.models.iter().zip(&files) {
+        if !comparisons.is_empty() {
+            println!();
+        }
+        comparisons.push(compare_one(model, options, out, plot)?);
+    }
+    println!("\n{}", step_counts(&comparisons, &options.solvers, options.target_error));
+    Ok(comparisons)
+}
+
+/// The steps `solver` needs for an error of exactly `target`: interpolated log-log on its
+/// work-precision curve between the two settings tried on either side of it (the error of a
+/// method of order p goes as steps^-p, a straight line there). `Bound::AtMost` when even the
+/// coarsest setting tried is more accurate (Euler and RK4 cannot take fewer steps than
+/// communication points), `None` when no setting reached it.
+pub fn steps_for(rows: &[Row], solver: &str, target: f64) -> Option<Steps> {
+    let runs: Vec<&Row> = rows.iter().filter(|r| r.solver == solver && r.error.is_finite() && r.error > 0.0).collect();
+    let first = runs.first()?;
+    if first.error <= target {
+        return Some(Steps::AtMost(first.n_steps));
+    }
+    runs.windows(2).find(|w| w[0].error > target && w[1].error <= target).map(|w| {
+        let (a, b) = (w[0], w[1]);
+        let slope = (b.n_steps.ln() - a.n_steps.ln()) / (b.error.ln() - a.error.ln());
+        Steps::About((a.n_steps.ln() + slope * (target.ln() - a.error.ln())).exp())
+    })
+}
+
+/// A number of steps found by [`steps_for`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Steps {
+    /// Interpolated between two settings tried.
+    About(f64),
+    /// The coarsest setting tried already reaches the error, with this many steps.
+    AtMost(f64),
+}
+
+impl Steps {
+    /// The number.
+    pub fn value(self) -> f64 {
+        match self {
+            Steps::About(n) | Steps::AtMost(n) => n,
+        }
+    }
+}
+
+impl std::fmt::Display for Steps {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Steps::About(n) => write!(f, "{:.0}", n),
+            Steps::AtMost(n) => write!(f, "<= {n:.0}"),
+        }
+    }
+}
+
+/// Ex. 4's discussion question 1 across the models compared: the steps each solver needs for
+/// the error `target` (interpolated, see [`steps_for`]) and how many times DOPRI5's that is,
+/// per model; then how the Euler/DOPRI5 ratio of the first model compares with each other's.
+pub fn step_counts(comparisons: &[Comparison], solvers: &[String], target: f64) -> String {
+    let solvers: Vec<&str> = solvers.iter().map(|s| s.trim()).collect();
+    let mut text =
+        format!("steps for an error of {target:e}, interpolated between the settings tried (in parentheses: x DOPRI5's)\n{:<24}", "model");
+    for s in &solvers {
+        text.push_str(&format!(" {s:>22}"));
+    }
+    let dopri5 = Method::Dopri5.name();
+    for c in comparisons {
+        text.push_str(&format!("\n{:<24}", c.model));
+        let reference = steps_for(&c.rows, dopri5, target);
+        for s in &solvers {
+            let cell = match (steps_for(&c.rows, s, target), reference) {
+                (Some(n), Some(d)) => format!("{n} ({:.3}x)", n.value() / d.value()),
+                (Some(n), None) => format!("{n}"),
+                (None, _) => "not reached".to_owned(),
+            };
+            text.push_str(&format!(" {cell:>22}"));
+        }
+    }
+    // Euler's steps over DOPRI5's, and whether that is only a lower bound (DOPRI5's coarsest
+    // setting was already more accurate).
+    let ratio = |c: &Comparison| match (steps_for(&c.rows, Method::Euler.name(), target), steps_for(&c.rows, dopri5, target)) {
+        (Some(Steps::About(e)), Some(d)) => Some((e / d.value(), matches!(d, Steps::AtMost(_)))),
+        _ => None,
+    };
+    let times = |(r, lower_bound): (f64, bool)| if lower_bound { format!("at least {r:.0}x") } else { format!("{r:.0}x") };
+    let (first, others) = comparisons.split_first().expect("at least one comparison");
+    match ratio(first) {
+        Some(r0) => {
+            text.push_str(&format!("\nforward Euler needs {} the steps of DOPRI5 on {}", times(r0), first.model));
+            for c in others {
+                match ratio(c) {
+                    Some(r) => {
+                        let wider = r0.0 / r.0;
+                        let bound = match (r0.1, r.1) {
+                            (false, false) => "",
+                            (true, false) => "at least ",
+                            (false, true) => "at most ",
+                            (true, true) => "(bounds only) ",
+                        };
+                        text.push_str(&format!(
+                            " and {} on {}: the gap is {bound}{wider:.1}x as wide on {} as on {}",
+                            times(r),
+                            c.model,
+                            first.model,
+                            c.model
+                        ))
+                    }
+                    None => text.push_str(&format!("; on {} the Euler/DOPRI5 ratio cannot be told at this error", c.model)),
+                }
+            }
+        }
+        None => text.push_str(&format!(
+            "\nthe Euler/DOPRI5 step ratio on {} cannot be told at this error (a setting of each on both sides of it is needed): \
+             try a larger --target-error",
+            first.model
+        )),
+    }
+    text
+}
+
+/// Compares the solvers on one model, writing its table to `out` and its plot to `plot`.
+fn compare_one(model: &str, options: &Options, out: &std::path::Path, plot_path: &std::path::Path) -> Result<Comparison, String> {
+    let timeout = workers::timeout("--point-timeout", options.point_timeout)?;
+    let target = experiment::resolve(model)?;
     // With workers, only the description is read here: the FMU's binary runs in them alone.
     let (held, source) = Held::open(&target.path, &options.integration, options.in_process)?;
     let md = held.description();
@@ -259,20 +435,21 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
 
     let analytical = &target.experiment.compare;
     let (compared, reference, reference_name) = if analytical.reference.is_empty() || !options.run.set.is_empty() {
+        let reference_name = format!("{} at rtol {REFERENCE_RTOL:e}", REFERENCE_METHOD.name().to_uppercase());
         if !analytical.reference.is_empty() {
-            eprintln!("note: the closed-form reference in experiment.toml holds for its own parameter values; with --set the reference is DOPRI5 at rtol {REFERENCE_RTOL:e}");
+            eprintln!("note: the closed-form reference in experiment.toml holds for its own parameter values; with --set the reference is {reference_name}");
         }
-        let reference_solver = Solver { method: Method::Dopri5, abs_tol: REFERENCE_RTOL * 1e-2, ..Solver::default() };
+        let reference_solver = Solver { method: REFERENCE_METHOD, abs_tol: REFERENCE_RTOL * 1e-2, ..Solver::default() };
         let reference_grid = Grid { tolerance: Some(REFERENCE_RTOL), solver: reference_solver, ..grid };
         let reference_settings = match controls {
             Some((solver, _, abs_tol)) => {
-                vec![(solver, Value::Integer(Method::Dopri5.code())), (abs_tol, Value::Real(REFERENCE_RTOL * 1e-2))]
+                vec![(solver, Value::Integer(REFERENCE_METHOD.code())), (abs_tol, Value::Real(REFERENCE_RTOL * 1e-2))]
             }
             None => Vec::new(),
         };
         let (reference, _, _) = run_once(&mut executor, md, &reference_grid, &base, &reference_settings, &compared, &counters)
-            .map_err(|e| format!("the reference run (DOPRI5 at rtol {REFERENCE_RTOL}) failed: {e}"))?;
-        (compared, reference, format!("DOPRI5 at rtol {REFERENCE_RTOL:e}"))
+            .map_err(|e| format!("the reference run ({reference_name}) failed: {e}"))?;
+        (compared, reference, reference_name)
     } else {
         let (compared, reference) = closed_form(md, &analytical.reference, &base, &grid)?;
         (compared, reference, "the closed-form solution of experiment.toml".to_owned())
@@ -328,8 +505,8 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
     }
     drop(progress);
 
-    let mut writer = output::csv_writer(Some(&options.out))?;
-    let csv_err = |e: csv::Error| format!("cannot write {}: {e}", options.out.display());
+    let mut writer = output::csv_writer(Some(out))?;
+    let csv_err = |e: csv::Error| format!("cannot write {}: {e}", out.display());
     writer.write_record(["solver", "setting", "value", "n_steps", "n_rhs", "seconds", "max_relative_error", "status"]).map_err(csv_err)?;
     for r in &rows {
         writer
@@ -351,9 +528,10 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
     println!("{}: error = max over {} of |y - y_ref| / max|y_ref|, y_ref from {reference_name}", md.model_name, names.join(", "));
     println!("cheapest setting tried that reaches the target error {:e}:", options.target_error);
     println!("{:<8} {:<24} {:>10} {:>12} {:>10} {:>12}", "solver", "setting", "steps", "rhs evals", "time (s)", "error");
+    let comparison = Comparison { model: md.model_name.clone(), rows };
+    let rows = &comparison.rows;
     for (name, _) in &plan {
-        let best = rows.iter().filter(|r| &r.solver == name && r.error <= options.target_error).min_by(|a, b| a.n_rhs.total_cmp(&b.n_rhs));
-        match best {
+        match comparison.cheapest(name, options.target_error) {
             Some(r) => println!(
                 "{:<8} {:<24} {:>10} {:>12} {:>10.4} {:>12.3e}",
                 name,
@@ -392,20 +570,40 @@ pub fn run(options: &Options) -> Result<Vec<Row>, String> {
         })
         .collect();
     plot::lines(
-        &options.plot,
+        plot_path,
         &format!("{}: work-precision (error against right-hand-side evaluations)", md.model_name),
         "log10(rhs evaluations)",
         "log10(max relative error)",
         &series,
         &marks,
     )?;
-    println!("wrote {} and {}", options.out.display(), options.plot.display());
-    Ok(rows)
+    println!("wrote {} and {}", out.display(), plot_path.display());
+    Ok(comparison)
 }
 
 #[cfg(test)]
 mod tests {
-    use super::relative_error;
+    use super::{relative_error, steps_for, Row, Steps};
+
+    fn row(solver: &str, n_steps: f64, error: f64) -> Row {
+        Row { solver: solver.into(), setting: "tolerance", value: 0.0, n_steps, n_rhs: n_steps, seconds: 0.0, error, status: "ok".into() }
+    }
+
+    /// On a work-precision line error = C steps^-p (any order p) the interpolation is exact;
+    /// the coarsest setting already below the target is a bound, and no setting reaching the
+    /// target is `None`.
+    #[test]
+    fn steps_for_an_error_are_interpolated_on_the_work_precision_line() {
+        for p in [1.0, 4.0, 5.0] {
+            let rows: Vec<Row> = [100.0, 400.0, 1600.0].iter().map(|&n| row("m", n, 1e3 * f64::powf(n, -p))).collect();
+            let target = 1e3 * f64::powf(1000.0, -p);
+            let Some(Steps::About(n)) = steps_for(&rows, "m", target) else { panic!("order {p}: no interpolation") };
+            assert!((n / 1000.0 - 1.0).abs() < 1e-12, "order {p}: {n}");
+            assert_eq!(steps_for(&rows, "m", 1e9), Some(Steps::AtMost(100.0)));
+            assert_eq!(steps_for(&rows, "m", target * 1e-12), None);
+            assert_eq!(steps_for(&rows, "other", target), None);
+        }
+    }
 
     #[test]
     fn error_is_relative_to_each_outputs_peak_and_nan_is_infinite() {

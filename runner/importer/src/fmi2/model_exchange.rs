@@ -181,6 +181,8 @@ pub struct ModelExchange<'a> {
     nz: usize,
     solver: Solver,
     tolerance: Option<f64>,
+    /// The experiment's stop time: no step of the integrator goes past it.
+    stop: f64,
     integrator: Option<Integrator>,
     t: f64,
     x: Vec<f64>,
@@ -233,6 +235,7 @@ impl<'a> ModelExchange<'a> {
             nz,
             solver: Solver::default(),
             tolerance: None,
+            stop: f64::INFINITY,
             integrator: None,
             t: 0.0,
             x: vec![0.0; nx],
@@ -249,6 +252,7 @@ impl<'a> ModelExchange<'a> {
     pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
         self.tolerance = tolerance;
         self.t = start;
+        self.stop = stop;
         self.component.setup_experiment(tolerance, start, stop)
     }
 
@@ -266,12 +270,16 @@ impl<'a> ModelExchange<'a> {
             fixed_step: self.solver.fixed_step,
             rtol: self.tolerance.unwrap_or(DEFAULT_TOLERANCE),
             atol: self.solver.abs_tol,
+            max_step: 0.0,
         };
         settings.validate().map_err(|e| format!("{}: the runner's integrator: {e}", self.component.name))?;
         if let Some(reason) = self.event_iteration()? {
             return Err(format!("{}: the model ended the simulation during its initial event iteration: {reason}", self.component.name));
         }
-        self.integrator = Some(Integrator::new(settings, self.nx, self.nz));
+        let mut integrator = Integrator::new(settings, self.nx, self.nz);
+        // The adaptive methods step across communication points, never past the stop time.
+        integrator.set_stop_time(Some(self.stop));
+        self.integrator = Some(integrator);
         Ok(())
     }
 

@@ -1,11 +1,12 @@
-//! The limit for `tests/bench/run`: the Ex. 4 sweep done by calling the toolkit's DOPRI5 on
+//! The limit for `tests/bench/run`: the Ex. 4 sweep done by calling the toolkit's solver on
 //! quarter_car's right-hand side directly, with no FMI layer, no instance, no value references
 //! and no output handling beyond the two running maxima the metric needs.
 //!
-//! It advances through the same 1 ms communication points as an FMU run (the toolkit's DOPRI5
-//! never steps across one; MODELS.md), computed the way the runner computes them, so it does
-//! exactly the numerical work of one `runner sweep` point and its transmissibility is the same
-//! number. Prints one JSON object: per-run cost and the transmissibility per speed.
+//! It asks the integrator for the same 1 ms communication points as an FMU run, computed the
+//! way the runner computes them, with the stop time set as the FMU sets it: the same steps
+//! across those points, the same dense output at them, so it does exactly the numerical work
+//! of one `runner sweep` point and its transmissibility is the same number. Prints one JSON
+//! object: per-run cost, the transmissibility and the right-hand-side evaluations per speed.
 //!
 //! Usage: bare_loop SPEEDS (comma list or START:STOP:STEP) [RTOL]
 
@@ -21,8 +22,9 @@ const INTERVAL: f64 = 1e-3;
 /// The FMU's default `abs_tol`.
 const ATOL: f64 = 1e-9;
 
-/// max(z_s)/max(z_r) over the communication points of one 10 s run.
-fn transmissibility(speed: f64, rtol: f64) -> f64 {
+/// max(z_s)/max(z_r) over the communication points of one 10 s run, and the run's
+/// right-hand-side evaluations.
+fn transmissibility(speed: f64, rtol: f64) -> (f64, u64) {
     // The model is the integrator's ODE system (the same code path as in the FMU). Its
     // parameters are data, as in an FMU run: without black_box the compiler would fold the
     // default masses and stiffnesses into the stages as constants (68 fewer instructions per
@@ -34,8 +36,10 @@ fn transmissibility(speed: f64, rtol: f64) -> f64 {
     // right-hand side needs of them, and gives the initial state.
     let mut x = [0.0; QuarterCar::N_STATES];
     system.initial_state(&mut x).expect("the handbook's parameters are valid");
-    let settings = Settings { method: Method::Dopri5, fixed_step: INTERVAL, rtol, atol: ATOL };
+    let settings = Settings { method: Method::Dopri5, fixed_step: INTERVAL, rtol, atol: ATOL, max_step: 0.0 };
     let mut integrator = Integrator::new(settings, QuarterCar::N_STATES, 0);
+    // As the FMU after fmi2SetupExperiment: no step ends after the stop time.
+    integrator.set_stop_time(Some(STOP));
     let (mut max_zs, mut max_zr) = (0.0f64, 0.0f64);
     let steps = (STOP / INTERVAL).round() as usize;
     let mut t = 0.0;
@@ -48,7 +52,7 @@ fn transmissibility(speed: f64, rtol: f64) -> f64 {
         max_zs = max_zs.max(x[0]);
         max_zr = max_zr.max(x[2]);
     }
-    max_zs / max_zr
+    (max_zs / max_zr, integrator.n_rhs())
 }
 
 fn parse_speeds(text: &str) -> Vec<f64> {
@@ -71,13 +75,15 @@ fn main() {
     let speeds = parse_speeds(&args[1]);
     let rtol = args.get(2).map_or(1e-9, |r| r.parse().expect("RTOL is a number"));
     let clock = Instant::now();
-    let results: Vec<(f64, f64)> = speeds.iter().map(|&s| (s, transmissibility(s, rtol))).collect();
+    let results: Vec<(f64, (f64, u64))> = speeds.iter().map(|&s| (s, transmissibility(s, rtol))).collect();
     let wall = clock.elapsed().as_secs_f64();
-    let table: Vec<String> = results.iter().map(|(s, r)| format!("\"{s:?}\": {r:?}")).collect();
+    let table: Vec<String> = results.iter().map(|(s, (r, _))| format!("\"{s:?}\": {r:?}")).collect();
+    let rhs: Vec<String> = results.iter().map(|(s, (_, n))| format!("\"{s:?}\": {n}")).collect();
     println!(
-        "{{\"tool\": \"bare_dopri5\", \"processes\": 1, \"runs\": {}, \"wall_seconds\": {wall}, \"per_run_seconds\": {}, \"transmissibility\": {{{}}}}}",
+        "{{\"tool\": \"bare_dopri5\", \"processes\": 1, \"runs\": {}, \"wall_seconds\": {wall}, \"per_run_seconds\": {}, \"transmissibility\": {{{}}}, \"rhs\": {{{}}}}}",
         speeds.len(),
         wall / speeds.len() as f64,
-        table.join(", ")
+        table.join(", "),
+        rhs.join(", ")
     );
 }

@@ -1,7 +1,8 @@
 /* A Co-Simulation FMU that misbehaves on request, as third-party FMUs do: the Dahlquist equation
  * x' = -k x stepped with its exact solution (as dahlquist.c), plus a parameter `fault` that makes
  * fmi2DoStep, at the first step from t >= fault_time, crash with SIGSEGV (1), abort() (2), hang
- * in a busy loop (3), exit the process with code 3 (4), or leak leak_mb MB per step for good (5);
+ * in a busy loop (3), exit the process with code 3 (4), leak leak_mb MB per step for good (5),
+ * or return fmi2Error with a logged reason (7);
  * fault 6 leaks leak_mb MB once per instance, at fmi2Instantiate. The output `pid` is the process
  * the instance runs in, so tests can count the processes a sweep used. Compiled with
  * -DONCE_PER_PROCESS, fmi2Instantiate refuses a second instance in one process (its
@@ -184,6 +185,7 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
         case 3: for (volatile unsigned long spin = 0;; spin++) {} break;
         case 4: exit(3);
         case 5: leak(inst->leak_mb); break;
+        case 7: LOG(inst, fmi2Error, "fault 7: this step is refused"); return fmi2Error;
         default: break;
         }
     }

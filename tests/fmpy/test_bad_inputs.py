@@ -201,6 +201,9 @@ RULES = {
     "trebuchet": {"r_AC": "positive", "r_BC": "positive", "r_CD": "positive", "r_DE": "positive",
                   "rho": "positive", "w_B": "positive", "w_3": "positive", "g": "positive",
                   "theta1_0": "any", "theta2_0": "any", "theta3_0": "any", "release_angle": "any"},
+    # A negative speed drives the wheel backwards, a negative height is a dip.
+    "road": {"speed": "any", "amplitude": "any", "wavelength": "positive", "bump_height": "any",
+             "bump_length": "positive", "bump_start": "any"},
 }
 # The toolkit's solver controls, the same in every FMU.
 CONTROL_RULES = {"fixed_step": "positive", "abs_tol": "non_negative"}
@@ -412,6 +415,8 @@ DIVERGE = {
     "double_rocker": ({}, 10.0, 10.0, "discard"),
     "inverted_crank_slider": ({}, 0.5, 1.0, "error"),
     "trebuchet": ({}, 10.0, 10.0, "discard"),
+    # x' = speed is stable under any step; at 1e308 m/s one Euler step of 10 s overflows x.
+    "road": ({"speed": 1e308}, 10.0, 10.0, "error"),
 }
 MAX_STEPS = 3000
 

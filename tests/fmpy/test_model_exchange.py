@@ -38,6 +38,7 @@ STATES = {
     "double_rocker": (["theta", "theta3", "theta4", "theta3_dot", "theta4_dot"], 1),
     "inverted_crank_slider": (["theta2", "r3", "theta3", "r3_dot", "theta3_dot"], 0),
     "trebuchet": (["theta1", "theta2", "theta3", "omega1", "omega2", "omega3", "x_p", "y_p", "vx_p", "vy_p"], 3),
+    "road": (["x"], 0),
 }
 
 SLIDER = {"der(theta)": "", "der(r1)": "r1_dot", "der(theta3)": "theta3_dot",
@@ -70,6 +71,8 @@ DERIVATIVES = {
     "trebuchet": {"der(theta1)": "omega1", "der(theta2)": "omega1 omega2", "der(theta3)": "omega1 omega3",
                   "der(omega1)": TREBUCHET_RATES, "der(omega2)": TREBUCHET_RATES, "der(omega3)": TREBUCHET_RATES,
                   "der(x_p)": "vx_p", "der(y_p)": "vy_p", "der(vx_p)": "", "der(vy_p)": ""},
+    # x' = speed, a parameter.
+    "road": {"der(x)": ""},
 }
 
 

@@ -86,6 +86,12 @@ impl<M: Model> Harness<M> {
         Ok((vr, self.instance.table().row(vr).expect("vr from table").base_type))
     }
 
+    /// Lets the model read its resources from `dir`, as fmi2Instantiate does with the
+    /// importer's fmuResourceLocation.
+    pub fn load_resources(&mut self, dir: &std::path::Path) -> Result<(), String> {
+        self.instance.load_resources(dir).map_err(|e| e.to_string())
+    }
+
     /// Sets a variable by name; integers and booleans are given as numbers.
     pub fn set(&mut self, name: &str, value: f64) -> Result<(), String> {
         let (vr, ty) = self.vr(name)?;

@@ -487,4 +487,11 @@ pub trait Model: Variables + Default + Clone + Send + Serialize + DeserializeOwn
     fn constraint_drift(&self, _x: &[f64]) -> f64 {
         0.0
     }
+
+    /// Reads what the model needs from the FMU's `resources/` folder `dir` (a road profile's
+    /// table): called once, when the instance is created (`fmuResourceLocation`); an error
+    /// refuses the instance with its message. A reset keeps what was read. Default: nothing.
+    fn resources(&mut self, _dir: &std::path::Path) -> Result<(), ModelError> {
+        Ok(())
+    }
 }

@@ -42,6 +42,21 @@ struct RunArgs {
     set: Vec<String>,
 }
 
+/// Inputs that change over the run, and the master of a system.
+#[derive(Args)]
+struct InputArgs {
+    /// Drive inputs from a CSV file in fmpy's convention: `time` first, then input names; Reals
+    /// interpolated linearly, Integers, Booleans and discrete values held, a repeated time a
+    /// discontinuity (steps are shortened to land on it).
+    #[arg(long, value_name = "FILE.csv")]
+    input_file: Option<PathBuf>,
+    /// For a system (.ssp, .ssd or a folder holding SystemStructure.ssd): the co-simulation
+    /// master, jacobi (default: every component steps from t with the outputs at t) or
+    /// gauss-seidel (components step in data-flow order).
+    #[arg(long, value_name = "ALGORITHM")]
+    master: Option<String>,
+}
+
 impl RunArgs {
     fn defaults(self) -> RunDefaults {
         RunDefaults { stop_time: self.stop_time, output_interval: self.output_interval, tolerance: self.tolerance, set: self.set }
@@ -85,9 +100,11 @@ fn integration(interface: InterfaceArgs, solver: Option<SolverArgs>) -> Integrat
 #[derive(Subcommand)]
 enum Cmd {
     /// Build model crates in release mode and pack target/fmu/<MODEL>.fmu (FMI 2.0) and
-    /// target/fmu3/<MODEL>.fmu (FMI 3.0).
+    /// target/fmu3/<MODEL>.fmu (FMI 3.0); pack the systems under systems/ into
+    /// target/ssp/<SYSTEM>.ssp with the FMUs they use.
     ///
-    /// Example: `runner build quarter_car pendulum` (no MODEL: every crate under models/).
+    /// Example: `runner build quarter_car pendulum` (no name: every crate under models/ and
+    /// every system under systems/).
     Build {
         /// Model identifiers (crate names under models/).
         models: Vec<String>,
@@ -143,6 +160,8 @@ enum Cmd {
         record_events: bool,
         #[command(flatten)]
         isolation: SimulateIsolation,
+        #[command(flatten)]
+        inputs: InputArgs,
     },
     /// Run a parameter sweep: one FMU instance per point, in parallel; metrics per point as CSV.
     ///
@@ -188,6 +207,8 @@ enum Cmd {
         plot: Option<PathBuf>,
         #[command(flatten)]
         isolation: SweepIsolation,
+        #[command(flatten)]
+        inputs: InputArgs,
     },
     /// Compare solvers: steps, rhs evaluations and time each needs to reach a target error.
     ///
@@ -376,7 +397,7 @@ fn main() {
         Cmd::Info { fmu } => {
             experiment::resolve(&fmu).and_then(|t| fmi_importer::Fmu::load(&t.path)).map(|f| print!("{}", info::report(&f.description)))
         }
-        Cmd::Simulate { fmu, run, interface, solver, out, plot, log, plot_vars, plot_x, overlay, record_events, isolation } => {
+        Cmd::Simulate { fmu, run, interface, solver, out, plot, log, plot_vars, plot_x, overlay, record_events, isolation, inputs } => {
             simulate::run(&simulate::Options {
                 fmu,
                 run: run.defaults(),
@@ -390,9 +411,11 @@ fn main() {
                 integration: integration(interface, Some(solver)),
                 timeout: isolation.timeout,
                 in_process: isolation.in_process,
+                input_file: inputs.input_file,
+                master: inputs.master,
             })
         }
-        Cmd::Sweep { fmu, params, metrics, threads, run, interface, solver, out, plot, isolation } => {
+        Cmd::Sweep { fmu, params, metrics, threads, run, interface, solver, out, plot, isolation, inputs } => {
             match sweep::run(&sweep::Options {
                 fmu,
                 params,
@@ -407,6 +430,8 @@ fn main() {
                 worker_memory: isolation.worker_memory,
                 resume: isolation.resume,
                 command_line: std::env::args().collect(),
+                input_file: inputs.input_file,
+                master: inputs.master,
             }) {
                 Ok(s) if s.failed == 0 => Ok(()),
                 Ok(s) => Err(format!("{} of {} sweep point(s) failed; see the status column", s.failed, s.points)),

@@ -6,6 +6,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use fmi_importer::{Description, Fmu, Interface, Unpacked, Value, Variable};
+use runner_engine::input::InputTable;
 use runner_engine::isolation::{Isolation, Runs, WorkerCommand};
 use runner_engine::protocol::{FmuSource, RunJob};
 use runner_engine::run::{self as sim, Grid, Outcome, Recording, Texts};
@@ -50,6 +51,16 @@ pub fn isolation(timeout: Option<Duration>, memory_mib: u64) -> Result<Isolation
         timeout,
         memory_limit: Some(memory_mib << 20),
     })
+}
+
+/// Reads `--input-file FILE.csv` and checks it against the FMU `description` run through
+/// `interface`, so a bad file is refused before any run.
+pub fn input_file(path: Option<&Path>, description: &Description, interface: Interface) -> Result<Option<InputTable>, String> {
+    let Some(path) = path else { return Ok(None) };
+    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read the input file {}: {e}", path.display()))?;
+    let table = InputTable::from_csv(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    table.bind(description, interface).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(Some(table))
 }
 
 /// A shell-quoted command line (for "continue with: ..." messages).
@@ -140,10 +151,29 @@ impl<'a> Executor<'a> {
         debug_logging: bool,
         sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
     ) -> Result<Outcome, String> {
+        self.run_with_inputs(description, name, grid, assignments, None, recording, debug_logging, sample)
+    }
+
+    /// [`Executor::run`] with `inputs` set before every step (`--input-file`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn run_with_inputs(
+        &mut self,
+        description: &Description,
+        name: &str,
+        grid: &Grid,
+        assignments: &[(&Variable, Value)],
+        inputs: Option<&InputTable>,
+        recording: &Recording,
+        debug_logging: bool,
+        sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
+    ) -> Result<Outcome, String> {
         match self {
-            Executor::InProcess(fmu) => sim::run_recording(fmu, name, grid, assignments, recording, debug_logging, sample),
+            Executor::InProcess(fmu) => {
+                let bound = inputs.map(|table| table.bind(&fmu.description, fmu.interface)).transpose()?;
+                sim::run_with_inputs(fmu, name, grid, assignments, bound.as_ref(), recording, debug_logging, sample)
+            }
             Executor::Workers(runs) => {
-                let job = RunJob::new(name, *grid, assignments, recording, debug_logging);
+                let job = RunJob::new(name, *grid, assignments, recording, debug_logging).with_inputs(inputs.cloned());
                 runs.run(description, &job, &interrupt::requested, sample)
             }
         }

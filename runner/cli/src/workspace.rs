@@ -8,3 +8,19 @@ use std::path::{Path, PathBuf};
 pub fn fmu3_path(root: &Path, id: &str) -> PathBuf {
     target_dir(root).join("fmu3").join(format!("{id}.fmu"))
 }
+
+/// The systems under `systems/`: one folder holding a `SystemStructure.ssd` each.
+pub fn systems(root: &Path) -> Result<Vec<String>, String> {
+    let dir = root.join("systems");
+    if !dir.is_dir() {
+        return Ok(Vec::new());
+    }
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .map_err(|e| format!("cannot list {}: {e}", dir.display()))?
+        .filter_map(|e| e.ok())
+        .filter(|e| e.path().join("SystemStructure.ssd").is_file())
+        .filter_map(|e| e.file_name().to_str().map(str::to_owned))
+        .collect();
+    names.sort();
+    Ok(names)
+}

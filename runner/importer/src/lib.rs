@@ -389,7 +389,7 @@ impl Instance<'_> {
     pub fn set_input_derivative(&mut self, variable: &Variable, derivative: f64) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.set_input_derivative(variable, derivative),
-            Instance::Fmi2Me(_) | Instance::Fmi3Cs(_) => {
+            Instance::Fmi2Me(_) | Instance::Fmi3Cs(_) | Instance::Fmi3Me(_) => {
                 Err(format!("{}: input derivatives are passed to FMI 2.0 Co-Simulation FMUs only", variable.name))
             }
         }

@@ -205,12 +205,29 @@ pub struct Core<M: Model> {
     state: State<M>,
     /// Scratch copy of the state at the start of a step, to restore after a solver failure.
     x_start: Vec<f64>,
+    /// The model as its resources made it (`Model::resources`), which a reset returns to.
+    fresh: Option<Box<M>>,
 }
 
 impl<M: Model> Core<M> {
     /// A new instance with the table's start values.
     pub fn new(name: &str, logger: Logger, names: Names) -> Core<M> {
-        Core { name: name.to_owned(), logger, names, table: Table::new(), state: State::new(), x_start: vec![0.0; M::N_STATES] }
+        Core {
+            name: name.to_owned(),
+            logger,
+            names,
+            table: Table::new(),
+            state: State::new(),
+            x_start: vec![0.0; M::N_STATES],
+            fresh: None,
+        }
+    }
+
+    /// Lets the model read its resources from `dir` (at instantiation).
+    pub fn load_resources(&mut self, dir: &std::path::Path) -> Result<(), crate::model::ModelError> {
+        self.state.model.resources(dir)?;
+        self.fresh = Some(Box::new(self.state.model.clone()));
+        Ok(())
     }
 
     /// The instance's variable table.
@@ -226,6 +243,9 @@ impl<M: Model> Core<M> {
     /// Back to the start values (logging settings are kept).
     pub fn reset(&mut self) {
         self.state = State::new();
+        if let Some(fresh) = &self.fresh {
+            self.state.model = (**fresh).clone();
+        }
     }
 
     /// Tolerance, start and stop time of the experiment.

@@ -123,7 +123,7 @@ pub unsafe fn instantiate<M: Model>(
     instance_name: *const c_char,
     fmu_type: c_int,
     guid: *const c_char,
-    _resource_location: *const c_char,
+    resource_location: *const c_char,
     functions: *const CallbackFunctions,
     _visible: c_int,
     logging_on: c_int,
@@ -160,10 +160,47 @@ pub unsafe fn instantiate<M: Model>(
                 )
             }
         }
-        let component = Box::new(Component { magic: COMPONENT_MAGIC, instance: Instance::<M>::for_interface(name, logger, interface) });
+        let mut instance = Instance::<M>::for_interface(name, logger, interface);
+        if let Some(dir) = opt_str(resource_location).and_then(resource_dir) {
+            if let Err(e) = instance.load_resources(&dir) {
+                return refuse(instance.logger(), format!("the FMU's resources ({}): {e}", dir.display()));
+            }
+        }
+        let component = Box::new(Component { magic: COMPONENT_MAGIC, instance });
         Box::into_raw(component) as *mut c_void
     });
     result.unwrap_or(std::ptr::null_mut())
+}
+
+/// The directory of a `fmuResourceLocation` URI (`file:///dir/`, `file:/dir`, percent-encoded
+/// bytes decoded); `None` for other schemes.
+pub fn resource_dir(uri: &str) -> Option<std::path::PathBuf> {
+    use std::os::unix::ffi::OsStringExt;
+    let rest = uri.strip_prefix("file:")?;
+    let path = match rest.strip_prefix("//") {
+        Some(after) => after.strip_prefix("localhost").unwrap_or(after),
+        None => rest,
+    };
+    if !path.starts_with('/') {
+        return None;
+    }
+    let bytes = path.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let hex = |b: u8| (b as char).to_digit(16);
+        match (bytes[i], bytes.get(i + 1).copied().and_then(hex), bytes.get(i + 2).copied().and_then(hex)) {
+            (b'%', Some(h), Some(l)) => {
+                out.push((h * 16 + l) as u8);
+                i += 3;
+            }
+            (b, _, _) => {
+                out.push(b);
+                i += 1;
+            }
+        }
+    }
+    Some(std::path::PathBuf::from(std::ffi::OsString::from_vec(out)))
 }
 
 /// `fmi2FreeInstance`.
@@ -943,4 +980,22 @@ macro_rules! export_fmu {
             }
         }
     };
+}
+
+#[cfg(test)]
+mod resource_tests {
+    use super::resource_dir;
+    use std::path::Path;
+
+    /// The spellings importers pass: fmpy and the runner `file:///dir/`, some `file:/dir`, the
+    /// host `localhost`, spaces percent-encoded; another scheme has no directory.
+    #[test]
+    fn resource_locations_become_directories() {
+        assert_eq!(resource_dir("file:///tmp/fmu/resources/").as_deref(), Some(Path::new("/tmp/fmu/resources/")));
+        assert_eq!(resource_dir("file:/tmp/r").as_deref(), Some(Path::new("/tmp/r")));
+        assert_eq!(resource_dir("file://localhost/tmp/r").as_deref(), Some(Path::new("/tmp/r")));
+        assert_eq!(resource_dir("file:///tmp/a%20b/r%2").as_deref(), Some(Path::new("/tmp/a b/r%2")));
+        assert_eq!(resource_dir("http://example/r"), None);
+        assert_eq!(resource_dir("file:relative"), None);
+    }
 }

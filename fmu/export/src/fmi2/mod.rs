@@ -39,6 +39,11 @@ impl<M: Model> Instance<M> {
         Instance { core: Core::new(name, logger, NAMES), state: FmiState::Instantiated, interface }
     }
 
+    /// Lets the model read the FMU's resources from `dir` (at instantiation).
+    pub fn load_resources(&mut self, dir: &std::path::Path) -> Result<(), crate::model::ModelError> {
+        self.core.load_resources(dir)
+    }
+
     /// The current state-machine state.
     pub fn state(&self) -> FmiState {
         self.state

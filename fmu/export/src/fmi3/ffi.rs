@@ -119,10 +119,13 @@ pub fn get_version() -> *const c_char {
 }
 
 /// The checks both instantiations make; NULL with a logged reason on refusal.
+// The arguments of fmi3Instantiate*, passed on as the standard lists them.
+#[allow(clippy::too_many_arguments)]
 unsafe fn instantiate<M: Model>(
     call: &str,
     instance_name: *const c_char,
     token: *const c_char,
+    resource_path: *const c_char,
     logging_on: bool,
     env: *mut c_void,
     log: Option<LogMessageCallback>,
@@ -151,7 +154,15 @@ unsafe fn instantiate<M: Model>(
                 )
             }
         }
-        let component = Box::new(Component { magic: COMPONENT_MAGIC, instance: Instance::<M>::new(name, logger, setup) });
+        let mut instance = Instance::<M>::new(name, logger, setup);
+        // FMI 3.0 passes the resources folder as a plain path (FMI 2.0: a file URI); NULL or
+        // empty when the importer has none, and then the model keeps its defaults.
+        if let Some(dir) = opt_str(resource_path).filter(|p| !p.is_empty()) {
+            if let Err(e) = instance.load_resources(std::path::Path::new(dir)) {
+                return refuse(instance.logger(), format!("the FMU's resources ({dir}): {e}"));
+            }
+        }
+        let component = Box::new(Component { magic: COMPONENT_MAGIC, instance });
         Box::into_raw(component) as *mut c_void
     });
     result.unwrap_or(std::ptr::null_mut())
@@ -161,20 +172,23 @@ unsafe fn instantiate<M: Model>(
 pub unsafe fn instantiate_model_exchange<M: Model>(
     instance_name: *const c_char,
     token: *const c_char,
+    resource_path: *const c_char,
     logging_on: bool,
     env: *mut c_void,
     log: Option<LogMessageCallback>,
 ) -> *mut c_void {
     let setup = Setup { interface: Interface::ModelExchange, event_mode_used: false, early_return_allowed: false };
-    instantiate::<M>("fmi3InstantiateModelExchange", instance_name, token, logging_on, env, log, setup)
+    instantiate::<M>("fmi3InstantiateModelExchange", instance_name, token, resource_path, logging_on, env, log, setup)
 }
 
 /// `fmi3InstantiateCoSimulation`: `eventModeUsed` and `earlyReturnAllowed` choose how steps
 /// meet events (see the front end). No intermediate update is ever made, so the required
 /// intermediate variables need nothing.
+#[allow(clippy::too_many_arguments)] // fmi3InstantiateCoSimulation's own arguments
 pub unsafe fn instantiate_co_simulation<M: Model>(
     instance_name: *const c_char,
     token: *const c_char,
+    resource_path: *const c_char,
     logging_on: bool,
     event_mode_used: bool,
     early_return_allowed: bool,
@@ -182,7 +196,7 @@ pub unsafe fn instantiate_co_simulation<M: Model>(
     log: Option<LogMessageCallback>,
 ) -> *mut c_void {
     let setup = Setup { interface: Interface::CoSimulation, event_mode_used, early_return_allowed };
-    instantiate::<M>("fmi3InstantiateCoSimulation", instance_name, token, logging_on, env, log, setup)
+    instantiate::<M>("fmi3InstantiateCoSimulation", instance_name, token, resource_path, logging_on, env, log, setup)
 }
 
 /// `fmi3InstantiateScheduledExecution`: not offered; logs why and returns NULL.
@@ -702,19 +716,19 @@ macro_rules! export_fmi3 {
             pub unsafe extern "C" fn fmi3InstantiateModelExchange(
                 name: *const c_char,
                 token: *const c_char,
-                _res: *const c_char,
+                res: *const c_char,
                 _visible: bool,
                 logging: bool,
                 env: *mut c_void,
                 log: Log,
             ) -> *mut c_void {
-                f::instantiate_model_exchange::<M>(name, token, logging, env, log)
+                f::instantiate_model_exchange::<M>(name, token, res, logging, env, log)
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
                 name: *const c_char,
                 token: *const c_char,
-                _res: *const c_char,
+                res: *const c_char,
                 _visible: bool,
                 logging: bool,
                 event_mode_used: bool,
@@ -725,7 +739,7 @@ macro_rules! export_fmi3 {
                 log: Log,
                 _intermediate: *const c_void,
             ) -> *mut c_void {
-                f::instantiate_co_simulation::<M>(name, token, logging, event_mode_used, early_return_allowed, env, log)
+                f::instantiate_co_simulation::<M>(name, token, res, logging, event_mode_used, early_return_allowed, env, log)
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi3InstantiateScheduledExecution(

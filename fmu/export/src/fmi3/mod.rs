@@ -107,6 +107,11 @@ impl<M: Model> Instance<M> {
         self.core.time()
     }
 
+    /// Lets the model read the FMU's resources from `dir` (at instantiation).
+    pub fn load_resources(&mut self, dir: &std::path::Path) -> Result<(), crate::model::ModelError> {
+        self.core.load_resources(dir)
+    }
+
     /// The instance's logger.
     pub fn logger(&mut self) -> &mut Logger {
         &mut self.core.logger

@@ -70,43 +70,146 @@ pub fn pack(root: &Path, id: &str) -> Result<[PathBuf; 2], String> {
         return Err(format!("{id}: generated FMI 3.0 modelDescription.xml has problems:\n  {}", problems.join("\n  ")));
     }
     let binary = std::fs::read(&so).map_err(|e| format!("cannot read {}: {e}", so.display()))?;
+    let resources = model_resources(&root.join("models").join(id).join("resources"))?;
     let fmu2 = workspace::fmu_path(root, id);
-    write_fmu(&fmu2, &xml, &format!("binaries/{PLATFORM}/{id}.so"), &binary, &html)?;
+    write_fmu(&fmu2, &xml, &format!("binaries/{PLATFORM}/{id}.so"), &binary, &html, &resources)?;
     let fmu3 = workspace::fmu3_path(root, id);
-    write_fmu(&fmu3, &xml3, &format!("binaries/{}/{id}.so", fmi_importer::fmi3::PLATFORM), &binary, &html)?;
+    write_fmu(&fmu3, &xml3, &format!("binaries/{}/{id}.so", fmi_importer::fmi3::PLATFORM), &binary, &html, &resources)?;
     Ok([fmu2, fmu3])
 }
 
 /// Writes one `.fmu` archive at `dest`.
-fn write_fmu(dest: &Path, xml: &str, bin_path: &str, binary: &[u8], html: &str) -> Result<(), String> {
+fn write_fmu(dest: &Path, xml: &str, bin_path: &str, binary: &[u8], html: &str, resources: &[(String, Vec<u8>)]) -> Result<(), String> {
     let dir = dest.parent().ok_or_else(|| format!("{} has no parent directory", dest.display()))?;
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-    write_zip(
-        ResultFile::create(dest)?,
-        &[
-            Entry { path: "modelDescription.xml", bytes: xml.as_bytes() },
-            Entry { path: bin_path, bytes: binary },
-            Entry { path: "documentation/index.html", bytes: html.as_bytes() },
-        ],
-    )?
-    .commit()?;
+    let mut entries = vec![
+        Entry { path: "modelDescription.xml", bytes: xml.as_bytes() },
+        Entry { path: bin_path, bytes: binary },
+        Entry { path: "documentation/index.html", bytes: html.as_bytes() },
+    ];
+    entries.extend(resources.iter().map(|(path, bytes)| Entry { path, bytes }));
+    write_zip(ResultFile::create(dest)?, &entries)?.commit()?;
     Ok(())
 }
 
-/// `runner build [MODEL...]`: all models when none is named; the FMI 2.0 paths, then the FMI
-/// 3.0 ones.
+/// The files of a model's `resources/` folder (the FMU's `resources/`, which the model reads
+/// at instantiation), as archive paths and bytes; none when the folder is absent.
+fn model_resources(dir: &Path) -> Result<Vec<(String, Vec<u8>)>, String> {
+    let mut files = Vec::new();
+    if !dir.is_dir() {
+        return Ok(files);
+    }
+    let mut entries: Vec<_> =
+        std::fs::read_dir(dir).map_err(|e| format!("cannot list {}: {e}", dir.display()))?.filter_map(|e| e.ok()).collect();
+    entries.sort_by_key(|e| e.file_name());
+    for e in entries {
+        let path = e.path();
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !path.is_file() {
+            return Err(format!("{}: resources are plain files; {name} is not", dir.display()));
+        }
+        files.push((format!("resources/{name}"), std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?));
+    }
+    Ok(files)
+}
+
+/// `runner build [NAME...]`: every model and every system under `systems/` when none is named;
+/// a named system builds the models it uses, then is packed into `target/ssp/<name>.ssp`. The
+/// FMI 2.0 paths come first, then the FMI 3.0 ones, then the systems.
 pub fn build(requested: &[String]) -> Result<Vec<PathBuf>, String> {
     let root = workspace::root();
     let known = workspace::models(&root)?;
-    let ids: Vec<String> = if requested.is_empty() { known.clone() } else { requested.to_vec() };
+    let systems = workspace::systems(&root)?;
+    let (mut ids, wanted_systems): (Vec<String>, Vec<String>) = if requested.is_empty() {
+        (known.clone(), systems.clone())
+    } else {
+        let (s, m): (Vec<String>, Vec<String>) = requested.iter().cloned().partition(|n| systems.contains(n) && !known.contains(n));
+        (m, s)
+    };
     for id in &ids {
         if !known.contains(id) {
-            return Err(format!("unknown model '{id}'; the models are: {}", known.join(", ")));
+            return Err(format!("unknown model '{id}'; the models are: {}; the systems: {}", known.join(", "), systems.join(", ")));
         }
+    }
+    let mut uses = Vec::new();
+    for name in &wanted_systems {
+        let models = system_models(&root, name, &known)?;
+        for m in &models {
+            if !ids.contains(m) {
+                ids.push(m.clone());
+            }
+        }
+        uses.push((name, models));
     }
     cargo_build(&root, &ids)?;
     let packed = ids.iter().map(|id| pack(&root, id)).collect::<Result<Vec<_>, String>>()?;
-    // The FMI 2.0 FMUs first, as before, then the FMI 3.0 ones.
     let (fmi2, fmi3): (Vec<PathBuf>, Vec<PathBuf>) = packed.into_iter().map(|[a, b]| (a, b)).unzip();
-    Ok(fmi2.into_iter().chain(fmi3).collect())
+    let mut built: Vec<PathBuf> = fmi2.into_iter().chain(fmi3).collect();
+    for (name, models) in uses {
+        built.push(pack_system(&root, name, &models)?);
+    }
+    Ok(built)
+}
+
+/// The models system `name` takes from this workspace: its components' sources
+/// `resources/<model>.fmu`.
+fn system_models(root: &Path, name: &str, known: &[String]) -> Result<Vec<String>, String> {
+    let ssd = root.join("systems").join(name).join("SystemStructure.ssd");
+    let structure = fmi_systems::ssd::Structure::read(&ssd)?;
+    let dir = root.join("systems").join(name);
+    let mut models = Vec::new();
+    for c in &structure.components {
+        let relative = c.source.strip_prefix(&dir).unwrap_or(&c.source);
+        let model = relative.strip_prefix("resources").ok().and_then(|p| p.to_str()).and_then(|p| p.strip_suffix(".fmu"));
+        match model {
+            Some(m) if known.iter().any(|k| k == m) => {
+                if !models.iter().any(|x: &String| x == m) {
+                    models.push(m.to_owned());
+                }
+            }
+            _ if c.source.is_file() => {}
+            _ => {
+                return Err(format!(
+                    "system {name}: component '{}' has source {}, neither resources/<model>.fmu of a model here ({}) nor a file in systems/{name}",
+                    c.name,
+                    relative.display(),
+                    known.join(", ")
+                ))
+            }
+        }
+    }
+    Ok(models)
+}
+
+/// Packs `systems/<name>/` (the SSD, parameter files, any other files) and the FMUs of `models`
+/// as `resources/<model>.fmu` into `target/ssp/<name>.ssp`.
+pub fn pack_system(root: &Path, name: &str, models: &[String]) -> Result<PathBuf, String> {
+    let dir = root.join("systems").join(name);
+    let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+    let mut pending = vec![dir.clone()];
+    while let Some(d) = pending.pop() {
+        let mut entries: Vec<_> =
+            std::fs::read_dir(&d).map_err(|e| format!("cannot list {}: {e}", d.display()))?.filter_map(|e| e.ok()).collect();
+        entries.sort_by_key(|e| e.file_name());
+        for e in entries {
+            let path = e.path();
+            if path.is_dir() {
+                pending.push(path);
+                continue;
+            }
+            let relative = path.strip_prefix(&dir).expect("under the system").to_string_lossy().into_owned();
+            files.push((relative, std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?));
+        }
+    }
+    for m in models {
+        let fmu = workspace::fmu_path(root, m);
+        files.push((format!("resources/{m}.fmu"), std::fs::read(&fmu).map_err(|e| format!("cannot read {}: {e}", fmu.display()))?));
+    }
+    files.sort_by(|a, b| (a.0 != "SystemStructure.ssd", &a.0).cmp(&(b.0 != "SystemStructure.ssd", &b.0)));
+    let dest = workspace::target_dir(root).join("ssp").join(format!("{name}.ssp"));
+    let parent = dest.parent().expect("target/ssp");
+    std::fs::create_dir_all(parent).map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+    let entries: Vec<Entry> = files.iter().map(|(path, bytes)| Entry { path, bytes }).collect();
+    write_zip(ResultFile::create(&dest)?, &entries)?.commit()?;
+    Ok(dest)
 }

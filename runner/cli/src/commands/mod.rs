@@ -7,4 +7,5 @@ pub mod handbook;
 pub mod info;
 pub mod simulate;
 pub mod sweep;
+pub mod system;
 pub mod validate;

@@ -44,6 +44,26 @@ pub struct Options {
     pub timeout: Option<f64>,
     /// Runs the FMU in this process.
     pub in_process: bool,
+    /// Inputs over time (`--input-file`: fmpy's CSV convention).
+    pub input_file: Option<PathBuf>,
+    /// The master algorithm for a system (`--master`).
+    pub master: Option<String>,
+}
+
+/// `runner simulate SYSTEM`, refusing the options that are for single FMUs.
+fn run_system(options: &Options) -> Result<(), String> {
+    let single = [
+        ("--plot", options.plot.is_some()),
+        ("--overlay", options.overlay.is_some()),
+        ("--input-file", options.input_file.is_some()),
+        ("--timeout", options.timeout.is_some()),
+        ("--record-events", options.record_events),
+        ("--log", options.log),
+    ];
+    if let Some((flag, _)) = single.iter().find(|(_, given)| *given) {
+        return Err(format!("{flag} is for single FMUs; a system takes --stop-time, --output-interval, --tolerance, --set COMPONENT.VARIABLE=VALUE, --master and --out"));
+    }
+    crate::commands::system::simulate(Path::new(&options.fmu), &options.run, options.master.as_deref(), options.out.as_deref())
 }
 
 /// One run of an overlay: its label and the assignment that makes it.
@@ -180,6 +200,9 @@ pub fn check_plot_path(path: &Path) -> Result<Format, String> {
 
 /// Runs `runner simulate`.
 pub fn run(options: &Options) -> Result<(), String> {
+    if fmi_systems::is_system(Path::new(&options.fmu)) {
+        return run_system(options);
+    }
     if let Some(plot) = &options.plot {
         check_plot_path(plot)?;
     } else if !options.plot_vars.is_empty() || options.plot_x.is_some() {
@@ -200,6 +223,7 @@ pub fn run(options: &Options) -> Result<(), String> {
     let mut set_texts = target.experiment.simulate.set.clone();
     set_texts.extend(options.run.set.iter().cloned());
     let assignments = variables::parse_sets(md, &set_texts)?;
+    let inputs = workers::input_file(options.input_file.as_deref(), md, held.interface())?;
 
     let (overlaid, cases) = match &options.overlay {
         Some(text) => {
@@ -255,19 +279,28 @@ pub fn run(options: &Options) -> Result<(), String> {
         let recording = Trace::recording(md, &recorded, &case_assignments, options.record_events)?;
         let mut trace = Trace::empty(&recording, &grid);
         let keep = options.plot.is_some();
-        let outcome = executor.run(md, identifier, &grid, &case_assignments, &recording, options.log, |t, values, texts| {
-            if keep {
-                trace.push(t, values);
-            }
-            row.clear();
-            if overlaid.is_some() {
-                row.push(format!("{:?}", case.si));
-            }
-            row.push(format!("{t:?}"));
-            // Exactly as the FMU gave them: 64-bit integers in full, Binary in hexadecimal.
-            row.extend((0..output_columns.len()).map(|c| texts.text(c, values)));
-            writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
-        })?;
+        let outcome = executor.run_with_inputs(
+            md,
+            identifier,
+            &grid,
+            &case_assignments,
+            inputs.as_ref(),
+            &recording,
+            options.log,
+            |t, values, texts| {
+                if keep {
+                    trace.push(t, values);
+                }
+                row.clear();
+                if overlaid.is_some() {
+                    row.push(format!("{:?}", case.si));
+                }
+                row.push(format!("{t:?}"));
+                // Exactly as the FMU gave them: 64-bit integers in full, Binary in hexadecimal.
+                row.extend((0..output_columns.len()).map(|c| texts.text(c, values)));
+                writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
+            },
+        )?;
         trace.ended_early = outcome.ended_early;
         if let Some(reason) = &trace.ended_early {
             let which = case.label.as_ref().map(|l| format!(" ({l})")).unwrap_or_default();

@@ -50,6 +50,37 @@ pub struct Options {
     pub resume: bool,
     /// The command line as given, for the "continue with" message.
     pub command_line: Vec<String>,
+    /// Inputs over time for every point (`--input-file`: fmpy's CSV convention).
+    pub input_file: Option<PathBuf>,
+    /// The master algorithm for a system (`--master`).
+    pub master: Option<String>,
+}
+
+/// `runner sweep SYSTEM`, refusing the options that are for single FMUs.
+fn run_system(options: &Options) -> Result<Summary, String> {
+    let single = [
+        ("--plot", options.plot.is_some()),
+        ("--input-file", options.input_file.is_some()),
+        ("--point-timeout", options.point_timeout.is_some()),
+        ("--worker-memory", options.worker_memory.is_some()),
+        ("--resume", options.resume),
+    ];
+    if let Some((flag, _)) = single.iter().find(|(_, given)| *given) {
+        return Err(format!("{flag} is for single FMUs; a system sweep takes --param COMPONENT.PARAM=..., --metric, --threads, --stop-time, --output-interval, --tolerance, --set, --master and --out"));
+    }
+    if options.params.is_empty() {
+        return Err("nothing to sweep: give --param COMPONENT.PARAM=START:STOP:STEP or COMPONENT.PARAM=V1,V2,...".to_owned());
+    }
+    let (points, failed) = crate::commands::system::sweep(
+        Path::new(&options.fmu),
+        &options.run,
+        options.master.as_deref(),
+        &options.params,
+        &options.metrics,
+        options.threads,
+        options.out.as_deref(),
+    )?;
+    Ok(Summary { points, failed })
 }
 
 /// What a finished sweep reports.
@@ -121,6 +152,18 @@ fn record(
         put("solver", format!("{} (fixed step {:?} s, abs_tol {:?})", s.method.name(), s.fixed_step, s.abs_tol));
     }
     put("point_timeout", timeout.map_or("none".to_owned(), |t| format!("{t:?} s")));
+    if let Some(inputs) = &spec.inputs {
+        // The table itself, not the file's name: the same name may hold other inputs later.
+        let mut hash = Sha256::new();
+        for name in &inputs.names {
+            hash.update(name.as_bytes());
+            hash.update([0]);
+        }
+        for x in inputs.time.iter().chain(inputs.values.iter().flatten()) {
+            hash.update(x.to_bits().to_le_bytes());
+        }
+        put("input_file", format!("{} columns, {} rows (sha256 {:x})", inputs.names.len(), inputs.time.len(), hash.finalize()));
+    }
     Record { entries }
 }
 
@@ -136,6 +179,9 @@ struct Start {
 /// renamed into place when complete; an interrupted or killed sweep keeps its finished rows
 /// there for `--resume`.
 pub fn run(options: &Options) -> Result<Summary, String> {
+    if fmi_systems::is_system(Path::new(&options.fmu)) {
+        return run_system(options);
+    }
     let target = experiment::resolve(&options.fmu)?;
     let defaults = &target.experiment.sweep;
     let pick = |cli: &Vec<String>, file: &Vec<String>| if cli.is_empty() { file.clone() } else { cli.clone() };
@@ -178,7 +224,8 @@ pub fn run(options: &Options) -> Result<Summary, String> {
     grid.solver = solver;
     let mut set_texts = defaults.set.clone();
     set_texts.extend(options.run.set.iter().cloned());
-    let spec = SweepSpec { grid, sets: set_texts, ranges, metrics: metric_texts.clone(), inputs: None };
+    let inputs = workers::input_file(options.input_file.as_deref(), d, held.interface())?;
+    let spec = SweepSpec { grid, sets: set_texts, ranges, metrics: metric_texts.clone(), inputs };
     let plan = spec.plan(d, held.identifier(), held.interface())?;
     let (space, metrics, swept) = (&plan.space, &plan.metrics, &plan.swept);
     let n = space.len;

@@ -1,0 +1,320 @@
+#![doc = include_str!("../derivation.md")]
+#![deny(unsafe_code)]
+
+use std::f64::consts::PI;
+use std::path::Path;
+
+use fmu_export::{Model, ModelError, ModelInfo, StateVector, Variables};
+use serde::{Deserialize, Serialize};
+
+/// The road elevation z_r and rate z_r' under a wheel moving at `speed` along a profile.
+#[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+#[variables(states = State)]
+pub struct Road {
+    /// Horizontal speed of the wheel along the road
+    #[parameter(unit = "m/s", finite)]
+    pub speed: f64,
+    /// Profile: 0 the Ex. 4 sinusoid, 1 one half-cosine bump, 2 the table resources/profile.csv
+    #[parameter(one_of(0, 1, 2))]
+    pub profile: i32,
+    /// Amplitude a of the sinusoid z = a sin(2 pi x / wavelength)
+    #[parameter(unit = "m", finite)]
+    pub amplitude: f64,
+    /// Wavelength of the sinusoid
+    #[parameter(unit = "m", positive)]
+    pub wavelength: f64,
+    /// Height of the bump
+    #[parameter(unit = "m", finite)]
+    pub bump_height: f64,
+    /// Length of the bump along the road
+    #[parameter(unit = "m", positive)]
+    pub bump_length: f64,
+    /// Where the bump starts along the road
+    #[parameter(unit = "m", finite)]
+    pub bump_start: f64,
+    /// Road elevation under the wheel
+    #[output(unit = "m")]
+    pub z_r: f64,
+    /// Road rate z_r' = speed * dz/dx
+    #[output(unit = "m/s")]
+    pub z_r_dot: f64,
+    /// The measured profile, read from the FMU's resources at instantiation.
+    table: Table,
+}
+
+/// The state vector.
+#[derive(StateVector)]
+pub struct State {
+    /// Position of the wheel along the road
+    #[state(unit = "m")]
+    pub x: f64,
+}
+
+impl Default for Road {
+    fn default() -> Self {
+        Road {
+            speed: 30.0,
+            profile: 0,
+            amplitude: 0.04,
+            wavelength: 3.0,
+            bump_height: 0.05,
+            bump_length: 1.0,
+            bump_start: 5.0,
+            z_r: 0.0,
+            z_r_dot: 0.0,
+            table: Table::default(),
+        }
+    }
+}
+
+/// A measured profile: rows (x, z), x strictly increasing, linear between rows.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Table {
+    pub x: Vec<f64>,
+    pub z: Vec<f64>,
+}
+
+/// The file the measured profile is read from, in the FMU's resources.
+pub const TABLE_FILE: &str = "profile.csv";
+
+impl Table {
+    /// Reads a profile from CSV text (`x,z` header, `#` comments); errors name the line.
+    pub fn parse(text: &str, file: &str) -> Result<Table, String> {
+        let mut table = Table::default();
+        let mut header = false;
+        for (n, line) in text.lines().enumerate() {
+            let line = line.trim();
+            if line.is_empty() || line.starts_with('#') {
+                continue;
+            }
+            let at = |what: String| format!("{file}, line {}: {what}", n + 1);
+            let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+            if !header {
+                if cells != ["x", "z"] {
+                    return Err(at(format!("the header must be 'x,z', not '{line}'")));
+                }
+                header = true;
+                continue;
+            }
+            if cells.len() != 2 {
+                return Err(at(format!("a row has two numbers, x and z; found '{line}'")));
+            }
+            let number = |cell: &str| {
+                cell.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| at(format!("'{cell}' is not a finite number")))
+            };
+            let (x, z) = (number(cells[0])?, number(cells[1])?);
+            if let Some(&last) = table.x.last() {
+                if x <= last {
+                    return Err(at(format!("x must increase from row to row: {x} after {last}")));
+                }
+            }
+            table.x.push(x);
+            table.z.push(z);
+        }
+        if table.x.len() < 2 {
+            return Err(format!("{file}: a profile needs the header 'x,z' and at least two rows"));
+        }
+        Ok(table)
+    }
+
+    /// z(x) and dz/dx: linear between rows (at a row, the slope after it), the end values and
+    /// zero slope outside; a flat road for an empty table (none was loaded: initialization
+    /// refuses profile 2 then, but the toolkit's dependency probing evaluates outputs anyway).
+    pub fn at(&self, x: f64) -> (f64, f64) {
+        let (xs, zs) = (&self.x, &self.z);
+        let n = xs.len();
+        if n == 0 {
+            return (0.0, 0.0);
+        }
+        if x < xs[0] {
+            return (zs[0], 0.0);
+        }
+        if x >= xs[n - 1] {
+            return (zs[n - 1], 0.0);
+        }
+        let i = xs.partition_point(|&xi| xi <= x) - 1;
+        let slope = (zs[i + 1] - zs[i]) / (xs[i + 1] - xs[i]);
+        (zs[i] + slope * (x - xs[i]), slope)
+    }
+}
+
+impl Road {
+    /// z(x) and dz/dx of the chosen profile.
+    pub fn profile_at(&self, x: f64) -> (f64, f64) {
+        match self.profile {
+            0 => {
+                let k = 2.0 * PI / self.wavelength;
+                let (s, c) = (k * x).sin_cos();
+                (self.amplitude * s, self.amplitude * k * c)
+            }
+            1 => {
+                let u = x - self.bump_start;
+                if !(0.0..=self.bump_length).contains(&u) {
+                    return (0.0, 0.0);
+                }
+                let k = 2.0 * PI / self.bump_length;
+                let (s, c) = (k * u).sin_cos();
+                (0.5 * self.bump_height * (1.0 - c), 0.5 * self.bump_height * k * s)
+            }
+            _ => self.table.at(x),
+        }
+    }
+}
+
+impl Model for Road {
+    const N_STATES: usize = State::LEN;
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            identifier: "road",
+            description: "The road under a wheel (Ex. 4 as a system): z_r and z_r' of a sinusoid, a bump or a measured profile at a speed",
+            stop_time: 10.0,
+            tolerance: 1e-6,
+            output_interval: 1e-3,
+            documentation: include_str!("../derivation.md"),
+        }
+    }
+
+    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
+        if self.profile == 2 && self.table.x.is_empty() {
+            return Err(ModelError(format!(
+                "profile 2 reads resources/{TABLE_FILE}, which was not loaded: the importer gave no fmuResourceLocation"
+            )));
+        }
+        State { x: 0.0 }.store(x);
+        Ok(())
+    }
+
+    #[inline]
+    fn derivatives(&self, _t: f64, _x: &[f64], dx: &mut [f64]) {
+        State { x: self.speed }.store(dx);
+    }
+
+    fn outputs(&mut self, _t: f64, x: &[f64]) {
+        let (z, slope) = self.profile_at(State::load(x).x);
+        self.z_r = z;
+        self.z_r_dot = self.speed * slope;
+    }
+
+    fn resources(&mut self, dir: &Path) -> Result<(), ModelError> {
+        let path = dir.join(TABLE_FILE);
+        let text = std::fs::read_to_string(&path).map_err(|e| ModelError(format!("cannot read {}: {e}", path.display())))?;
+        self.table = Table::parse(&text, TABLE_FILE).map_err(ModelError)?;
+        Ok(())
+    }
+}
+
+fmu_export::export_fmu!(Road);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fmu_export::harness::Harness;
+
+    const SHIPPED: &str = include_str!("../resources/profile.csv");
+
+    /// The FMU's resources folder as the crate ships it.
+    fn resources() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("resources")
+    }
+
+    fn run(params: &[(&str, f64)], with_resources: bool) -> fmu_export::harness::Trajectory {
+        let mut h = Harness::<Road>::new();
+        if with_resources {
+            h.load_resources(&resources()).unwrap();
+        }
+        for (name, value) in params {
+            h.set(name, *value).unwrap();
+        }
+        h.initialize(None).unwrap();
+        h.run(10.0, 1e-3, &["x", "z_r", "z_r_dot"]).unwrap()
+    }
+
+    /// The sinusoid against its closed form at x = v t: z = a sin(k v t), z' = a k v cos(k v t).
+    /// DOPRI5 integrates x' = v exactly but for rounding, which adds up over the steps: after n
+    /// steps x is off by at most n ulps of x, which moves z by a k times that and z' by a k^2 v
+    /// times that (the bounds below, with a factor 2 for the rounding of the closed form itself).
+    #[test]
+    fn sinusoid_matches_the_closed_form() {
+        let traj = run(&[("speed", 30.0)], false);
+        let (a, k, v) = (0.04, 2.0 * PI / 3.0, 30.0);
+        let (x, z, dz) = (traj.get("x"), traj.get("z_r"), traj.get("z_r_dot"));
+        let mut worst: f64 = 0.0;
+        for (i, &t) in traj.time.iter().enumerate() {
+            let drift = 2.0 * (i as f64 + 1.0) * f64::EPSILON * (v * t).max(1.0);
+            assert!((x[i] - v * t).abs() <= drift, "x at {t}: {}", x[i] - v * t);
+            assert!((z[i] - a * (k * v * t).sin()).abs() <= a * k * drift + 1e-16, "z_r at {t}");
+            assert!((dz[i] - a * k * v * (k * v * t).cos()).abs() <= a * k * k * v * drift + 1e-15, "z_r_dot at {t}");
+            worst = worst.max((x[i] - v * t).abs());
+        }
+        assert!(worst < 1e-9, "x drifted by {worst:e} m over 10 s");
+    }
+
+    /// The bump at 2 m/s: zero before 5 m (t < 2.5 s) and after 6 m (t > 3 s), the half
+    /// cosine in between with its top h at the middle (t = 2.75 s), and z' the derivative of z:
+    /// central differences of the sampled z (h = 1 ms) are off by z''' h^2 / 6 = (h_b / 2)
+    /// (2 pi v / l)^3 h^2 / 6, 1e-5, inside the bump; at its two ends z'' jumps from 0 to
+    /// (h_b / 2)(2 pi v / l)^2 = 3.9 m/s2, and the difference is off by a quarter of that times h.
+    #[test]
+    fn bump_matches_the_closed_form_and_its_rate_is_the_derivative() {
+        let traj = run(&[("speed", 2.0), ("profile", 1.0)], false);
+        let (z, dz) = (traj.get("z_r"), traj.get("z_r_dot"));
+        for (i, &t) in traj.time.iter().enumerate() {
+            let u = 2.0 * t - 5.0;
+            let expect = if (0.0..=1.0).contains(&u) { 0.025 * (1.0 - (2.0 * PI * u).cos()) } else { 0.0 };
+            assert!((z[i] - expect).abs() < 1e-12, "z_r at {t}: {} against {expect}", z[i]);
+            if i > 0 && i + 1 < z.len() {
+                let central = (z[i + 1] - z[i - 1]) / 2e-3;
+                let at_an_end = (t - 2.5).abs() < 1.5e-3 || (t - 3.0).abs() < 1.5e-3;
+                let bound = if at_an_end { 0.25 * 3.95 * 1e-3 + 1e-5 } else { 2e-5 };
+                assert!((dz[i] - central).abs() < bound, "z_r_dot at {t}: {} against {central}", dz[i]);
+            }
+        }
+        let top = z.iter().cloned().fold(f64::MIN, f64::max);
+        assert!((top - 0.05).abs() < 1e-12);
+    }
+
+    /// The shipped table at 1 m/s: z at each row's x is the row's z, linear between rows.
+    #[test]
+    fn measured_profile_interpolates_the_table() {
+        let table = Table::parse(SHIPPED, TABLE_FILE).unwrap();
+        let traj = run(&[("speed", 1.0), ("profile", 2.0)], true);
+        for (x, z) in table.x.iter().zip(&table.z) {
+            let i = (x * 1000.0).round() as usize;
+            if i < traj.time.len() {
+                assert!((traj.get("z_r")[i] - z).abs() < 1e-12, "z at x = {x}");
+            }
+        }
+        // Midway in the ramp 4..4.1 m the slope is 0.2, times 1 m/s.
+        let i = 4050;
+        assert!((traj.get("z_r")[i] - 0.01).abs() < 1e-12 && (traj.get("z_r_dot")[i] - 0.2).abs() < 1e-9);
+        assert_eq!(table.at(-1.0), (0.0, 0.0));
+        assert_eq!(table.at(25.0), (0.02, 0.0));
+    }
+
+    #[test]
+    fn bad_tables_are_explained() {
+        let err = |t: &str| Table::parse(t, "p.csv").unwrap_err();
+        assert!(err("x,y\n0,0\n1,1\n").contains("p.csv, line 1: the header must be 'x,z'"));
+        assert!(err("x,z\n0,0\n1,abc\n").contains("line 3: 'abc' is not a finite number"));
+        assert!(err("x,z\n0,0\n0,1\n").contains("line 3: x must increase"));
+        assert!(err("x,z\n0,0,1\n").contains("line 2: a row has two numbers"));
+        assert!(err("x,z\n0,0\n").contains("at least two rows"));
+        let mut road = Road::default();
+        let dir = tempfile::tempdir().unwrap();
+        assert!(road.resources(dir.path()).unwrap_err().0.contains("cannot read"));
+        std::fs::write(dir.path().join(TABLE_FILE), "x,z\n1,0\n0,1\n").unwrap();
+        assert!(road.resources(dir.path()).unwrap_err().0.contains("profile.csv, line 3: x must increase"));
+        std::fs::write(dir.path().join(TABLE_FILE), SHIPPED).unwrap();
+        road.resources(dir.path()).unwrap();
+        assert_eq!(road.table.x.len(), 13);
+        let mut h = Harness::<Road>::new();
+        h.set("profile", 2.0).unwrap();
+        assert!(h.initialize(None).unwrap_err().contains("was not loaded"));
+    }
+
+    #[test]
+    fn catalogue_entry_is_current() {
+        fmu_export::catalogue::check::<Road>(env!("CARGO_MANIFEST_DIR"));
+    }
+}

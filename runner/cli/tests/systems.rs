@@ -1,0 +1,238 @@
+//! `runner simulate SYSTEM` and `runner sweep SYSTEM` on small SSP systems written here, of the
+//! Reference FMUs' Feedthrough (outputs equal inputs at once: direct feedthrough, declared in its
+//! ModelStructure) and the C test FMU faulty.c: unit conversion, parameter files and mappings,
+//! nested systems, the two masters, algebraic loops, failing components and the errors of bad
+//! systems. The values are worked out by hand from Feedthrough's identity.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{column, fails, faulty_fmu, ok, read_csv, runner};
+
+fn feedthrough() -> Option<PathBuf> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference-fmus/fmi2/Feedthrough.fmu");
+    path.is_file().then_some(path)
+}
+
+const HEAD: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    xmlns:ssm="http://ssp-standard.org/SSP1/SystemStructureParameterMapping" version="1.0" name="test">"#;
+
+/// A system folder `dir/name` holding `ssd` (between HEAD and the closing tag), the FMU files
+/// `fmus` as resources/<file>, and `extra` files.
+fn system(dir: &Path, name: &str, ssd: &str, fmus: &[(&str, &Path)], extra: &[(&str, &str)]) -> PathBuf {
+    let root = dir.join(name);
+    std::fs::create_dir_all(root.join("resources")).unwrap();
+    std::fs::write(root.join("SystemStructure.ssd"), format!("{HEAD}\n{ssd}\n</ssd:SystemStructureDescription>\n")).unwrap();
+    for (file, path) in fmus {
+        std::fs::copy(path, root.join("resources").join(file)).unwrap();
+    }
+    for (file, text) in extra {
+        std::fs::write(root.join(file), text).unwrap();
+    }
+    root
+}
+
+fn component(name: &str, connectors: &str, extra: &str) -> String {
+    format!(
+        r#"<ssd:Component name="{name}" source="resources/ft.fmu"><ssd:Connectors>{connectors}</ssd:Connectors>{extra}</ssd:Component>"#
+    )
+}
+
+const REAL_IN: &str = r#"<ssd:Connector name="Float64_continuous_input" kind="input"><ssc:Real/></ssd:Connector>"#;
+const REAL_OUT: &str = r#"<ssd:Connector name="Float64_continuous_output" kind="output"><ssc:Real/></ssd:Connector>"#;
+
+fn connection(from: &str, to: &str) -> String {
+    format!(
+        r#"<ssd:Connection startElement="{from}" startConnector="Float64_continuous_output" endElement="{to}" endConnector="Float64_continuous_input"/>"#
+    )
+}
+
+/// km/h into m/s: 36 km/h set on a's input reach b as 10 m/s (Feedthrough copies input to
+/// output), through a connection whose units differ; with suppressUnitConversion, 36.
+#[test]
+fn connections_convert_units_unless_suppressed() {
+    let Some(ft) = feedthrough() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let units = r#"<ssd:Units><ssc:Unit name="km/h"><ssc:BaseUnit m="1" s="-1" factor="0.2777777777777778"/></ssc:Unit><ssc:Unit name="m/s"><ssc:BaseUnit m="1" s="-1"/></ssc:Unit></ssd:Units>"#;
+    for (suppress, expected) in [("false", 10.0), ("true", 36.0)] {
+        let ssd = format!(
+            r#"<ssd:System name="s"><ssd:Elements>{}{}</ssd:Elements><ssd:Connections><ssd:Connection startElement="a" startConnector="Float64_continuous_output" endElement="b" endConnector="Float64_continuous_input" suppressUnitConversion="{suppress}"/></ssd:Connections></ssd:System>{units}"#,
+            component("a", r#"<ssd:Connector name="Float64_continuous_output" kind="output"><ssc:Real unit="km/h"/></ssd:Connector>"#, ""),
+            component("b", r#"<ssd:Connector name="Float64_continuous_input" kind="input"><ssc:Real unit="m/s"/></ssd:Connector>"#, ""),
+        );
+        let root = system(dir.path(), &format!("units{suppress}"), &ssd, &[("ft.fmu", &ft)], &[]);
+        let out = dir.path().join(format!("u{suppress}.csv"));
+        ok(runner(
+            dir.path(),
+            &[
+                "simulate",
+                root.to_str().unwrap(),
+                "--stop-time",
+                "0.3",
+                "--output-interval",
+                "0.1",
+                "--set",
+                "a.Float64_continuous_input=36",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+        ));
+        let (header, rows) = read_csv(&out);
+        let b = column(&header, &rows, "b.Float64_continuous_output");
+        assert!(b.iter().all(|&x| (x - expected).abs() < 1e-12), "suppress={suppress}: {b:?}");
+    }
+}
+
+/// A chain a -> b -> sub.c: a ParameterBinding from a .ssv file through a .ssm mapping sets a's
+/// input (`speed` in the file, mapped with a factor 2), and c sits in a nested system reached
+/// through its connector `in`. Initialization passes values along the chain before the first
+/// step, so under either master every output at every point is 2 * 5 = 10, and the Integer
+/// parameter of the file reaches a's Int32_input (7).
+#[test]
+fn parameter_files_mappings_and_nested_systems() {
+    let Some(ft) = feedthrough() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let ssv = r#"<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="1.0" name="p"><ssv:Parameters><ssv:Parameter name="speed"><ssv:Real value="5"/></ssv:Parameter><ssv:Parameter name="Int32_input"><ssv:Integer value="7"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>"#;
+    let ssm = r#"<ssm:ParameterMapping xmlns:ssm="http://ssp-standard.org/SSP1/SystemStructureParameterMapping" xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" version="1.0"><ssm:MappingEntry source="speed" target="Float64_continuous_input"><ssc:LinearTransformation factor="2" offset="0"/></ssm:MappingEntry></ssm:ParameterMapping>"#;
+    let binding = r#"<ssd:ParameterBindings><ssd:ParameterBinding source="a.ssv"><ssd:ParameterMapping source="a.ssm"/></ssd:ParameterBinding></ssd:ParameterBindings>"#;
+    let nested = format!(
+        r#"<ssd:System name="sub"><ssd:Connectors><ssd:Connector name="in" kind="input"><ssc:Real/></ssd:Connector></ssd:Connectors><ssd:Elements>{}</ssd:Elements><ssd:Connections><ssd:Connection startConnector="in" endElement="c" endConnector="Float64_continuous_input"/></ssd:Connections></ssd:System>"#,
+        component("c", &format!("{REAL_IN}{REAL_OUT}"), "")
+    );
+    let ssd = format!(
+        r#"<ssd:System name="s"><ssd:Elements>{}{}{nested}</ssd:Elements><ssd:Connections>{}<ssd:Connection startElement="b" startConnector="Float64_continuous_output" endElement="sub" endConnector="in"/></ssd:Connections></ssd:System>"#,
+        component("a", &format!("{REAL_IN}{REAL_OUT}"), binding),
+        component("b", &format!("{REAL_IN}{REAL_OUT}"), ""),
+        connection("a", "b"),
+    );
+    let root = system(dir.path(), "chain", &ssd, &[("ft.fmu", &ft)], &[("a.ssv", ssv), ("a.ssm", ssm)]);
+    for master in ["jacobi", "gauss-seidel"] {
+        let out = dir.path().join(format!("{master}.csv"));
+        ok(runner(
+            dir.path(),
+            &[
+                "simulate",
+                root.to_str().unwrap(),
+                "--stop-time",
+                "0.2",
+                "--output-interval",
+                "0.1",
+                "--master",
+                master,
+                "--out",
+                out.to_str().unwrap(),
+            ],
+        ));
+        let (header, rows) = read_csv(&out);
+        for name in ["a.Float64_continuous_output", "b.Float64_continuous_output", "sub.c.Float64_continuous_output"] {
+            assert_eq!(column(&header, &rows, name), [10.0, 10.0, 10.0], "{master}: {name}");
+        }
+        assert_eq!(column(&header, &rows, "a.Int32_output"), [7.0, 7.0, 7.0]);
+    }
+}
+
+/// Two Feedthroughs feeding each other: an algebraic loop. Gauss-Seidel refuses it naming the
+/// loop; Jacobi warns and runs it with its one-step delay.
+#[test]
+fn algebraic_loops_are_reported() {
+    let Some(ft) = feedthrough() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let ssd = format!(
+        r#"<ssd:System name="s"><ssd:Elements>{}{}</ssd:Elements><ssd:Connections>{}{}</ssd:Connections></ssd:System>"#,
+        component("a", &format!("{REAL_IN}{REAL_OUT}"), ""),
+        component("b", &format!("{REAL_IN}{REAL_OUT}"), ""),
+        connection("a", "b"),
+        connection("b", "a"),
+    );
+    let root = system(dir.path(), "loop", &ssd, &[("ft.fmu", &ft)], &[]);
+    let path = root.to_str().unwrap();
+    let err = fails(runner(dir.path(), &["simulate", path, "--master", "gauss-seidel", "--stop-time", "0.1"]));
+    assert!(
+        err.contains("algebraic loop of direct feedthrough")
+            && err.contains("a.Float64_continuous_input")
+            && err.contains("b.Float64_continuous_output"),
+        "{err}"
+    );
+    let done = runner(dir.path(), &["simulate", path, "--stop-time", "0.1", "--out", dir.path().join("l.csv").to_str().unwrap()]);
+    assert!(done.status.success());
+    assert!(common::stderr(&done).contains("warning: algebraic loop"), "{}", common::stderr(&done));
+}
+
+/// faulty.c's fault 7 makes fmi2DoStep return fmi2Error from t = 0.5: the system stops naming
+/// the component, the time and the call, and keeps the rows before it; a sweep records it in the
+/// status column of that point only.
+#[test]
+fn a_failing_component_stops_the_system_and_keeps_the_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "faulty.fmu", false, &[]);
+    let comp = |name: &str, fault: i32| {
+        format!(
+            r#"<ssd:Component name="{name}" source="resources/faulty.fmu"><ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="p"><ssv:Parameters><ssv:Parameter name="fault"><ssv:Integer value="{fault}"/></ssv:Parameter><ssv:Parameter name="fault_time"><ssv:Real value="0.5"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings></ssd:Component>"#
+        )
+    };
+    let ssd = format!(r#"<ssd:System name="s"><ssd:Elements>{}{}</ssd:Elements></ssd:System>"#, comp("good", 0), comp("bad", 7));
+    let root = system(dir.path(), "faulty", &ssd, &[("faulty.fmu", &fmu)], &[]);
+    let out = dir.path().join("f.csv");
+    let err = fails(runner(dir.path(), &["simulate", root.to_str().unwrap(), "--output-interval", "0.1", "--out", out.to_str().unwrap()]));
+    assert!(err.contains("component 'bad' at t = 0.5") && err.contains("fmi2DoStep") && err.contains("rows before it"), "{err}");
+    let (header, rows) = read_csv(&out);
+    assert_eq!(column(&header, &rows, "time"), [0.0, 0.1, 0.2, 0.30000000000000004, 0.4, 0.5]);
+    // The sweep: fault_time swept, one point fails inside the run, the other never reaches it.
+    let sweep = dir.path().join("s.csv");
+    let done = runner(
+        dir.path(),
+        &[
+            "sweep",
+            root.to_str().unwrap(),
+            "--param",
+            "bad.fault_time=0.5,2",
+            "--metric",
+            "end=final(good.x)",
+            "--threads",
+            "2",
+            "--out",
+            sweep.to_str().unwrap(),
+        ],
+    );
+    assert!(!done.status.success());
+    let (header, rows) = read_csv(&sweep);
+    let status = header.iter().position(|h| h == "status").unwrap();
+    assert!(rows[0][status].contains("failed: component 'bad' at t = 0.5"), "{:?}", rows[0]);
+    assert_eq!(rows[1][status], "ok");
+    assert!((rows[1][1].parse::<f64>().unwrap() - (-1.0f64).exp()).abs() < 1e-12, "x = exp(-k t) at t = 1: {:?}", rows[1]);
+}
+
+/// Bad systems are refused with the file, the line and what is wrong.
+#[test]
+fn bad_systems_are_explained() {
+    let Some(ft) = feedthrough() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let good = component("a", &format!("{REAL_IN}{REAL_OUT}"), "");
+    let cases = [
+        (format!(r#"<ssd:System name="s"><ssd:Elements>{good}</ssd:Elements><ssd:Connections><ssd:Connection startElement="a" startConnector="nope" endElement="a" endConnector="Float64_continuous_input"/></ssd:Connections></ssd:System>"#), "the component has no such connector"),
+        (r#"<ssd:System name="s"><ssd:Elements><ssd:Component name="x" source="resources/missing.fmu"/></ssd:Elements></ssd:System>"#.to_owned(), "component 'x': its FMU resources/missing.fmu is not in the system"),
+        (r#"<ssd:System name="s"><ssd:Elements><ssd:Component name="x" source="sub.ssd" type="application/x-ssp-definition"/></ssd:Elements></ssd:System>"#.to_owned(), "only FMUs"),
+        (format!(r#"<ssd:System name="s"><ssd:Elements>{}</ssd:Elements></ssd:System>"#, component("a", "", r#"<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="p"><ssv:Parameters><ssv:Parameter name="no_such"><ssv:Real value="1"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>"#)), "parameter a.no_such"),
+        (format!(r#"<ssd:System name="s"><ssd:Elements>{good}</ssd:Elements>"#), "not well-formed"),
+    ];
+    for (k, (ssd, expected)) in cases.iter().enumerate() {
+        let root = system(dir.path(), &format!("bad{k}"), ssd, &[("ft.fmu", &ft)], &[]);
+        let err = fails(runner(dir.path(), &["simulate", root.to_str().unwrap(), "--stop-time", "0.1"]));
+        assert!(err.contains(expected), "case {k}: {err}");
+    }
+    let root = system(
+        dir.path(),
+        "ok",
+        &format!(r#"<ssd:System name="s"><ssd:Elements>{good}</ssd:Elements></ssd:System>"#),
+        &[("ft.fmu", &ft)],
+        &[],
+    );
+    let err = fails(runner(dir.path(), &["simulate", root.to_str().unwrap(), "--set", "zz.x=1"]));
+    assert!(err.contains("'zz.x' names no component of the system"), "{err}");
+    let err = fails(runner(dir.path(), &["simulate", root.to_str().unwrap(), "--master", "newton"]));
+    assert!(err.contains("choose jacobi or gauss-seidel"), "{err}");
+}

@@ -65,7 +65,11 @@ def test_all_75_functions_are_exported_from_the_x86_64_linux_binary(model, tmp_p
         with zipfile.ZipFile(fmu_path(model, "2.0")) as z2:
             assert z.read(f"binaries/x86_64-linux/{model}.so") == z2.read(f"binaries/linux64/{model}.so")
             assert z.read("documentation/index.html") == z2.read("documentation/index.html")
-    assert names == {"modelDescription.xml", f"binaries/x86_64-linux/{model}.so", "documentation/index.html"}
+            # The model's resources (road's measured profile): the same files in both.
+            resources = {n for n in names if n.startswith("resources/")}
+            assert resources == {n for n in z2.namelist() if n.startswith("resources/")}
+            assert all(z.read(n) == z2.read(n) for n in resources)
+    assert names - resources == {"modelDescription.xml", f"binaries/x86_64-linux/{model}.so", "documentation/index.html"}
     d = extract(str(path), unzipdir=str(tmp_path / "fmu"))
     lib = ctypes.CDLL(f"{d}/binaries/x86_64-linux/{model}.so")
     assert [name for name in FMI3_FUNCTIONS if not hasattr(lib, name)] == []
@@ -268,8 +272,9 @@ def test_a_state_with_a_pending_event_is_restored_with_it(tmp_path):
 RUNNER = TARGET / "release" / "runner"
 
 
-def _runner_csv(fmu, out):
-    p = subprocess.run([str(RUNNER), "simulate", str(fmu), "--out", str(out)], capture_output=True, text=True, timeout=600)
+def _runner_csv(fmu, out, *args):
+    p = subprocess.run([str(RUNNER), "simulate", str(fmu), "--out", str(out), *args], capture_output=True, text=True,
+                       timeout=600)
     assert p.returncode == 0, p.stderr
     with open(out) as f:
         rows = list(csv.reader(f))
@@ -284,3 +289,14 @@ def test_the_runner_gives_the_fmi2_numbers_on_the_fmi3_fmu(model, tmp_path):
     h3, r3 = _runner_csv(fmu_path(model, "3.0"), tmp_path / "three.csv")
     assert h2 == h3
     assert np.array_equal(r2, r3)
+
+
+def test_the_fmi3_road_reads_its_measured_profile_from_the_resource_path(tmp_path):
+    """FMI 3.0 hands the FMU its resources folder as a path (FMI 2.0: a file URI): road's
+    measured profile (profile 2, resources/profile.csv) gives the FMI 2.0 FMU's CSV bit for bit,
+    and is not the default sinusoid (so a profile that was never read would show)."""
+    h2, r2 = _runner_csv(fmu_path("road", "2.0"), tmp_path / "two.csv", "--set", "profile=2")
+    h3, r3 = _runner_csv(fmu_path("road", "3.0"), tmp_path / "three.csv", "--set", "profile=2")
+    _, r0 = _runner_csv(fmu_path("road", "3.0"), tmp_path / "zero.csv")
+    assert h2 == h3 and np.array_equal(r2, r3)
+    assert not np.array_equal(r3, r0)

@@ -1,9 +1,10 @@
 //! C-boundary helpers both front ends share (FMI 2.0's `fmi2::ffi`, FMI 3.0's `fmi3::ffi`):
 //! C strings in and out, argument arrays, panic messages, and the tag of FMU states.
 
-use std::ffi::{c_char, CStr, CString};
+use std::ffi::{c_char, c_int, CStr, CString};
 
 use crate::core::{CallResult, Failure};
+use crate::logging::{Logger, Status};
 use crate::model::Model;
 
 /// A tag unique to the model and its table, stored in FMU states and serialized buffers.
@@ -87,4 +88,36 @@ pub unsafe fn copy_out(text: &str, buffer: *mut c_char, size: usize) -> usize {
         *buffer.add(text.len()) = 0;
     }
     needed
+}
+
+/// What the C glue of either version needs of its instance when a call fails or panics.
+pub trait GlueInstance {
+    /// Puts the instance in the Error state.
+    fn poison(&mut self);
+    /// The instance's logger.
+    fn logger(&mut self) -> &mut Logger;
+}
+
+// The failure paths are out of line: the success path of every call, fmiXDoStep and
+// fmiXGetReal/Float64 above all, stays small.
+
+/// Logs a refused or failed call (`call` is its C name, e.g. "fmi2DoStep"; a message that
+/// already names an FMI function is logged as it is) and returns its status code.
+#[cold]
+#[inline(never)]
+pub fn report_failure(instance: &mut impl GlueInstance, call: &'static str, Failure { status, message, .. }: Failure) -> c_int {
+    let version = call.get(..4).unwrap_or(call);
+    let message = if message.starts_with(version) { message } else { format!("{call}: {message}") };
+    instance.logger().status(status, &message);
+    status as c_int
+}
+
+/// Logs a panic caught in the model code, puts the instance in the Error state, returns Error.
+#[cold]
+#[inline(never)]
+pub fn report_panic(instance: &mut impl GlueInstance, call: &'static str, payload: Box<dyn std::any::Any + Send>) -> c_int {
+    instance.poison();
+    let msg = format!("{call}: internal error in the model code ({}); the instance is now in the Error state", panic_message(&*payload));
+    instance.logger().status(Status::Error, &msg);
+    Status::Error as c_int
 }

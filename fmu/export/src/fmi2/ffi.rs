@@ -13,7 +13,7 @@ use fmi_c::fmi2::{DO_STEP_STATUS, LAST_SUCCESSFUL_TIME, MODEL_EXCHANGE, TERMINAT
 use super::state_machine::{Call, FmiState, Interface};
 use super::Instance;
 use crate::core::{snapshot, CallResult, Failure, State};
-use crate::glue::{self, c_message, opt_str, panic_message};
+use crate::glue::{self, c_message, opt_str};
 pub use crate::glue::{copy_out, model_tag};
 use crate::logging::{Logger, Sink, Status};
 use crate::model::Model;
@@ -67,32 +67,12 @@ unsafe fn with_instance<M: Model>(c: *mut c_void, call: Call, body: impl FnOnce(
     // reload it as 8 bytes, a store-forwarding stall that cost fmi2DoStep 4 % of a sweep.
     let result = catch_unwind(AssertUnwindSafe(|| match body(&mut (*component).instance) {
         Ok(status) => status as c_int,
-        Err(failure) => report_failure(&mut (*component).instance, call, failure),
+        Err(failure) => glue::report_failure(&mut (*component).instance, call.name(), failure),
     }));
     match result {
         Ok(code) => code,
-        Err(payload) => report_panic(&mut (*component).instance, call, payload),
+        Err(payload) => glue::report_panic(&mut (*component).instance, call.name(), payload),
     }
-}
-
-// The failure paths are out of line: the success path of every call, fmi2DoStep and
-// fmi2GetReal above all, stays small.
-#[cold]
-#[inline(never)]
-fn report_failure<M: Model>(instance: &mut Instance<M>, call: Call, Failure { status, message, .. }: Failure) -> c_int {
-    let message = if message.starts_with("fmi2") { message } else { format!("{}: {message}", call.name()) };
-    instance.logger().status(status, &message);
-    status as c_int
-}
-
-#[cold]
-#[inline(never)]
-fn report_panic<M: Model>(instance: &mut Instance<M>, call: Call, payload: Box<dyn std::any::Any + Send>) -> c_int {
-    instance.poison();
-    let msg =
-        format!("{}: internal error in the model code ({}); the instance is now in the Error state", call.name(), panic_message(&*payload));
-    instance.logger().status(Status::Error, &msg);
-    Status::Error as c_int
 }
 
 unsafe fn slice<'a, T>(p: *const T, n: usize, call: Call, what: &str) -> CallResult<&'a [T]> {

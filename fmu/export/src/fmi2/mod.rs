@@ -293,6 +293,16 @@ impl<M: Model> Instance<M> {
     }
 }
 
+impl<M: Model> crate::glue::GlueInstance for Instance<M> {
+    fn poison(&mut self) {
+        Instance::poison(self)
+    }
+
+    fn logger(&mut self) -> &mut Logger {
+        Instance::logger(self)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

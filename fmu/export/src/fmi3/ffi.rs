@@ -16,7 +16,7 @@ pub use fmi_c::fmi3::LogMessageCallback;
 use super::state_machine::{Call, Interface};
 use super::{Instance, Machine, Setup};
 use crate::core::{snapshot, CallResult, Failure, State};
-use crate::glue::{c_message, model_tag, opt_str, panic_message, slice, slice_mut};
+use crate::glue::{self, c_message, model_tag, opt_str, slice, slice_mut};
 use crate::logging::{Logger, Sink, Status};
 use crate::model::Model;
 
@@ -73,30 +73,12 @@ unsafe fn with_instance<M: Model>(c: *mut c_void, call: Call, body: impl FnOnce(
     // The status is formed inside the unwinding guard (see fmi2::ffi::with_instance).
     let result = catch_unwind(AssertUnwindSafe(|| match body(&mut (*component).instance) {
         Ok(status) => status as c_int,
-        Err(failure) => report_failure(&mut (*component).instance, call, failure),
+        Err(failure) => glue::report_failure(&mut (*component).instance, call.name(), failure),
     }));
     match result {
         Ok(code) => code,
-        Err(payload) => report_panic(&mut (*component).instance, call, payload),
+        Err(payload) => glue::report_panic(&mut (*component).instance, call.name(), payload),
     }
-}
-
-#[cold]
-#[inline(never)]
-fn report_failure<M: Model>(instance: &mut Instance<M>, call: Call, Failure { status, message, .. }: Failure) -> c_int {
-    let message = if message.starts_with("fmi3") { message } else { format!("{}: {message}", call.name()) };
-    instance.logger().status(status, &message);
-    status as c_int
-}
-
-#[cold]
-#[inline(never)]
-fn report_panic<M: Model>(instance: &mut Instance<M>, call: Call, payload: Box<dyn std::any::Any + Send>) -> c_int {
-    instance.poison();
-    let msg =
-        format!("{}: internal error in the model code ({}); the instance is now in the Error state", call.name(), panic_message(&*payload));
-    instance.logger().status(Status::Error, &msg);
-    Status::Error as c_int
 }
 
 fn ok(r: CallResult) -> CallResult<Status> {

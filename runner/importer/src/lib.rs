@@ -406,6 +406,18 @@ impl Instance<'_> {
         }
     }
 
+    /// Sets Real (Float64) scalars, `values[k]` to `vrs[k]`, in one call without allocating:
+    /// a master's inputs at every step. The caller checks that each is a settable Real.
+    #[inline]
+    pub fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        match self {
+            Instance::Fmi2Cs(i) => i.set_reals(vrs, values),
+            Instance::Fmi3Cs(i) => i.set_reals(vrs, values),
+            Instance::Fmi2Me(i) => i.set_reals(vrs, values),
+            Instance::Fmi3Me(i) => i.set_reals(vrs, values),
+        }
+    }
+
     /// Advances from the communication point `t` over `h`.
     #[inline]
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {

@@ -156,6 +156,10 @@ impl<'a> Component<'a> {
                 }
             }
         };
+        if status == OK || status == WARNING {
+            // The message is made only on failure: inputs are set at every step.
+            return Ok(());
+        }
         let kind = match variable.kind {
             Kind::Boolean => "Boolean",
             Kind::String => "String",
@@ -180,6 +184,17 @@ impl<'a> Component<'a> {
         self.read_groups(reader)?;
         reader.gather(out);
         Ok(())
+    }
+
+    /// Sets Real variables, `values[k]` to `vrs[k]`, in one fmi2SetReal call (a master's
+    /// inputs at every step: no allocation).
+    #[inline]
+    pub(crate) fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        debug_assert_eq!(vrs.len(), values.len());
+        trace::enter(Call::SetReal, self.time);
+        // SAFETY: `vrs.len()` value references and as many values, valid for the call.
+        let status = unsafe { (self.binary.api.set_real)(self.raw, vrs.as_ptr(), vrs.len().min(values.len()), values.as_ptr()) };
+        self.check("fmi2SetReal", status)
     }
 
     /// [`Component::read`] for variables of several types, through the reader's buffers.

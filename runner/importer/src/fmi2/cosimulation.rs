@@ -60,6 +60,12 @@ impl<'a> CoSimulation<'a> {
         self.component.read(reader, out)
     }
 
+    /// Sets Real scalars, `values[k]` to `vrs[k]`, in one call.
+    #[inline]
+    pub fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        self.component.set_reals(vrs, values)
+    }
+
     /// fmi2DoStep from `t` over `h`; a discard with fmi2Terminated becomes [`Step::Ended`].
     /// Inlined into the run loop, with the discard handling out of line.
     #[inline]

@@ -146,4 +146,9 @@ impl Exchange for Exchange2<'_> {
     fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         self.component.read(reader, out)
     }
+
+    #[inline]
+    fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        self.component.set_reals(vrs, values)
+    }
 }

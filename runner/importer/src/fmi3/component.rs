@@ -239,6 +239,18 @@ impl<'a> Component<'a> {
         Ok(())
     }
 
+    /// Sets Float64 scalars, `values[k]` to `vrs[k]`, in one fmi3SetFloat64 call (a master's
+    /// inputs at every step: no allocation).
+    #[inline]
+    pub(crate) fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        debug_assert_eq!(vrs.len(), values.len());
+        let n = vrs.len().min(values.len());
+        trace::enter(Call::Fmi3Set, f64::NAN);
+        // SAFETY: `n` value references of scalars and `n` values, valid for the call.
+        let status = unsafe { (self.binary.api.set_float64)(self.instance, vrs.as_ptr(), n, values.as_ptr(), n) };
+        self.check("fmi3SetFloat64", status)
+    }
+
     fn read_groups(&mut self, reader: &mut Reader) -> Result<(), String> {
         let inst = self.instance;
         trace::enter(Call::Fmi3Get, f64::NAN);

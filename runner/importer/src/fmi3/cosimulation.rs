@@ -108,6 +108,12 @@ impl<'a> CoSimulation<'a> {
         self.component.read(reader, out)
     }
 
+    /// Sets Real scalars, `values[k]` to `vrs[k]`, in one call.
+    #[inline]
+    pub fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        self.component.set_reals(vrs, values)
+    }
+
     /// One `fmi3DoStep` from `t` over `h`: [`Step::Done`] at `t + h`; [`Step::Event`] when the
     /// FMU needs event handling (at `t + h`, or earlier when it returned early), which
     /// [`CoSimulation::handle_event`] then does; [`Step::Ended`] when the FMU terminates.

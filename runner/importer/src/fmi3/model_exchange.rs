@@ -159,6 +159,11 @@ impl Exchange for Exchange3<'_> {
         self.component.read(reader, out)
     }
 
+    #[inline]
+    fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        self.component.set_reals(vrs, values)
+    }
+
     /// fmi3GetNumberOfContinuousStates and fmi3GetNumberOfEventIndicators (allowed in Event
     /// Mode, where initialization leaves the instance): structural parameters may have changed
     /// the description's numbers.

@@ -115,6 +115,8 @@ pub trait Exchange {
     fn exit_initialization_mode(&mut self) -> Result<(), String>;
     /// Sets one variable.
     fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String>;
+    /// Reads a String variable, each element of an array.
+    fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String>;
     /// Reads the variables of `reader` into `out`.
     fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String>;
     /// Sets Real scalars, `values[k]` to `vrs[k]`, in one call.
@@ -384,6 +386,11 @@ impl<C: Exchange> ModelExchange<C> {
     /// Sets one variable.
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
         self.component.set(variable, value)
+    }
+
+    /// Reads a String variable, each element of an array.
+    pub fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String> {
+        self.component.get_string(variable)
     }
 
     /// Reads the variables of `reader` into `out` (the FMU holds the time and states reached).

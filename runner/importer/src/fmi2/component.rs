@@ -169,6 +169,25 @@ impl<'a> Component<'a> {
         self.check(&format!("fmi2Set{kind} of {}", variable.name), status)
     }
 
+    /// Reads a String variable (fmi2GetString with one value reference): the FMU's text copied
+    /// at once, as the FMU may reuse its memory at the next call.
+    pub(crate) fn get_string(&mut self, variable: &Variable) -> Result<String, String> {
+        if variable.kind != Kind::String {
+            return Err(format!("{} is a {}, not a String", variable.name, variable.kind.as_str()));
+        }
+        let Some(get) = self.binary.api.get_string else {
+            return Err(format!("{}: the FMU does not export fmi2GetString", self.name));
+        };
+        let vr = variable.value_reference;
+        let mut value: c::FmiString = std::ptr::null();
+        trace::enter(Call::GetString, self.time);
+        // SAFETY: one value reference and room for one pointer.
+        let status = unsafe { get(self.raw, &vr, 1, &mut value) };
+        self.check(&format!("fmi2GetString of {}", variable.name), status)?;
+        // SAFETY: a non-NULL pointer from the FMU is a NUL-terminated string until its next call.
+        unsafe { crate::text_of(value, &variable.name, "fmi2GetString") }
+    }
+
     /// Reads the variables of `reader` into `out` (one f64 per variable, Booleans as 0/1).
     #[inline]
     pub(crate) fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {

@@ -36,6 +36,11 @@ impl<'a> CoSimulation<'a> {
         self.component.exit_initialization_mode()
     }
 
+    /// Reads a String variable (fmi2GetString).
+    pub fn get_string(&mut self, variable: &Variable) -> Result<String, String> {
+        self.component.get_string(variable)
+    }
+
     /// Sets one variable (fmi2Set<Type> with one value reference).
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
         self.component.set(variable, value)

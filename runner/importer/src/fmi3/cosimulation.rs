@@ -96,6 +96,11 @@ impl<'a> CoSimulation<'a> {
         ))
     }
 
+    /// Reads a String variable, each element of an array (fmi3GetString).
+    pub fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String> {
+        self.component.get_string(variable)
+    }
+
     /// Sets one variable (a scalar, or an array whole); structural parameters are set in
     /// Configuration Mode, which this enters and leaves around the call.
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {

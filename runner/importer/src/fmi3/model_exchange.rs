@@ -154,6 +154,10 @@ impl Exchange for Exchange3<'_> {
         self.component.set(variable, value)
     }
 
+    fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String> {
+        self.component.get_string(variable)
+    }
+
     #[inline]
     fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         self.component.read(reader, out)

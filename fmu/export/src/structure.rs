@@ -44,7 +44,8 @@ pub struct Dependencies {
     pub initial: Vec<Option<Vec<usize>>>,
 }
 
-const PROBE_NAMES: Names = Names { setup: "the experiment setup", exit_initialization: "the end of initialization" };
+const PROBE_NAMES: Names =
+    Names { setup: "the experiment setup", exit_initialization: "the end of initialization", real: "Real", integer: "Integer" };
 
 /// A deterministic generator (the description must be the same at every build).
 struct Lcg(u64);

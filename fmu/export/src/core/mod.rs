@@ -19,7 +19,7 @@ use ref_cast::RefCast;
 use serde::{Deserialize, Serialize};
 
 use crate::logging::{Logger, Status, LOG_EVENTS};
-use crate::model::{Access, Causality, EventOutcome, Model, Variability};
+use crate::model::{Access, BaseType, Causality, EventOutcome, Model, Variability};
 use crate::table::{Slot, Table};
 
 pub use exchange::{EventUpdate, StepCompleted};
@@ -59,6 +59,22 @@ pub struct Names {
     pub setup: &'static str,
     /// The call that ends initialization (`fmi2ExitInitializationMode`).
     pub exit_initialization: &'static str,
+    /// The standard's names of the Real and Integer types (`Real`, `Integer`; FMI 3.0's
+    /// `Float64`, `Int32`), for messages.
+    pub real: &'static str,
+    pub integer: &'static str,
+}
+
+impl Names {
+    /// The name of `base_type` in this FMI version.
+    fn type_name(&self, base_type: BaseType) -> &'static str {
+        match base_type {
+            BaseType::Real => self.real,
+            BaseType::Integer => self.integer,
+            BaseType::Boolean => "Boolean",
+            BaseType::String => "String",
+        }
+    }
 }
 
 /// More events than this in one communication step means the model is chattering.
@@ -320,12 +336,20 @@ impl<M: Model> Core<M> {
 
     /// Refuses `vr` for a call on `kind` variables, naming the variable when `vr` is one of
     /// another type (the usual mistake: a value reference from the wrong list).
-    fn unknown(&self, vr: u32, kind: &str) -> Failure {
+    fn unknown(&self, vr: u32, kind: BaseType, settable: bool) -> Failure {
+        let wanted = self.names.type_name(kind);
+        let wanted = match (settable, wanted.starts_with('I')) {
+            (true, _) => format!("a settable {wanted}"),
+            (false, true) => format!("an {wanted}"),
+            (false, false) => format!("a {wanted}"),
+        };
         match self.table.row(vr) {
-            Some(row) => {
-                Failure::error(format!("value reference {vr} is '{}' of type {:?}, not a {kind} variable", row.name, row.base_type))
-            }
-            None => Failure::error(format!("value reference {vr} is not a {kind} variable of this FMU")),
+            Some(row) => Failure::error(format!(
+                "value reference {vr} is '{}' of type {}, not {wanted} variable",
+                row.name,
+                self.names.type_name(row.base_type)
+            )),
+            None => Failure::error(format!("value reference {vr} is not {wanted} variable of this FMU")),
         }
     }
 
@@ -366,7 +390,7 @@ impl<M: Model> Core<M> {
                         dx
                     })[*k]
                 }
-                _ => return Err(self.unknown(*vr, "Real")),
+                _ => return Err(self.unknown(*vr, BaseType::Real, false)),
             };
             all_finite &= value.is_finite();
         }
@@ -402,7 +426,7 @@ impl<M: Model> Core<M> {
                 }
                 // Counters saturate rather than wrap: FMI integers are 32-bit.
                 Some(Slot::Control(c)) if c.is_integer() => self.control_value(*c).min(i32::MAX as f64) as i32,
-                _ => return Err(self.unknown(*vr, "Integer")),
+                _ => return Err(self.unknown(*vr, BaseType::Integer, false)),
             };
         }
         Ok(())
@@ -420,7 +444,7 @@ impl<M: Model> Core<M> {
                     }
                     get(&self.state.model)
                 }
-                _ => return Err(self.unknown(*vr, "Boolean")),
+                _ => return Err(self.unknown(*vr, BaseType::Boolean, false)),
             };
         }
         Ok(())
@@ -440,7 +464,7 @@ impl<M: Model> Core<M> {
                     }
                     values.push(get(&self.state.model).to_owned());
                 }
-                _ => return Err(self.unknown(*vr, "String")),
+                _ => return Err(self.unknown(*vr, BaseType::String, false)),
             }
         }
         Ok(values)
@@ -452,7 +476,7 @@ impl<M: Model> Core<M> {
         for (vr, value) in vrs.iter().zip(values.iter()) {
             let i = self.settable(*vr, phase, state)?;
             if !matches!(self.table.rows[i].slot, Slot::Model(Access::String { set: Some(_), .. })) {
-                return Err(self.unknown(*vr, "settable String"));
+                return Err(self.unknown(*vr, BaseType::String, true));
             }
             if value.contains('\0') {
                 return Err(Failure::error(format!(
@@ -546,7 +570,7 @@ impl<M: Model> Core<M> {
             match &self.table.rows[i].slot {
                 Slot::Model(Access::Real { set: Some(_), .. }) => {}
                 Slot::Control(c) if !c.is_integer() => c.check(*value).map_err(Failure::error)?,
-                _ => return Err(self.unknown(*vr, "settable Real")),
+                _ => return Err(self.unknown(*vr, BaseType::Real, true)),
             }
         }
         let mut changed = false;
@@ -574,7 +598,7 @@ impl<M: Model> Core<M> {
             match &self.table.rows[i].slot {
                 Slot::Model(Access::Integer { set: Some(_), .. }) => {}
                 Slot::Control(c) if c.is_integer() => c.check(f64::from(*value)).map_err(Failure::error)?,
-                _ => return Err(self.unknown(*vr, "settable Integer")),
+                _ => return Err(self.unknown(*vr, BaseType::Integer, true)),
             }
         }
         let mut changed = false;
@@ -600,7 +624,7 @@ impl<M: Model> Core<M> {
         for vr in vrs {
             let i = self.settable(*vr, phase, state)?;
             if !matches!(self.table.rows[i].slot, Slot::Model(Access::Boolean { set: Some(_), .. })) {
-                return Err(self.unknown(*vr, "settable Boolean"));
+                return Err(self.unknown(*vr, BaseType::Boolean, true));
             }
         }
         let mut changed = false;

@@ -21,7 +21,8 @@ pub use model_exchange::EventInfo;
 use state_machine::{Call, FmiState, Interface};
 
 /// The FMI 2.0 names the core's messages refer to.
-const NAMES: Names = Names { setup: "fmi2SetupExperiment", exit_initialization: "fmi2ExitInitializationMode" };
+const NAMES: Names =
+    Names { setup: "fmi2SetupExperiment", exit_initialization: "fmi2ExitInitializationMode", real: "Real", integer: "Integer" };
 
 /// A live FMI 2.0 instance of model `M`, for one interface.
 pub struct Instance<M: Model> {
@@ -456,7 +457,7 @@ mod tests {
         h.initialize(None).unwrap();
         let rate = vr(&h, "rate");
         let e = h.instance.get_integer(&[rate], &mut [0]).unwrap_err().message;
-        assert!(e.contains(&format!("value reference {rate} is 'rate' of type Real, not a Integer variable")), "{e}");
+        assert!(e.contains(&format!("value reference {rate} is 'rate' of type Real, not an Integer variable")), "{e}");
         let e = h.instance.get_real(&[999], &mut [0.0]).unwrap_err().message;
         assert!(e.contains("value reference 999 is not a Real variable"), "{e}");
     }

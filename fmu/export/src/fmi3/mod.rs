@@ -32,7 +32,8 @@ use crate::table::Table;
 use state_machine::{Call, FmiState, Interface};
 
 /// The FMI 3.0 names the core's messages refer to.
-const NAMES: Names = Names { setup: "fmi3EnterInitializationMode", exit_initialization: "fmi3ExitInitializationMode" };
+const NAMES: Names =
+    Names { setup: "fmi3EnterInitializationMode", exit_initialization: "fmi3ExitInitializationMode", real: "Float64", integer: "Int32" };
 
 /// The name of event indicator `k`'s variable.
 pub fn event_indicator_name(k: usize) -> String {
@@ -685,6 +686,17 @@ mod tests {
         let mut x = [0.0; 2];
         i.get_float64(&[0, 1], &mut x).unwrap();
         x
+    }
+
+    /// A value reference of the wrong type is refused in FMI 3.0's type names (Float64, Int32),
+    /// not FMI 2.0's, which the core's messages would otherwise carry.
+    #[test]
+    fn wrongly_typed_references_are_named_in_fmi3_types() {
+        let mut i = started(false, false);
+        let e = i.get_int32(&[0], &mut [0]).unwrap_err().message;
+        assert!(e.contains("value reference 0 is 'h' of type Float64, not an Int32 variable"), "{e}");
+        let e = i.get_float64(&[2], &mut [0.0]).unwrap_err().message;
+        assert!(e.contains("value reference 2 is 'bounces' of type Int32, not a Float64 variable"), "{e}");
     }
 
     /// The first bounce, at sqrt(2/g) = 0.4515 s, inside the step from 0.4 to 0.5: with Event

@@ -23,10 +23,11 @@ def wrap(a):
 
 @functools.cache
 def defaults(model):
-    """The model's numeric parameters at their start values (its FMI 2.0 modelDescription)."""
+    """The model's numeric parameters and inputs at their start values (its FMI 2.0
+    modelDescription)."""
     md = read_model_description(str(fmu_path(model, "2.0")))
     return {v.name: float(v.start) for v in md.modelVariables
-            if v.causality == "parameter" and v.type in ("Real", "Integer") and v.start is not None}
+            if v.causality in ("parameter", "input") and v.type in ("Real", "Integer") and v.start is not None}
 
 
 def closed(model, name, **inputs):

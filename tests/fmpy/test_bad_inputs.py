@@ -562,15 +562,15 @@ def test_unknown_and_wrongly_typed_value_references_are_named(probe, model):
 
 @pytest.mark.parametrize("model", MODELS)
 def test_fixed_parameters_outputs_and_constants_cannot_be_set_after_initialization(probe, model):
-    """After fmi2ExitInitializationMode every fixed parameter (Real, Integer, Boolean, the
-    solver controls included) and every constant is refused by fmi2Set* with fmi2Error naming
+    """After fmi2ExitInitializationMode every fixed parameter (Real, Integer, Boolean, String,
+    the solver controls included) and every constant is refused by fmi2Set* with fmi2Error naming
     it and saying why, even when the value is unchanged; outputs are refused in every state.
     The refused calls leave the instance working: it still steps."""
     c = probe.new("StepComplete")
     params = probe.variables({"parameter", "calculatedParameter"})
     constants = [v for v in probe.md.modelVariables if v.variability == "constant"]
     for v in params + constants:
-        value = float(v.start) if v.type == "Real" else int(v.start == "true") if v.type == "Boolean" else int(v.start)
+        value = {"Real": float, "Boolean": lambda s: int(s == "true"), "String": str.encode}.get(v.type, int)(v.start)
         assert probe.set(c, v.type, [v.valueReference], [value]) == ERROR, f"{model}: {v.name} set after initialization"
         msg = probe.messages()
         assert f"'{v.name}'" in msg and ("fixed" in msg or "constant" in msg or "calculated" in msg), msg

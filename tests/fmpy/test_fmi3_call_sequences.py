@@ -33,10 +33,12 @@ COMMON = {
     "fmi3GetFloat64": READ,
     "fmi3GetInt32": READ,
     "fmi3GetBoolean": READ,
+    "fmi3GetString": READ,
     # Continuous-Time Mode: continuous-time inputs only, which are Float64.
     "fmi3SetFloat64": {I, INIT, EVENT, STEP, CT},
     "fmi3SetInt32": {I, INIT, EVENT, STEP},
     "fmi3SetBoolean": {I, INIT, EVENT, STEP},
+    "fmi3SetString": {I, INIT, EVENT, STEP},
     "fmi3UpdateDiscreteStates": {EVENT},
     **{name: ANY for name in FMU_STATE},
 }
@@ -55,8 +57,8 @@ MODEL_EXCHANGE = {
 }
 # What these FMUs do not have: refused with fmi3Error whatever the state.
 NEVER = """fmi3GetFloat32 fmi3GetInt8 fmi3GetUInt8 fmi3GetInt16 fmi3GetUInt16 fmi3GetUInt32 fmi3GetInt64
-fmi3GetUInt64 fmi3GetString fmi3GetBinary fmi3GetClock fmi3SetFloat32 fmi3SetInt8 fmi3SetUInt8 fmi3SetInt16
-fmi3SetUInt16 fmi3SetUInt32 fmi3SetInt64 fmi3SetUInt64 fmi3SetString fmi3SetBinary fmi3SetClock
+fmi3GetUInt64 fmi3GetBinary fmi3GetClock fmi3SetFloat32 fmi3SetInt8 fmi3SetUInt8 fmi3SetInt16
+fmi3SetUInt16 fmi3SetUInt32 fmi3SetInt64 fmi3SetUInt64 fmi3SetBinary fmi3SetClock
 fmi3GetNumberOfVariableDependencies fmi3GetVariableDependencies fmi3GetDirectionalDerivative
 fmi3GetAdjointDerivative fmi3EnterConfigurationMode fmi3ExitConfigurationMode fmi3GetIntervalDecimal
 fmi3GetIntervalFraction fmi3GetShiftDecimal fmi3GetShiftFraction fmi3SetIntervalDecimal fmi3SetIntervalFraction
@@ -202,6 +204,8 @@ class Fmu:
             "fmi3SetFloat64": (c, *settable),
             "fmi3SetInt32": (c, None, c_size_t(0), None, c_size_t(0)),
             "fmi3SetBoolean": (c, None, c_size_t(0), None, c_size_t(0)),
+            "fmi3GetString": (c, None, c_size_t(0), None, c_size_t(0)),
+            "fmi3SetString": (c, None, c_size_t(0), None, c_size_t(0)),
             "fmi3UpdateDiscreteStates": (c, *map(byref, flags), byref(d)),
             "fmi3GetFMUState": (c, byref(copy)),
             "fmi3SetFMUState": (c, state),

@@ -93,7 +93,7 @@ def test_description_says_what_the_fmi2_description_says(model):
     assert [u.name for u in md3.unitDefinitions] == [u.name for u in md2.unitDefinitions]
     assert [[(d.name, d.factor) for d in u.displayUnits] for u in md3.unitDefinitions] == \
         [[(d.name, d.factor) for d in u.displayUnits] for u in md2.unitDefinitions]
-    types = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+    types = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
     same = lambda v, t: (v.name, v.valueReference, t, v.causality, v.variability, v.initial, v.start, v.unit, v.displayUnit)
     n = len(md2.modelVariables)
     assert [same(v, v.type) for v in md3.modelVariables[:n]] == [same(v, types[v.type]) for v in md2.modelVariables]

@@ -66,6 +66,7 @@ enum ValueType {
     Real,
     Integer,
     Boolean,
+    String,
 }
 
 fn value_type(ty: &Type) -> Result<ValueType> {
@@ -76,12 +77,13 @@ fn value_type(ty: &Type) -> Result<ValueType> {
                     "f64" => return Ok(ValueType::Real),
                     "i32" => return Ok(ValueType::Integer),
                     "bool" => return Ok(ValueType::Boolean),
+                    "String" => return Ok(ValueType::String),
                     _ => {}
                 }
             }
         }
     }
-    Err(Error::new(ty.span(), "a variable field must be f64 (Real), i32 (Integer) or bool (Boolean)"))
+    Err(Error::new(ty.span(), "a variable field must be f64 (Real), i32 (Integer), bool (Boolean) or String (String)"))
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -108,6 +110,8 @@ struct VariableSpec {
     display: Option<LitStr>,
     range: Option<RangeSpec>,
     discrete: bool,
+    /// A parameter the importer may change after initialization (`variability="tunable"`).
+    tunable: bool,
     when: Option<Expr>,
 }
 
@@ -153,7 +157,8 @@ fn variable_spec(field: &Field) -> Result<Option<VariableSpec>> {
         if found.is_some() {
             return Err(Error::new(attr.span(), "a field is one variable: give one of #[parameter], #[input] or #[output]"));
         }
-        let mut spec = VariableSpec { kind, name: None, unit: None, display: None, range: None, discrete: false, when: None };
+        let mut spec =
+            VariableSpec { kind, name: None, unit: None, display: None, range: None, discrete: false, tunable: false, when: None };
         if !matches!(attr.meta, syn::Meta::Path(_)) {
             attr.parse_nested_meta(|meta| {
                 let span = meta.path.span();
@@ -165,6 +170,10 @@ fn variable_spec(field: &Field) -> Result<Option<VariableSpec>> {
                     "when" => set_once(&mut spec.when, meta.value()?.parse()?, span, "when"),
                     "discrete" => {
                         spec.discrete = true;
+                        Ok(())
+                    }
+                    "tunable" => {
+                        spec.tunable = true;
                         Ok(())
                     }
                     "finite" => set_range(&mut spec.range, RangeSpec::Finite, span),
@@ -179,7 +188,7 @@ fn variable_spec(field: &Field) -> Result<Option<VariableSpec>> {
                         set_range(&mut spec.range, RangeSpec::OneOf(values.into_iter().collect()), span)
                     }
                     _ => Err(meta.error(
-                        "unknown key: expected name, unit, display, positive, non_negative, finite, min, max, one_of, discrete or when",
+                        "unknown key: expected name, unit, display, positive, non_negative, finite, min, max, one_of, discrete, tunable or when",
                     )),
                 }
             })?;
@@ -201,15 +210,25 @@ fn row(field: &Field, spec: &VariableSpec) -> Result<Tokens> {
         (Kind::Parameter, ValueType::Real) => quote!(#v::parameter(#name, #desc, |m| m.#ident, |m, v| m.#ident = v)),
         (Kind::Parameter, ValueType::Integer) => quote!(#v::integer_parameter(#name, #desc, |m| m.#ident, |m, v| m.#ident = v)),
         (Kind::Parameter, ValueType::Boolean) => quote!(#v::boolean_parameter(#name, #desc, |m| m.#ident, |m, v| m.#ident = v)),
+        (Kind::Parameter, ValueType::String) => {
+            quote!(#v::string_parameter(#name, #desc, |m| m.#ident.as_str(), |m, v| m.#ident = ::std::string::String::from(v)))
+        }
         (Kind::Input, ValueType::Real) => quote!(#v::input(#name, #desc, |m| m.#ident, |m, v| m.#ident = v)),
         (Kind::Input, _) => return err("inputs are Real (f64)"),
         (Kind::Output, ValueType::Real) if spec.discrete => quote!(#v::discrete_output(#name, #desc, |m| m.#ident)),
         (Kind::Output, ValueType::Real) => quote!(#v::output(#name, #desc, |m| m.#ident)),
         (Kind::Output, ValueType::Integer) => quote!(#v::integer_output(#name, #desc, |m| m.#ident)),
         (Kind::Output, ValueType::Boolean) => quote!(#v::boolean_output(#name, #desc, |m| m.#ident)),
+        (Kind::Output, ValueType::String) => return err("String variables are parameters"),
     };
     if spec.discrete && !(spec.kind == Kind::Output && ty == ValueType::Real) {
         return err("only Real outputs take `discrete` (Integer and Boolean outputs always are)");
+    }
+    if spec.tunable {
+        if spec.kind != Kind::Parameter {
+            return err("only parameters take `tunable` (inputs can always be set)");
+        }
+        row = quote!(#row.variability(::fmu_export::Variability::Tunable));
     }
     if let Some(unit) = &spec.unit {
         row = quote!(#row.unit(#unit));
@@ -237,6 +256,7 @@ fn row(field: &Field, spec: &VariableSpec) -> Result<Tokens> {
             (RangeSpec::OneOf(_), _) => return err("one_of is for Integer (i32) variables"),
             (_, ValueType::Integer) => return err("an Integer variable takes min, max or one_of"),
             (_, ValueType::Boolean) => return err("a Boolean variable has no range"),
+            (_, ValueType::String) => return err("a String variable has no range"),
         };
         row = quote!(#row.range(#range));
     }

@@ -143,6 +143,7 @@ pub fn entry<M: Model>() -> String {
             }
             (true, Access::Integer { get, .. }) => Start::Integer(get(&defaults)).to_string(),
             (true, Access::Boolean { get, .. }) => Start::Boolean(get(&defaults)).to_string(),
+            (true, Access::String { get, .. }) => Start::String(get(&defaults).to_owned()).to_string(),
         };
         out.push_str(&format!(
             "| `{}` | {} | {} | {:?} | {} | {} | {} | {} | {} |\n",

@@ -6,6 +6,7 @@ use std::ffi::{c_char, c_int, CStr, CString};
 use crate::core::{CallResult, Failure};
 use crate::logging::{Logger, Status};
 use crate::model::Model;
+use crate::table::Table;
 
 /// A tag unique to the model and its table, stored in FMU states and serialized buffers.
 pub fn model_tag<M: Model>() -> u64 {
@@ -28,6 +29,28 @@ pub unsafe fn opt_str<'a>(p: *const c_char) -> Option<&'a str> {
     } else {
         CStr::from_ptr(p).to_str().ok()
     }
+}
+
+/// The texts of a String setter's `pointers` (one per value reference of `vrs`, named from
+/// `table` in refusals): a NULL pointer or text that is not UTF-8 is refused, naming the
+/// variable and the element (`what[i]`), instead of being read.
+///
+/// # Safety
+/// Each pointer is NULL or a NUL-terminated string that outlives the result.
+pub unsafe fn texts<'a, M>(pointers: &[*const c_char], vrs: &[u32], table: &Table<M>, call: &str, what: &str) -> CallResult<Vec<&'a str>> {
+    let name = |i: usize| vrs.get(i).and_then(|vr| table.row(*vr)).map_or("?", |r| r.name);
+    pointers
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            if p.is_null() {
+                return Err(Failure::error(format!("{call}: {what}[{i}] (for '{}') is a NULL pointer, not a string", name(i))));
+            }
+            CStr::from_ptr(*p)
+                .to_str()
+                .map_err(|e| Failure::error(format!("{call}: {what}[{i}] (for '{}') is not valid UTF-8 text ({e})", name(i))))
+        })
+        .collect()
 }
 
 /// The message of a caught panic.

@@ -99,8 +99,22 @@ impl<M: Model> Harness<M> {
             BaseType::Real => self.instance.set_real(&[vr], &[value]),
             BaseType::Integer => self.instance.set_integer(&[vr], &[value as i32]),
             BaseType::Boolean => self.instance.set_boolean(&[vr], &[value != 0.0]),
+            BaseType::String => return Err(format!("'{name}' is a String variable: set it with set_string")),
         }
         .map_err(describe)
+    }
+
+    /// Sets a String variable by name.
+    pub fn set_string(&mut self, name: &str, value: &str) -> Result<(), String> {
+        let (vr, _) = self.vr(name)?;
+        self.instance.set_string(&[vr], &[value]).map_err(describe)
+    }
+
+    /// Reads a String variable by name.
+    pub fn get_string(&mut self, name: &str) -> Result<String, String> {
+        let (vr, _) = self.vr(name)?;
+        let texts = self.instance.get_string(&[vr]).map_err(describe)?;
+        Ok(texts[0].to_str().expect("the toolkit hands out UTF-8").to_owned())
     }
 
     /// Reads a variable by name as a number.
@@ -119,6 +133,7 @@ impl<M: Model> Harness<M> {
                 let mut v = [false];
                 self.instance.get_boolean(&[vr], &mut v).map(|()| v[0] as i32 as f64)
             }
+            BaseType::String => return Err(format!("'{name}' is a String variable: read it with get_string")),
         }
         .map_err(describe)
     }

@@ -141,6 +141,8 @@ fn values<M: Model>(table: &Table<M>, model: &M, t: f64, x: &[f64]) -> Vec<u64> 
             Slot::Model(Access::Real { get, .. }) => get(&model).to_bits(),
             Slot::Model(Access::Integer { get, .. }) => get(&model) as u64,
             Slot::Model(Access::Boolean { get, .. }) => get(&model) as u64,
+            // String variables are parameters: never computed from (t, x) or the inputs.
+            Slot::Model(Access::String { .. }) => 0,
             Slot::Derivative(k) => dx[*k].to_bits(),
             Slot::Time | Slot::Control(_) => 0,
         })

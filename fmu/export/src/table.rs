@@ -154,7 +154,7 @@ impl<M: Model> Table<M> {
         let computed = rows
             .iter()
             .map(|r| {
-                matches!(r.slot, Slot::Model(Access::Real { .. } | Access::Integer { .. } | Access::Boolean { .. }))
+                matches!(r.slot, Slot::Model(Access::Real { .. } | Access::Integer { .. } | Access::Boolean { .. } | Access::String { .. }))
                     && !matches!(r.causality, Causality::Parameter | Causality::Input)
             })
             .collect();
@@ -165,7 +165,14 @@ impl<M: Model> Table<M> {
     /// authoring mistakes, caught by each model's tests and by `runner build`.
     pub fn problems(&self) -> Vec<String> {
         let mut problems = Vec::new();
+        let defaults = M::default();
         for (i, (row, range)) in self.rows.iter().zip(ranges::<M>()).enumerate() {
+            if let Slot::Model(Access::String { get, .. }) = row.slot {
+                // C strings end at the first NUL: such a start value could not be handed out.
+                if get(&defaults).contains('\0') {
+                    problems.push(format!("String variable '{}' has a start value with a NUL character", row.name));
+                }
+            }
             if self.rows[..i].iter().any(|r| r.name == row.name) {
                 problems.push(format!("variable name '{}' is used twice", row.name));
             }
@@ -197,7 +204,7 @@ impl<M: Model> Table<M> {
             let real_range = matches!(range, Range::Finite | Range::Positive | Range::NonNegative);
             if (real_range && row.base_type != BaseType::Real)
                 || (matches!(range, Range::OneOf(_)) && row.base_type != BaseType::Integer)
-                || (range != Range::Any && row.base_type == BaseType::Boolean)
+                || (range != Range::Any && matches!(row.base_type, BaseType::Boolean | BaseType::String))
             {
                 problems.push(format!("variable '{}' declares a range its type {:?} cannot have", row.name, row.base_type));
             }
@@ -305,11 +312,12 @@ pub fn guid<M: Model>() -> &'static str {
 }
 
 /// A start value as the XML and the documentation show it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Start {
     Real(f64),
     Integer(i32),
     Boolean(bool),
+    String(String),
 }
 
 impl std::fmt::Display for Start {
@@ -318,6 +326,7 @@ impl std::fmt::Display for Start {
             Start::Real(v) => write!(f, "{v:?}"),
             Start::Integer(v) => write!(f, "{v}"),
             Start::Boolean(v) => write!(f, "{v}"),
+            Start::String(v) => write!(f, "{v:?}"),
         }
     }
 }
@@ -336,6 +345,7 @@ impl<M: Model> Row<M> {
             Slot::Model(Access::Real { get, .. }) => Start::Real(get(model)),
             Slot::Model(Access::Integer { get, .. }) => Start::Integer(get(model)),
             Slot::Model(Access::Boolean { get, .. }) => Start::Boolean(get(model)),
+            Slot::Model(Access::String { get, .. }) => Start::String(get(model).to_owned()),
             Slot::Time | Slot::Derivative(_) => return None,
             Slot::Control(c) => {
                 let value = c.default_value()?;

@@ -2,7 +2,7 @@
 #![deny(unsafe_code)]
 
 use std::f64::consts::PI;
-use std::path::Path;
+use std::path::{Component, Path, PathBuf};
 
 use fmu_export::{Model, ModelError, ModelInfo, StateVector, Variables};
 use serde::{Deserialize, Serialize};
@@ -14,9 +14,12 @@ pub struct Road {
     /// Horizontal speed of the wheel along the road
     #[parameter(unit = "m/s", finite)]
     pub speed: f64,
-    /// Profile: 0 the Ex. 4 sinusoid, 1 one half-cosine bump, 2 the table resources/profile.csv
+    /// Profile: 0 the Ex. 4 sinusoid, 1 one half-cosine bump, 2 the measured profile of the file `table`
     #[parameter(one_of(0, 1, 2))]
     pub profile: i32,
+    /// Profile 2's table file (CSV, header x,z, x and z in m): a relative name is read from the FMU's resources/ folder, an absolute path or a file: URI as it is
+    #[parameter]
+    pub table: String,
     /// Amplitude a of the sinusoid z = a sin(2 pi x / wavelength)
     #[parameter(unit = "m", finite)]
     pub amplitude: f64,
@@ -38,8 +41,13 @@ pub struct Road {
     /// Road rate z_r' = speed * dz/dx
     #[output(unit = "m/s")]
     pub z_r_dot: f64,
-    /// The measured profile, read from the FMU's resources at instantiation.
-    table: Table,
+    /// The FMU's resources folder, as the importer gave it at instantiation (`None`: it gave
+    /// none).
+    resource_dir: Option<PathBuf>,
+    /// The measured profile, read from the file `table` names when initialization needs it.
+    measured: Table,
+    /// The file `measured` was read from (initialization may run more than once).
+    measured_from: Option<PathBuf>,
 }
 
 /// The state vector.
@@ -62,7 +70,10 @@ impl Default for Road {
             bump_start: 5.0,
             z_r: 0.0,
             z_r_dot: 0.0,
-            table: Table::default(),
+            table: TABLE_FILE.to_owned(),
+            resource_dir: None,
+            measured: Table::default(),
+            measured_from: None,
         }
     }
 }
@@ -74,7 +85,7 @@ pub struct Table {
     pub z: Vec<f64>,
 }
 
-/// The file the measured profile is read from, in the FMU's resources.
+/// The default of `table`: the sample profile shipped in the FMU's resources.
 pub const TABLE_FILE: &str = "profile.csv";
 
 impl Table {
@@ -156,8 +167,52 @@ impl Road {
                 let (s, c) = (k * u).sin_cos();
                 (0.5 * self.bump_height * (1.0 - c), 0.5 * self.bump_height * k * s)
             }
-            _ => self.table.at(x),
+            _ => self.measured.at(x),
         }
+    }
+
+    /// The file `table` names: a relative name inside the resources folder (without `..`, so
+    /// it stays there), an absolute path, or a `file:` URI (decoded as `fmuResourceLocation`
+    /// is).
+    pub fn table_path(&self) -> Result<PathBuf, ModelError> {
+        let name = self.table.as_str();
+        if name.trim().is_empty() {
+            return Err(ModelError("profile 2 needs a table file, but the parameter table is empty".to_owned()));
+        }
+        if name.starts_with("file:") {
+            return fmu_export::fmi2::ffi::resource_dir(name)
+                .ok_or_else(|| ModelError(format!("table = '{name}' is not a file URI of a local absolute path (file:///dir/file.csv)")));
+        }
+        let path = Path::new(name);
+        if path.is_absolute() {
+            return Ok(path.to_owned());
+        }
+        if path.components().any(|c| matches!(c, Component::ParentDir)) {
+            return Err(ModelError(format!(
+                "table = '{name}': a relative name is a file in the FMU's resources/ folder and cannot contain '..'; give an absolute path for a file elsewhere"
+            )));
+        }
+        match &self.resource_dir {
+            Some(dir) => Ok(dir.join(path)),
+            None => Err(ModelError(format!(
+                "profile 2 reads table = '{name}' from the FMU's resources/ folder, but the importer gave no resource location (give an absolute path instead)"
+            ))),
+        }
+    }
+
+    /// Reads the measured profile from the file `table` names, unless it was read from that
+    /// file already; errors name the file (and the line, for what is in it).
+    fn load_measured(&mut self) -> Result<(), ModelError> {
+        let path = self.table_path()?;
+        if self.measured_from.as_ref() == Some(&path) {
+            return Ok(());
+        }
+        let shown =
+            if path.as_os_str() == self.table.as_str() { self.table.clone() } else { format!("{} ({})", self.table, path.display()) };
+        let text = std::fs::read_to_string(&path).map_err(|e| ModelError(format!("cannot read the profile table {shown}: {e}")))?;
+        self.measured = Table::parse(&text, &self.table).map_err(ModelError)?;
+        self.measured_from = Some(path);
+        Ok(())
     }
 }
 
@@ -176,10 +231,8 @@ impl Model for Road {
     }
 
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        if self.profile == 2 && self.table.x.is_empty() {
-            return Err(ModelError(format!(
-                "profile 2 reads resources/{TABLE_FILE}, which was not loaded: the importer gave no fmuResourceLocation"
-            )));
+        if self.profile == 2 {
+            self.load_measured()?;
         }
         State { x: 0.0 }.store(x);
         Ok(())
@@ -196,10 +249,9 @@ impl Model for Road {
         self.z_r_dot = self.speed * slope;
     }
 
+    /// Only remembers where the resources are: the table is read when profile 2 is used.
     fn resources(&mut self, dir: &Path) -> Result<(), ModelError> {
-        let path = dir.join(TABLE_FILE);
-        let text = std::fs::read_to_string(&path).map_err(|e| ModelError(format!("cannot read {}: {e}", path.display())))?;
-        self.table = Table::parse(&text, TABLE_FILE).map_err(ModelError)?;
+        self.resource_dir = Some(dir.to_owned());
         Ok(())
     }
 }
@@ -214,14 +266,14 @@ mod tests {
     const SHIPPED: &str = include_str!("../resources/profile.csv");
 
     /// The FMU's resources folder as the crate ships it.
-    fn resources() -> std::path::PathBuf {
+    fn resources_dir() -> std::path::PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("resources")
     }
 
     fn run(params: &[(&str, f64)], with_resources: bool) -> fmu_export::harness::Trajectory {
         let mut h = Harness::<Road>::new();
         if with_resources {
-            h.load_resources(&resources()).unwrap();
+            h.load_resources(&resources_dir()).unwrap();
         }
         for (name, value) in params {
             h.set(name, *value).unwrap();
@@ -300,17 +352,86 @@ mod tests {
         assert!(err("x,z\n0,0\n0,1\n").contains("line 3: x must increase"));
         assert!(err("x,z\n0,0,1\n").contains("line 2: a row has two numbers"));
         assert!(err("x,z\n0,0\n").contains("at least two rows"));
-        let mut road = Road::default();
+        // Through initialization, as an importer meets them: the file named, and the line.
         let dir = tempfile::tempdir().unwrap();
-        assert!(road.resources(dir.path()).unwrap_err().0.contains("cannot read"));
-        std::fs::write(dir.path().join(TABLE_FILE), "x,z\n1,0\n0,1\n").unwrap();
-        assert!(road.resources(dir.path()).unwrap_err().0.contains("profile.csv, line 3: x must increase"));
-        std::fs::write(dir.path().join(TABLE_FILE), SHIPPED).unwrap();
-        road.resources(dir.path()).unwrap();
-        assert_eq!(road.table.x.len(), 13);
+        let init = |table: Option<&str>, resources: Option<&Path>| {
+            let mut h = Harness::<Road>::new();
+            if let Some(dir) = resources {
+                h.load_resources(dir).unwrap();
+            }
+            h.set("profile", 2.0).unwrap();
+            if let Some(table) = table {
+                h.set_string("table", table).unwrap();
+            }
+            h.initialize(None).map(|()| h)
+        };
+        let missing = init(None, Some(dir.path())).err().unwrap();
+        assert!(missing.contains("cannot read the profile table profile.csv (") && missing.contains("No such file"), "{missing}");
+        std::fs::write(dir.path().join("bad.csv"), "x,z\n1,0\n0,1\n").unwrap();
+        let bad = init(Some("bad.csv"), Some(dir.path())).err().unwrap();
+        assert!(bad.contains("bad.csv, line 3: x must increase"), "{bad}");
+        assert!(init(Some(""), Some(dir.path())).err().unwrap().contains("the parameter table is empty"));
+        assert!(init(Some("../profile.csv"), Some(dir.path())).err().unwrap().contains("cannot contain '..'"));
+        assert!(init(Some("file://host/x.csv"), Some(dir.path())).err().unwrap().contains("is not a file URI of a local absolute path"));
+        let none = init(None, None).err().unwrap();
+        assert!(none.contains("the importer gave no resource location"), "{none}");
+        // The sinusoid needs no file: a bad table is not read then.
         let mut h = Harness::<Road>::new();
-        h.set("profile", 2.0).unwrap();
-        assert!(h.initialize(None).unwrap_err().contains("was not loaded"));
+        h.set_string("table", "nowhere.csv").unwrap();
+        h.initialize(None).unwrap();
+    }
+
+    /// `table` names the file: the second shipped sample by its name, the same file by
+    /// absolute path and by file URI, and a file outside the resources; each interpolated
+    /// linearly between its rows (checked at the rows and midway between them, from the file
+    /// itself).
+    #[test]
+    fn the_table_parameter_names_the_profile_file() {
+        let run_with = |table: &str, resources: bool| {
+            let mut h = Harness::<Road>::new();
+            if resources {
+                h.load_resources(&resources_dir()).unwrap();
+            }
+            h.set("speed", 1.0).unwrap();
+            h.set("profile", 2.0).unwrap();
+            h.set_string("table", table).unwrap();
+            h.initialize(None).unwrap();
+            assert_eq!(h.get_string("table").unwrap(), table);
+            h.run(10.0, 1e-3, &["z_r", "z_r_dot"]).unwrap()
+        };
+        let bump = resources_dir().join("speed_bump.csv");
+        let by_name = run_with("speed_bump.csv", true);
+        let table = Table::parse(&std::fs::read_to_string(&bump).unwrap(), "speed_bump.csv").unwrap();
+        for k in 0..table.x.len() - 1 {
+            let (x0, x1, z0, z1) = (table.x[k], table.x[k + 1], table.z[k], table.z[k + 1]);
+            for (x, z) in [(x0, z0), (0.5 * (x0 + x1), 0.5 * (z0 + z1))] {
+                let i = (x * 1000.0).round() as usize;
+                if i < by_name.time.len() {
+                    // x = t exactly at 1 m/s up to DOPRI5's rounding (see the sinusoid test).
+                    assert!((by_name.get("z_r")[i] - z).abs() < 1e-12, "z at x = {x}");
+                }
+            }
+        }
+        // The ramp up: slope 0.07 / 0.3 at 1 m/s.
+        assert!((by_name.get("z_r_dot")[3150] - 0.07 / 0.3).abs() < 1e-12);
+        let absolute = run_with(bump.to_str().unwrap(), false);
+        let uri = run_with(&format!("file://{}", bump.display()), false);
+        assert_eq!(by_name.get("z_r"), absolute.get("z_r"));
+        assert_eq!(by_name.get("z_r"), uri.get("z_r"));
+        // The default names the shipped profile.csv: the same run as before the parameter.
+        let default = run(&[("speed", 1.0), ("profile", 2.0)], true);
+        let named = run_with(TABLE_FILE, true);
+        assert_eq!(default.get("z_r"), named.get("z_r"));
+    }
+
+    /// `table` is a fixed parameter: refused after initialization, with the standard's rule.
+    #[test]
+    fn the_table_is_fixed_after_initialization() {
+        let mut h = Harness::<Road>::new();
+        h.load_resources(&resources_dir()).unwrap();
+        h.initialize(None).unwrap();
+        let err = h.set_string("table", "speed_bump.csv").unwrap_err();
+        assert!(err.contains("parameter 'table' is fixed and can be set only before fmi2ExitInitializationMode"), "{err}");
     }
 
     #[test]

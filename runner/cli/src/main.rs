@@ -1,6 +1,6 @@
 //! `runner`: builds, inspects, simulates, sweeps, compares, validates and animates FMUs (FMI 2.0
-//! Co-Simulation and Model Exchange, the latter integrated with the runner's own solvers; FMI
-//! 3.0 Co-Simulation), and reproduces the lab handbook's figures.
+//! and 3.0, Co-Simulation, and Model Exchange integrated with the runner's own solvers) and SSP
+//! systems of them, and reproduces the lab handbook's figures.
 
 use std::path::PathBuf;
 
@@ -13,7 +13,8 @@ use runner::interrupt;
 use runner::report::figure::Format;
 use runner::report::progress;
 
-/// Build and run FMI 2.0 FMUs: Co-Simulation, and Model Exchange with the runner's solvers.
+/// Build and run FMUs (FMI 2.0 and 3.0; Co-Simulation, and Model Exchange with the runner's
+/// solvers) and SSP systems of them.
 #[derive(Parser)]
 #[command(name = "runner", version, about)]
 struct Cli {

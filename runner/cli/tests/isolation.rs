@@ -247,3 +247,15 @@ fn compare_records_crashed_runs_and_goes_on() {
         assert_eq!(row[status], expected, "{row:?}");
     }
 }
+
+/// Workers start before the FMU is unpacked: when it turns out unusable, the sweep fails with the
+/// FMU's problem alone, the workers let go before they were told what to load (they would
+/// complain on stderr if they took that for a broken request).
+#[test]
+fn workers_started_ahead_of_an_unusable_fmu_leave_only_its_error() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("bad.fmu"), "not a zip").unwrap();
+    let err = fails(runner(dir.path(), &["sweep", "bad.fmu", "--param", "k=1,2", "--metric", "end=final(x)", "--threads", "2"]));
+    assert_eq!(err.lines().count(), 1, "one line, the FMU's problem: {err}");
+    assert!(err.contains("bad.fmu is not a zip archive"), "{err}");
+}

@@ -236,3 +236,88 @@ fn bad_systems_are_explained() {
     let err = fails(runner(dir.path(), &["simulate", root.to_str().unwrap(), "--master", "newton"]));
     assert!(err.contains("choose jacobi or gauss-seidel"), "{err}");
 }
+
+/// A sweep reads only its metrics' columns and the outputs that feed connections (the
+/// connection plan of fmi-systems), yet gets what `simulate` records: a -> b (a Real in km/h to
+/// m/s, an Int32 and a Boolean, so b takes one batched Real set and two single ones) -> c (a
+/// Real). Feedthrough copies inputs to outputs, so with a's inputs 36 km/h, 3 and true, c's
+/// Real output ends at 10 m/s and b's Int32 and Boolean outputs at 3 and 1; each sweep metric
+/// equals the simulated CSV's last row to the bit (72 km/h gives 20 m/s).
+#[test]
+fn a_sweep_reads_only_what_it_needs_and_agrees_with_simulate() {
+    let Some(ft) = feedthrough() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let units = r#"<ssd:Units><ssc:Unit name="km/h"><ssc:BaseUnit m="1" s="-1" factor="0.2777777777777778"/></ssc:Unit><ssc:Unit name="m/s"><ssc:BaseUnit m="1" s="-1"/></ssc:Unit></ssd:Units>"#;
+    let connector = |name: &str, kind: &str, ty: &str| format!(r#"<ssd:Connector name="{name}" kind="{kind}">{ty}</ssd:Connector>"#);
+    let (int, boolean) = ("<ssc:Integer/>", "<ssc:Boolean/>");
+    let a = component(
+        "a",
+        &[
+            connector("Float64_continuous_output", "output", r#"<ssc:Real unit="km/h"/>"#),
+            connector("Int32_output", "output", int),
+            connector("Boolean_output", "output", boolean),
+        ]
+        .concat(),
+        "",
+    );
+    let b = component(
+        "b",
+        &[
+            connector("Float64_continuous_input", "input", r#"<ssc:Real unit="m/s"/>"#),
+            connector("Int32_input", "input", int),
+            connector("Boolean_input", "input", boolean),
+            connector("Float64_continuous_output", "output", r#"<ssc:Real unit="m/s"/>"#),
+            connector("Int32_output", "output", int),
+            connector("Boolean_output", "output", boolean),
+        ]
+        .concat(),
+        "",
+    );
+    let c = component("c", &format!("{REAL_IN}{REAL_OUT}"), "");
+    let link = |from: &str, to: &str, name: &str, to_name: &str| {
+        format!(r#"<ssd:Connection startElement="{from}" startConnector="{name}" endElement="{to}" endConnector="{to_name}"/>"#)
+    };
+    let ssd = format!(
+        r#"<ssd:System name="s"><ssd:Elements>{a}{b}{c}</ssd:Elements><ssd:Connections>{}{}{}{}</ssd:Connections></ssd:System>{units}"#,
+        link("a", "b", "Float64_continuous_output", "Float64_continuous_input"),
+        link("a", "b", "Int32_output", "Int32_input"),
+        link("a", "b", "Boolean_output", "Boolean_input"),
+        connection("b", "c"),
+    );
+    let root = system(dir.path(), "plan", &ssd, &[("ft.fmu", &ft)], &[]);
+    let grid = ["--stop-time", "0.5", "--output-interval", "0.1"];
+    let sets = ["--set", "a.Int32_input=3", "--set", "a.Boolean_input=true"];
+    let csv = dir.path().join("sim.csv");
+    let root = root.to_str().unwrap();
+    ok(runner(
+        dir.path(),
+        &[&["simulate", root, "--set", "a.Float64_continuous_input=36"][..], &grid, &sets, &["--out", csv.to_str().unwrap()]].concat(),
+    ));
+    let (header, rows) = read_csv(&csv);
+    let last = |name: &str| *column(&header, &rows, name).last().unwrap();
+    assert_eq!((last("c.Float64_continuous_output"), last("b.Int32_output"), last("b.Boolean_output")), (10.0, 3.0, 1.0));
+    let sweep = dir.path().join("sweep.csv");
+    let metrics = [
+        "--metric",
+        "v=final(c.Float64_continuous_output)",
+        "--metric",
+        "i=final(b.Int32_output)",
+        "--metric",
+        "b=final(b.Boolean_output)",
+    ];
+    ok(runner(
+        dir.path(),
+        &[
+            &["sweep", root, "--param", "a.Float64_continuous_input=36,72", "--threads", "2"][..],
+            &grid,
+            &sets,
+            &metrics,
+            &["--out", sweep.to_str().unwrap()],
+        ]
+        .concat(),
+    ));
+    let (header, rows) = read_csv(&sweep);
+    assert_eq!(column(&header, &rows, "v"), [last("c.Float64_continuous_output"), 20.0]);
+    assert_eq!(column(&header, &rows, "i"), [3.0, 3.0]);
+    assert_eq!(column(&header, &rows, "b"), [1.0, 1.0]);
+}

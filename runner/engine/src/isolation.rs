@@ -9,7 +9,7 @@
 //! so a killed runner leaves no workers behind. They must be started from one long-lived thread
 //! (the one calling these functions), as that parent-death signal follows the starting thread.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::ops::Range;
 use std::os::unix::process::{CommandExt, ExitStatusExt};
 use std::path::PathBuf;
@@ -189,6 +189,11 @@ impl Worker {
     /// dies with the runner.
     fn release(mut self) -> u64 {
         self.send(&Request::Release);
+        self.detach()
+    }
+
+    /// [`Worker::release`] for a worker already sent Release.
+    fn detach(self) -> u64 {
         let Worker { id, mut child, .. } = self;
         std::thread::spawn(move || {
             let _ = child.wait();
@@ -200,7 +205,8 @@ impl Worker {
 /// Starts workers and gathers what they say in one channel.
 struct Pool<'a> {
     config: &'a Isolation,
-    source: &'a FmuSource,
+    /// What a new worker loads; `None` until the supervisor has unpacked the FMU.
+    source: Option<FmuSource>,
     sender: Sender<(u64, Event)>,
     events: Receiver<(u64, Event)>,
     next_id: u64,
@@ -209,12 +215,13 @@ struct Pool<'a> {
 }
 
 impl<'a> Pool<'a> {
-    fn new(config: &'a Isolation, source: &'a FmuSource) -> Pool<'a> {
+    fn new(config: &'a Isolation, source: Option<FmuSource>) -> Pool<'a> {
         let (sender, events) = mpsc::channel();
         Pool { config, source, sender, events, next_id: 0, once_per_process: false }
     }
 
-    /// Starts a worker and asks it to load the FMU (it answers Ready or Failed later).
+    /// Starts a worker and, once the source is known, asks it to load the FMU (it answers Ready
+    /// or Failed later).
     fn spawn(&mut self) -> Result<Worker, String> {
         let slot = SharedSlot::new()?;
         let (memfd, limit, parent) = (slot.fd, self.config.memory_limit, std::process::id());
@@ -265,7 +272,9 @@ impl<'a> Pool<'a> {
         });
         let requests = child.stdin.take();
         let mut worker = Worker { id, child, requests, slot, unready: 1 };
-        worker.send(&Request::Load(self.source.clone()));
+        if let Some(source) = &self.source {
+            worker.send(&Request::Load(source.clone()));
+        }
         Ok(worker)
     }
 
@@ -311,28 +320,54 @@ fn limit_for(worker: Option<&Worker>, limit: Duration) -> Duration {
     }
 }
 
-/// One thread's worker and the point it runs.
+/// Points a worker has been sent at most: the one it runs and the next, so that it never waits
+/// for the runner between points (each wait is a wake-up of three threads: milliseconds on a
+/// busy machine). One when each instance needs a process of its own.
+const DEPTH: usize = 2;
+
+/// One thread's worker and the points sent to it.
 #[derive(Default)]
 struct Lane {
     worker: Option<Worker>,
-    /// The point being run and when it was sent.
-    busy: Option<(usize, Instant)>,
+    /// The points sent, in order: the first is running.
+    sent: VecDeque<usize>,
+    /// When the first of `sent` started: when it was sent, or when the one before it ended.
+    started: Option<Instant>,
+    /// The worker gets no more points: it retired or was told to release.
+    closed: bool,
+    /// Release was sent after its last point.
+    releasing: bool,
 }
 
-/// Worker processes started ahead of a sweep, so that they start and load the FMU while the
-/// supervisor reads the description and checks the plan (a worker's start costs about as much as
-/// ten of the handbook's runs).
+impl Lane {
+    fn busy(&self) -> Option<(usize, Instant)> {
+        self.sent.front().copied().zip(self.started)
+    }
+}
+
+/// Worker processes started ahead of a sweep, before the FMU is even unpacked: the processes
+/// start while the supervisor unpacks it, and load it (from that copy) while the supervisor reads
+/// the description and checks the plan (a worker's start costs about as much as ten of the
+/// handbook's runs).
 pub struct Workers<'a> {
     pool: Pool<'a>,
     ready: Vec<Worker>,
 }
 
 impl<'a> Workers<'a> {
-    /// Starts `count` workers of `source` (at least one).
-    pub fn start(config: &'a Isolation, source: &'a FmuSource, count: usize) -> Result<Workers<'a>, String> {
-        let mut pool = Pool::new(config, source);
+    /// Starts `count` workers (at least one); they wait for [`Workers::load`].
+    pub fn start(config: &'a Isolation, count: usize) -> Result<Workers<'a>, String> {
+        let mut pool = Pool::new(config, None);
         let ready = (0..count.max(1)).map(|_| pool.spawn()).collect::<Result<Vec<_>, _>>()?;
         Ok(Workers { pool, ready })
+    }
+
+    /// Has the workers load the FMU from `source`, as will the workers that replace them.
+    pub fn load(&mut self, source: &FmuSource) {
+        self.pool.source = Some(source.clone());
+        for worker in &mut self.ready {
+            worker.send(&Request::Load(source.clone()));
+        }
     }
 
     /// Gives every instance a worker of its own (the FMU declares
@@ -353,6 +388,12 @@ impl Drop for Workers<'_> {
 /// started, and calls `deliver(i, result)` in point order, like [`Plan::execute_range`]. Stops
 /// when `stop()` turns true (the points in progress are abandoned and their workers killed) or
 /// `deliver` fails.
+///
+/// Each worker is sent its next point while it runs one ([`DEPTH`]), except for the last few
+/// points of the sweep, which go one at a time to whichever worker is free, so that the sweep
+/// ends as evenly as on threads; after the last point a worker is sent Release at once. A point
+/// sent to a worker that crashed, timed out or retired before starting it is run again by
+/// another worker: only the point a worker was in is charged with its end.
 pub fn execute_sweep(
     plan: &Plan,
     spec: &SweepSpec,
@@ -361,18 +402,29 @@ pub fn execute_sweep(
     stop: &dyn Fn() -> bool,
     mut deliver: impl FnMut(usize, PointResult) -> Result<(), String>,
 ) -> Result<(), String> {
+    if workers.pool.source.is_none() {
+        return Err("the workers were not told which FMU to load".to_owned());
+    }
     let end = points.end.min(plan.space.len);
     let lane_count = workers.ready.len().min(end.saturating_sub(points.start)).max(1);
+    let config = workers.pool.config;
+    let once = workers.pool.once_per_process;
+    let depth = if once { 1 } else { DEPTH };
+    // The worker itself stops at the limit the runner would replace it at, since the next point
+    // is already on its way when the runner hears of its memory.
+    let retire_above = if once { Some(0) } else { config.memory_limit.map(|limit| limit / 2) };
+    let sweep = Request::Sweep { spec: spec.clone(), retire_above };
     let mut lanes: Vec<Lane> = (0..lane_count).map(|_| Lane::default()).collect();
     for (lane, mut worker) in lanes.iter_mut().zip(workers.ready.drain(..lane_count)) {
-        worker.send(&Request::Sweep(spec.clone()));
+        worker.send(&sweep);
         worker.unready += 1;
         lane.worker = Some(worker);
     }
-    let config = workers.pool.config;
     let pool = &mut workers.pool;
     let mut released: Vec<u64> = Vec::new();
     let mut next = points.start;
+    // Points to run again: sent to a worker that ended before it started them.
+    let mut again: BTreeSet<usize> = BTreeSet::new();
     let mut row = points.start;
     let mut waiting: BTreeMap<usize, PointResult> = BTreeMap::new();
     let outcome = (|| -> Result<(), String> {
@@ -380,23 +432,53 @@ pub fn execute_sweep(
             if stop() {
                 return Ok(());
             }
-            for lane in lanes.iter_mut().filter(|l| l.busy.is_none()) {
-                if next >= end {
-                    break;
+            for lane in lanes.iter_mut() {
+                loop {
+                    let left = again.len() + end.saturating_sub(next);
+                    // The last points go one at a time, to whichever worker is free first.
+                    let room = if left >= lane_count { depth } else { 1 };
+                    if left == 0 || lane.sent.len() >= room || (lane.closed && lane.worker.is_some()) {
+                        break;
+                    }
+                    if lane.worker.is_none() {
+                        let mut worker = pool.spawn()?;
+                        worker.send(&sweep);
+                        worker.unready += 1;
+                        lane.worker = Some(worker);
+                        lane.closed = false;
+                        lane.releasing = false;
+                    }
+                    let i = again.pop_first().unwrap_or_else(|| {
+                        next += 1;
+                        next - 1
+                    });
+                    lane.worker.as_mut().expect("started above").send(&Request::Point(i as u64));
+                    if lane.sent.is_empty() {
+                        lane.started = Some(Instant::now());
+                    }
+                    lane.sent.push_back(i);
                 }
-                if lane.worker.is_none() {
-                    let mut worker = pool.spawn()?;
-                    worker.send(&Request::Sweep(spec.clone()));
-                    worker.unready += 1;
-                    lane.worker = Some(worker);
-                }
-                let worker = lane.worker.as_mut().expect("started above");
-                worker.slot.slot().clear();
-                worker.send(&Request::Point(next as u64));
-                lane.busy = Some((next, Instant::now()));
-                next += 1;
             }
-            if lanes.iter().all(|l| l.busy.is_none()) {
+            let nothing_left = again.is_empty() && next >= end;
+            for lane in lanes.iter_mut() {
+                // Done with a worker: let it go now, after the points it has, so that it
+                // acknowledges right after its last one instead of a round trip later.
+                if nothing_left || lane.closed {
+                    if let Some(worker) = lane.worker.as_mut() {
+                        if !lane.releasing {
+                            worker.send(&Request::Release);
+                            lane.releasing = true;
+                            lane.closed = true;
+                        }
+                    }
+                }
+                if lane.closed && lane.sent.is_empty() {
+                    if let Some(worker) = lane.worker.take() {
+                        released.push(worker.detach());
+                    }
+                }
+            }
+            if lanes.iter().all(|l| l.sent.is_empty()) && nothing_left {
                 return Ok(());
             }
             // Wake for the first deadline, or a tick to look at Ctrl-C.
@@ -404,7 +486,7 @@ pub fn execute_sweep(
             let wait = lanes
                 .iter()
                 .filter_map(|l| {
-                    l.busy
+                    l.busy()
                         .zip(config.timeout)
                         .map(|((_, started), limit)| (started + limit_for(l.worker.as_ref(), limit)).saturating_duration_since(now))
                 })
@@ -417,44 +499,55 @@ pub fn execute_sweep(
                     (Some(lane), Event::Reply(Reply::Ready)) => {
                         let worker = lane.worker.as_mut().expect("matched by id");
                         worker.unready = worker.unready.saturating_sub(1);
-                        if worker.unready == 0 {
-                            if let Some((_, started)) = lane.busy.as_mut() {
-                                *started = Instant::now();
-                            }
+                        if worker.unready == 0 && !lane.sent.is_empty() {
+                            lane.started = Some(Instant::now());
                         }
                     }
                     (Some(lane), Event::Reply(Reply::Point { index, result, resident })) => {
-                        if lane.busy.map(|(i, _)| i as u64) == Some(index) {
+                        if lane.sent.front().map(|&i| i as u64) == Some(index) {
                             waiting.insert(index as usize, result);
-                            lane.busy = None;
+                            lane.sent.pop_front();
+                            // The next point started as this one ended.
+                            lane.started = Some(Instant::now());
                             if pool.worn_out(resident) {
-                                // It exits now, returning its memory.
-                                released.extend(lane.worker.take().map(Worker::release));
+                                // It runs no more points and exits, returning its memory.
+                                lane.closed = true;
                             }
+                        }
+                    }
+                    (Some(lane), Event::Reply(Reply::Skipped(index))) => {
+                        if let Some(k) = lane.sent.iter().position(|&i| i as u64 == index) {
+                            again.insert(lane.sent.remove(k).expect("found"));
+                            lane.closed = true;
                         }
                     }
                     (Some(lane), Event::Gone) => {
                         let worker = lane.worker.take().expect("matched by id");
                         let at = worker.slot.slot().read();
                         let status = worker.kill();
+                        // The point it was in is charged; those it had not started run again.
                         // An idle worker that ended is replaced at its next point.
-                        if let Some((i, _)) = lane.busy.take() {
+                        if let Some(i) = lane.sent.pop_front() {
                             waiting.insert(i, PointResult { metrics: None, status: death(status, at) });
                         }
+                        again.extend(lane.sent.drain(..));
+                        lane.started = None;
                     }
                     (None, Event::Gone | Event::Reply(Reply::Released)) => released.retain(|&i| i != id),
-                    (_, Event::Reply(_)) => {} // Ready, or a late word from a worker already replaced
+                    (_, Event::Reply(_)) => {} // Released, or a late word from a worker already replaced
                 }
             }
             if let Some(limit) = config.timeout {
                 for lane in lanes.iter_mut() {
-                    if let Some((i, started)) = lane.busy {
+                    if let Some((i, started)) = lane.busy() {
                         let limit = limit_for(lane.worker.as_ref(), limit);
                         if started.elapsed() >= limit {
                             let worker = lane.worker.take().expect("a busy lane has a worker");
                             let at = worker.slot.slot().read();
                             worker.kill();
-                            lane.busy = None;
+                            lane.sent.pop_front();
+                            again.extend(lane.sent.drain(..));
+                            lane.started = None;
                             waiting.insert(i, PointResult { metrics: None, status: timed_out(limit, at) });
                         }
                     }
@@ -468,8 +561,10 @@ pub fn execute_sweep(
     })();
     for lane in lanes {
         if let Some(worker) = lane.worker {
-            if lane.busy.is_some() {
+            if !lane.sent.is_empty() {
                 worker.kill();
+            } else if lane.releasing {
+                released.push(worker.detach());
             } else {
                 released.push(worker.release());
             }
@@ -491,7 +586,7 @@ pub struct Runs<'a> {
 impl<'a> Runs<'a> {
     /// A supervisor for runs of `source`; no worker starts before the first run.
     pub fn new(config: &'a Isolation, source: &'a FmuSource, one_instance_per_process: bool) -> Runs<'a> {
-        let mut pool = Pool::new(config, source);
+        let mut pool = Pool::new(config, Some(source.clone()));
         pool.once_per_process = one_instance_per_process;
         Runs { pool, worker: None, released: Vec::new() }
     }

@@ -159,8 +159,11 @@ pub struct RunEnd {
 pub enum Request {
     /// Load the FMU (once per worker).
     Load(FmuSource),
-    /// Prepare this sweep's plan, for the `Point`s that follow.
-    Sweep(SweepSpec),
+    /// Prepare this sweep's plan, for the `Point`s that follow. A worker whose resident memory
+    /// passes `retire_above` bytes after a point runs no more of them: it answers the `Point`s
+    /// already sent with [`Reply::Skipped`] (the runner sends the next point before the last one
+    /// ends, so that a worker never waits for it).
+    Sweep { spec: SweepSpec, retire_above: Option<u64> },
     /// Run point `.0` of the sweep.
     Point(u64),
     /// Run this and stream its samples.
@@ -180,6 +183,8 @@ pub enum Reply {
     Log(String),
     /// A sweep point's result, and the worker's resident memory after it (bytes).
     Point { index: u64, result: PointResult, resident: u64 },
+    /// Point `.0` was not run: the worker retired (its memory passed `retire_above`).
+    Skipped(u64),
     /// Samples of the running job: `t` then the recorded values, repeated; and per sample, in
     /// order, the texts of the columns whose numbers do not give them (`Reader::needs_text`).
     Samples { values: Vec<f64>, texts: Vec<String> },

@@ -89,7 +89,7 @@ impl Grid {
     }
 
     /// [`Grid::time`] for a grid of `steps` steps, so a loop computes `steps()` only once.
-    fn time_of(&self, i: usize, steps: usize) -> f64 {
+    pub fn time_of(&self, i: usize, steps: usize) -> f64 {
         if i >= steps {
             self.stop
         } else {

@@ -24,7 +24,12 @@ pub fn parse_range(text: &str) -> Result<(String, Vec<f64>), String> {
             .parse::<f64>()
             .ok()
             .filter(|x| x.is_finite())
-            .ok_or_else(|| format!("--param {text}: {what} '{}' is not a number", s.trim()))
+            .ok_or_else(|| {
+                format!(
+                    "--param {text}: {what} '{}' is not a number (a sweep varies numbers; give a String parameter one value with --set NAME=TEXT)",
+                    s.trim()
+                )
+            })
     };
     let values = if spec.contains(':') {
         let parts: Vec<&str> = spec.split(':').collect();

@@ -168,6 +168,10 @@ fn parse_element(variable: &Variable, text: &str) -> Result<Value, String> {
 pub fn number_value(variable: &Variable, x: f64) -> Result<Value, String> {
     match variable.kind {
         _ if variable.is_array() => Err(format!("'{}' is an array; a sweep sets scalars", variable.name)),
+        Kind::String => Err(format!(
+            "'{}' is a String variable; a sweep varies numbers (give a String one value for every point with --set {}=TEXT)",
+            variable.name, variable.name
+        )),
         Kind::Real | Kind::Float32 => Ok(Value::Real(x)),
         Kind::Integer | Kind::Enumeration if x.fract() == 0.0 && x.abs() <= i32::MAX as f64 => Ok(Value::Integer(x as i32)),
         Kind::Boolean if x == 0.0 || x == 1.0 => Ok(Value::Boolean(x == 1.0)),

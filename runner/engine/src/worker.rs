@@ -33,10 +33,16 @@ fn forward_line(line: &str) {
     let _ = reply(&Reply::Log(line.to_owned()));
 }
 
-/// Resident memory of this process in bytes (0 if unknown).
-fn resident_bytes() -> u64 {
-    let statm = std::fs::read_to_string("/proc/self/statm").unwrap_or_default();
-    let pages: u64 = statm.split_whitespace().nth(1).and_then(|p| p.parse().ok()).unwrap_or(0);
+/// Resident memory of this process in bytes (0 if unknown), from `statm`, /proc/self/statm kept
+/// open: one read per point rather than an open, a read and a close.
+fn resident_bytes(statm: Option<&File>) -> u64 {
+    use std::os::unix::fs::FileExt;
+    let mut buffer = [0u8; 128];
+    let text = match statm.map(|f| f.read_at(&mut buffer, 0)) {
+        Some(Ok(n)) => String::from_utf8_lossy(&buffer[..n]).into_owned(),
+        _ => std::fs::read_to_string("/proc/self/statm").unwrap_or_default(),
+    };
+    let pages: u64 = text.split_whitespace().nth(1).and_then(|p| p.parse().ok()).unwrap_or(0);
     // SAFETY: sysconf has no preconditions.
     pages * unsafe { libc::sysconf(libc::_SC_PAGESIZE) }.max(0) as u64
 }
@@ -93,6 +99,8 @@ pub fn serve() -> Result<(), String> {
 
     let source = match next(&mut requests)? {
         Some(Request::Load(source)) => source,
+        // Let go before the FMU was known (started ahead, and the FMU turned out unusable).
+        Some(Request::Release) => return reply(&Reply::Released),
         None => return Ok(()),
         Some(other) => return Err(format!("the first request must be Load, not {other:?}")),
     };
@@ -101,7 +109,12 @@ pub fn serve() -> Result<(), String> {
         Err(e) => return reply(&Reply::Failed(e)),
     };
     reply(&Reply::Ready)?;
+    let statm = File::open("/proc/self/statm").ok();
+    let resident = || resident_bytes(statm.as_ref());
     let mut plan: Option<Plan> = None;
+    // Set once this worker's memory passed the sweep's limit: it runs no more points.
+    let mut retire_above: Option<u64> = None;
+    let mut retired = false;
     let mut point = Vec::new();
     let mut samples: Vec<f64> = Vec::with_capacity(BATCH + 64);
     let never = || false;
@@ -121,9 +134,10 @@ pub fn serve() -> Result<(), String> {
                 reply(&Reply::Released)?;
                 break;
             }
-            Request::Sweep(spec) => match spec.plan(&fmu.description, &fmu.identifier, fmu.interface) {
+            Request::Sweep { spec, retire_above: limit } => match spec.plan(&fmu.description, &fmu.identifier, fmu.interface) {
                 Ok(p) => {
                     plan = Some(p);
+                    retire_above = limit;
                     reply(&Reply::Ready)?;
                 }
                 Err(e) => return reply(&Reply::Failed(e)),
@@ -134,8 +148,14 @@ pub fn serve() -> Result<(), String> {
                 if i >= plan.space.len {
                     return Err(format!("point {i} is not in the sweep of {} points", plan.space.len));
                 }
+                if retired {
+                    reply(&Reply::Skipped(i as u64))?;
+                    continue;
+                }
                 let result = plan.run_point(&fmu, i, &mut point, &never);
-                reply(&Reply::Point { index: i as u64, result, resident: resident_bytes() })?;
+                let resident = resident();
+                retired = retire_above.is_some_and(|limit| resident > limit);
+                reply(&Reply::Point { index: i as u64, result, resident })?;
             }
             Request::Run(job) => {
                 let result = job.resolve(&fmu.description).and_then(|(assignments, recording)| {
@@ -172,7 +192,7 @@ pub fn serve() -> Result<(), String> {
                     }
                     outcome.map(|o| RunEnd { ended_early: o.ended_early, counters: o.counters })
                 });
-                reply(&Reply::RunDone { result, resident: resident_bytes() })?;
+                reply(&Reply::RunDone { result, resident: resident() })?;
             }
         }
     }

@@ -115,8 +115,12 @@ pub trait Exchange {
     fn exit_initialization_mode(&mut self) -> Result<(), String>;
     /// Sets one variable.
     fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String>;
+    /// Reads a String variable, each element of an array.
+    fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String>;
     /// Reads the variables of `reader` into `out`.
     fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String>;
+    /// Sets Real scalars, `values[k]` to `vrs[k]`, in one call.
+    fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String>;
     /// The numbers of states and event indicators after initialization, given the
     /// description's (FMI 3.0 asks the FMU: structural parameters may change them).
     fn sizes(&mut self, nx: usize, nz: usize) -> Result<(usize, usize), String> {
@@ -384,10 +388,21 @@ impl<C: Exchange> ModelExchange<C> {
         self.component.set(variable, value)
     }
 
+    /// Reads a String variable, each element of an array.
+    pub fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String> {
+        self.component.get_string(variable)
+    }
+
     /// Reads the variables of `reader` into `out` (the FMU holds the time and states reached).
     #[inline]
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         self.component.read(reader, out)
+    }
+
+    /// Sets Real scalars, `values[k]` to `vrs[k]`, in one call.
+    #[inline]
+    pub fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        self.component.set_reals(vrs, values)
     }
 
     /// Accepted steps and right-hand-side evaluations of the runner's integrator so far.

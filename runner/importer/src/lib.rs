@@ -384,6 +384,17 @@ impl Instance<'_> {
         }
     }
 
+    /// Reads a String variable: its text, each element's for an FMI 3.0 array (after
+    /// initialization has begun, as FMI allows).
+    pub fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String> {
+        match self {
+            Instance::Fmi2Cs(i) => i.get_string(variable).map(|text| vec![text]),
+            Instance::Fmi3Cs(i) => i.get_string(variable),
+            Instance::Fmi2Me(i) => i.get_string(variable),
+            Instance::Fmi3Me(i) => i.get_string(variable),
+        }
+    }
+
     /// Sets the first time derivative of the Real input `variable` (FMI 2.0 Co-Simulation FMUs
     /// that declare `canInterpolateInputs`; the others are refused).
     pub fn set_input_derivative(&mut self, variable: &Variable, derivative: f64) -> Result<(), String> {
@@ -403,6 +414,18 @@ impl Instance<'_> {
             Instance::Fmi3Cs(i) => i.read(reader, out),
             Instance::Fmi2Me(i) => i.read(reader, out),
             Instance::Fmi3Me(i) => i.read(reader, out),
+        }
+    }
+
+    /// Sets Real (Float64) scalars, `values[k]` to `vrs[k]`, in one call without allocating:
+    /// a master's inputs at every step. The caller checks that each is a settable Real.
+    #[inline]
+    pub fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        match self {
+            Instance::Fmi2Cs(i) => i.set_reals(vrs, values),
+            Instance::Fmi3Cs(i) => i.set_reals(vrs, values),
+            Instance::Fmi2Me(i) => i.set_reals(vrs, values),
+            Instance::Fmi3Me(i) => i.set_reals(vrs, values),
         }
     }
 
@@ -435,6 +458,21 @@ impl Instance<'_> {
             Instance::Fmi3Cs(i) => i.handle_event(time),
         }
     }
+}
+
+/// The text of a string the FMU returned for `name` from `call`: NULL and invalid UTF-8 are
+/// the FMU's faults, reported as such.
+///
+/// # Safety
+/// `p` is NULL or a NUL-terminated string valid for the call.
+pub(crate) unsafe fn text_of(p: *const std::ffi::c_char, name: &str, call: &str) -> Result<String, String> {
+    if p.is_null() {
+        return Err(format!("{call} of {name}: the FMU returned a NULL string"));
+    }
+    std::ffi::CStr::from_ptr(p)
+        .to_str()
+        .map(str::to_owned)
+        .map_err(|e| format!("{call} of {name}: the FMU returned text that is not UTF-8 ({e})"))
 }
 
 #[cfg(test)]

@@ -63,9 +63,11 @@ pub enum Call {
     Fmi3GetEventIndicators,
     Fmi3GetContinuousStates,
     Fmi3GetNumberOfContinuousStates,
+    // Last, so the numbers of the calls before stay as they were.
+    GetString,
 }
 
-const ALL: [Call; 49] = [
+const ALL: [Call; 50] = [
     Call::None,
     Call::Load,
     Call::Instantiate,
@@ -115,6 +117,7 @@ const ALL: [Call; 49] = [
     Call::Fmi3GetEventIndicators,
     Call::Fmi3GetContinuousStates,
     Call::Fmi3GetNumberOfContinuousStates,
+    Call::GetString,
 ];
 
 impl Call {
@@ -170,6 +173,7 @@ impl Call {
             Call::Fmi3GetEventIndicators => "fmi3GetEventIndicators",
             Call::Fmi3GetContinuousStates => "fmi3GetContinuousStates",
             Call::Fmi3GetNumberOfContinuousStates => "fmi3GetNumberOfContinuousStates (and EventIndicators)",
+            Call::GetString => "fmi2GetString",
         }
     }
 

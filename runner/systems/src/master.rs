@@ -11,12 +11,12 @@
 //! mode; then the outputs are passed to the inputs as many times as there are components, so
 //! values settle along any chain; then every component leaves initialization mode.
 
-use fmi_importer::{Causality, Kind, Reader, Step, Value, Variable};
+use fmi_importer::{Causality, Instance, Kind, Reader, Step, Value, Variable};
 use runner_engine::run::Grid;
 use runner_engine::variables;
 
 use crate::ssd::{self, ParameterValue};
-use crate::system::System;
+use crate::system::{Component, System};
 
 /// The master algorithm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -40,6 +40,7 @@ impl Master {
 }
 
 /// A connection ready to pass values: from `values[from]` to component `to`'s `variable`.
+#[derive(Clone, Copy)]
 struct Transfer<'a> {
     from: usize,
     to: usize,
@@ -308,17 +309,82 @@ impl<'a> Bound<'a> {
         instance_name: &str,
         grid: &Grid,
         sets: &[Assignment],
+        sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
+    ) -> Result<Outcome, Failure> {
+        self.run_plan(&self.plan(None), instance_name, grid, sets, sample)
+    }
+
+    /// [`Bound::run`] recording only the columns `recorded` (indices into
+    /// [`Bound::columns`], e.g. a sweep's metric variables): `sample(t, values)` gets their
+    /// values in that order, and the master reads from the FMUs only these and the outputs
+    /// that feed connections.
+    pub fn run_recorded(
+        &self,
+        instance_name: &str,
+        grid: &Grid,
+        sets: &[Assignment],
+        recorded: &[usize],
+        sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
+    ) -> Result<Outcome, Failure> {
+        self.run_plan(&self.plan(Some(recorded)), instance_name, grid, sets, sample)
+    }
+
+    /// What a run reads and sets, made once so that a step does no lookups: the values read
+    /// at each point (all columns, or `recorded` ones and connection sources), and per
+    /// component its Real inputs as value references with their sources and conversions.
+    fn plan(&self, recorded: Option<&[usize]>) -> Plan<'a> {
+        let components = &self.system.components;
+        let sources: Vec<usize> = self.transfers.iter().map(|tr| tr.from).collect();
+        // Column -> its slot in the values read at each point.
+        let mut slot_of = vec![usize::MAX; self.columns.len()];
+        let mut reads = Vec::with_capacity(components.len());
+        let mut slots = 0;
+        for (vars, offset) in &self.reads {
+            let mut read = Vec::new();
+            for (k, v) in vars.iter().enumerate() {
+                let column = offset + k;
+                if recorded.is_none_or(|r| r.contains(&column)) || sources.contains(&column) {
+                    slot_of[column] = slots + read.len();
+                    read.push(*v);
+                }
+            }
+            reads.push((read, slots));
+            slots += reads.last().map_or(0, |(r, _): &(Vec<&Variable>, usize)| r.len());
+        }
+        let mut inputs: Vec<Inputs<'a>> = (0..components.len()).map(|_| Inputs::default()).collect();
+        for tr in &self.transfers {
+            let to = &mut inputs[tr.to];
+            let from = slot_of[tr.from];
+            if tr.kind == Kind::Real {
+                to.vrs.push(tr.variable.value_reference);
+                to.names.push(tr.variable.name.as_str());
+                to.reals.push((from, tr.factor, tr.offset));
+            } else {
+                to.others.push(Transfer { from, ..*tr });
+            }
+        }
+        let recorded = recorded.map(|r| r.iter().map(|&c| slot_of[c]).collect());
+        Plan { reads, slots, inputs, recorded }
+    }
+
+    fn run_plan(
+        &self,
+        plan: &Plan,
+        instance_name: &str,
+        grid: &Grid,
+        sets: &[Assignment],
         mut sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
     ) -> Result<Outcome, Failure> {
         let components = &self.system.components;
-        let fail = |c: usize, time: f64| move |message: String| Failure { component: Some(components[c].name.clone()), time, message };
-        let output = |time: f64| move |message: String| Failure { component: None, time, message };
+        let fail = |c: usize, time: f64| move |message: String| failure(components, c, time, message);
         let mut readers = Vec::with_capacity(components.len());
-        for (c, (vars, _)) in self.reads.iter().enumerate() {
+        for (c, (vars, _)) in plan.reads.iter().enumerate() {
             readers.push(Reader::new(components[c].fmu.description.fmi_version, vars).map_err(fail(c, grid.start))?);
         }
-        let width = self.columns.len();
-        let mut values = vec![0.0; width];
+        let mut values = vec![0.0; plan.slots];
+        // The Real inputs' values, per component, filled before each set.
+        let mut buffers: Vec<Vec<f64>> = plan.inputs.iter().map(|i| vec![0.0; i.vrs.len()]).collect();
+        let mut row = vec![0.0; plan.recorded.as_ref().map_or(0, Vec::len)];
         let mut instances = Vec::with_capacity(components.len());
         for (c, component) in components.iter().enumerate() {
             let mut instance =
@@ -334,69 +400,162 @@ impl<'a> Bound<'a> {
             instance.enter_initialization_mode().map_err(fail(c, grid.start))?;
             instances.push(instance);
         }
-        let read = |c: usize, instances: &mut Vec<fmi_importer::Instance>, readers: &mut Vec<Reader>, values: &mut [f64], t: f64| {
-            let (vars, offset) = &self.reads[c];
-            instances[c].read(&mut readers[c], &mut values[*offset..offset + vars.len()]).map_err(fail(c, t))
-        };
-        let transfer = |to: Option<usize>, instances: &mut Vec<fmi_importer::Instance>, values: &[f64], t: f64| -> Result<(), Failure> {
-            for tr in self.transfers.iter().filter(|tr| to.is_none_or(|c| tr.to == c)) {
-                let x = tr.factor * values[tr.from] + tr.offset;
-                let value = match tr.kind {
-                    Kind::Real | Kind::Float32 => Value::Real(x),
-                    Kind::Boolean => Value::Boolean(x != 0.0),
-                    _ => variables::number_value(tr.variable, x.round()).map_err(fail(tr.to, t))?,
-                };
-                instances[tr.to].set(tr.variable, &value).map_err(fail(tr.to, t))?;
-            }
-            Ok(())
-        };
+        let n_components = components.len();
         // Pass values along chains during initialization.
-        for _ in 0..components.len() {
-            for c in 0..components.len() {
-                read(c, &mut instances, &mut readers, &mut values, grid.start)?;
+        for _ in 0..n_components {
+            for c in 0..n_components {
+                read(plan, components, c, &mut instances[c], &mut readers[c], &mut values, grid.start)?;
             }
-            transfer(None, &mut instances, &values, grid.start)?;
+            for c in 0..n_components {
+                transfer(plan, components, c, &mut instances[c], &mut buffers[c], &values, grid.start)?;
+            }
         }
         for (c, instance) in instances.iter_mut().enumerate() {
             instance.exit_initialization_mode().map_err(fail(c, grid.start))?;
         }
-        for c in 0..components.len() {
-            read(c, &mut instances, &mut readers, &mut values, grid.start)?;
+        for c in 0..n_components {
+            read(plan, components, c, &mut instances[c], &mut readers[c], &mut values, grid.start)?;
         }
-        sample(grid.start, &values).map_err(output(grid.start))?;
+        emit(plan, &mut sample, grid.start, &values, &mut row)?;
         let n = grid.steps();
+        let jacobi = self.master == Master::Jacobi;
         for i in 0..n {
-            let t = grid.time(i);
-            let t_next = grid.time(i + 1);
-            if self.master == Master::Jacobi {
-                transfer(None, &mut instances, &values, t)?;
+            let (t, t_next) = (grid.time_of(i, n), grid.time_of(i + 1, n));
+            if jacobi {
+                for c in 0..n_components {
+                    transfer(plan, components, c, &mut instances[c], &mut buffers[c], &values, t)?;
+                }
             }
             for &c in &self.order {
-                if self.master == Master::GaussSeidel {
-                    transfer(Some(c), &mut instances, &values, t)?;
+                if !jacobi {
+                    transfer(plan, components, c, &mut instances[c], &mut buffers[c], &values, t)?;
                 }
                 if let Some(ended) = step(&mut instances[c], t, t_next).map_err(fail(c, t))? {
                     // The others may have stepped on: the last row is the one at t.
                     return Ok(Outcome::Ended(Failure { component: Some(components[c].name.clone()), time: t, message: ended }));
                 }
-                if self.master == Master::GaussSeidel {
-                    read(c, &mut instances, &mut readers, &mut values, t_next)?;
+                if !jacobi {
+                    read(plan, components, c, &mut instances[c], &mut readers[c], &mut values, t_next)?;
                 }
             }
-            if self.master == Master::Jacobi {
-                for c in 0..components.len() {
-                    read(c, &mut instances, &mut readers, &mut values, t_next)?;
+            if jacobi {
+                for c in 0..n_components {
+                    read(plan, components, c, &mut instances[c], &mut readers[c], &mut values, t_next)?;
                 }
             }
-            sample(t_next, &values).map_err(output(t_next))?;
+            emit(plan, &mut sample, t_next, &values, &mut row)?;
         }
         Ok(Outcome::Finished)
     }
 }
 
+/// What a run reads and sets, from [`Bound::plan`].
+struct Plan<'a> {
+    /// Per component: the variables read at each point, and where their values start.
+    reads: Vec<(Vec<&'a Variable>, usize)>,
+    /// The number of values read at each point.
+    slots: usize,
+    /// Per component: the inputs it gets from connections.
+    inputs: Vec<Inputs<'a>>,
+    /// The slots of the recorded columns, in the caller's order (`None`: the values are the
+    /// columns).
+    recorded: Option<Vec<usize>>,
+}
+
+/// A component's inputs from connections: its Real ones set in one call, the others one by one.
+#[derive(Default)]
+struct Inputs<'a> {
+    /// The Real inputs' value references.
+    vrs: Vec<u32>,
+    /// Their names, for errors.
+    names: Vec<&'a str>,
+    /// Per Real input: the slot of its source, and the conversion `factor * x + offset`.
+    reals: Vec<(usize, f64, f64)>,
+    /// Integer, Boolean and Float32 inputs (`from` is a slot).
+    others: Vec<Transfer<'a>>,
+}
+
+/// The failure of component `c` at `time`.
+#[cold]
+fn failure(components: &[Component], c: usize, time: f64, message: String) -> Failure {
+    Failure { component: Some(components[c].name.clone()), time, message }
+}
+
+/// Reads component `c`'s planned outputs into its slots of `values`.
+#[inline(always)]
+fn read(
+    plan: &Plan,
+    components: &[Component],
+    c: usize,
+    instance: &mut Instance,
+    reader: &mut Reader,
+    values: &mut [f64],
+    t: f64,
+) -> Result<(), Failure> {
+    let (vars, offset) = &plan.reads[c];
+    if vars.is_empty() {
+        return Ok(());
+    }
+    instance.read(reader, &mut values[*offset..offset + vars.len()]).map_err(|e| failure(components, c, t, e))
+}
+
+/// Sets component `c`'s inputs from `values`: its Reals in one call, any others one by one.
+#[inline(always)]
+fn transfer(
+    plan: &Plan,
+    components: &[Component],
+    c: usize,
+    instance: &mut Instance,
+    buffer: &mut [f64],
+    values: &[f64],
+    t: f64,
+) -> Result<(), Failure> {
+    let inputs = &plan.inputs[c];
+    if !inputs.vrs.is_empty() {
+        for (x, &(from, factor, offset)) in buffer.iter_mut().zip(&inputs.reals) {
+            *x = factor * values[from] + offset;
+        }
+        if let Err(e) = instance.set_reals(&inputs.vrs, buffer) {
+            return Err(failure(components, c, t, format!("{e} (setting {})", inputs.names.join(", "))));
+        }
+    }
+    for tr in &inputs.others {
+        let x = tr.factor * values[tr.from] + tr.offset;
+        let value = match tr.kind {
+            Kind::Real | Kind::Float32 => Value::Real(x),
+            Kind::Boolean => Value::Boolean(x != 0.0),
+            _ => variables::number_value(tr.variable, x.round()).map_err(|e| failure(components, c, t, e))?,
+        };
+        instance.set(tr.variable, &value).map_err(|e| failure(components, c, t, e))?;
+    }
+    Ok(())
+}
+
+/// Gives `sample` the point's values: all columns, or the recorded ones in the caller's order.
+#[inline(always)]
+fn emit(
+    plan: &Plan,
+    sample: &mut impl FnMut(f64, &[f64]) -> Result<(), String>,
+    t: f64,
+    values: &[f64],
+    row: &mut [f64],
+) -> Result<(), Failure> {
+    let result = match &plan.recorded {
+        None => sample(t, values),
+        Some(slots) => {
+            for (x, &s) in row.iter_mut().zip(slots) {
+                *x = values[s];
+            }
+            sample(t, row)
+        }
+    };
+    result.map_err(|message| Failure { component: None, time: t, message })
+}
+
 /// One component's step from `t` to `t_next`, going on from any event it stops at (FMI 3.0):
 /// `Some(reason)` when the FMU ended the simulation.
-fn step(instance: &mut fmi_importer::Instance, t: f64, t_next: f64) -> Result<Option<String>, String> {
+#[inline(always)]
+fn step(instance: &mut Instance, t: f64, t_next: f64) -> Result<Option<String>, String> {
     let mut now = t;
     loop {
         match instance.do_step(now, t_next - now)? {

@@ -426,12 +426,50 @@ impl<M: Model> Core<M> {
         Ok(())
     }
 
-    /// String reads and writes: these models have no String variables.
-    pub fn no_strings(&self, vrs: &[u32]) -> CallResult {
-        match vrs.first() {
-            Some(vr) => Err(self.unknown(*vr, "String")),
-            None => Ok(()),
+    /// Reads String variables: each value copied out, so the front end owns what it hands the
+    /// importer (the model may change its own strings at the next call).
+    pub fn get_string(&mut self, vrs: &[u32], phase: Phase) -> CallResult<Vec<String>> {
+        self.prepare_read(phase)?;
+        let mut values = Vec::with_capacity(vrs.len());
+        for vr in vrs {
+            let i = *vr as usize;
+            match self.table.rows.get(i).map(|r| &r.slot) {
+                Some(Slot::Model(Access::String { get, .. })) => {
+                    if self.table.computed[i] {
+                        self.state.refresh_outputs();
+                    }
+                    values.push(get(&self.state.model).to_owned());
+                }
+                _ => return Err(self.unknown(*vr, "String")),
+            }
         }
+        Ok(values)
+    }
+
+    /// Sets String variables (all or nothing, like [`Core::set_real`]). A value with a NUL
+    /// character is refused: it could not be handed back through C.
+    pub fn set_string(&mut self, vrs: &[u32], values: &[&str], phase: Phase, state: &str) -> CallResult {
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            let i = self.settable(*vr, phase, state)?;
+            if !matches!(self.table.rows[i].slot, Slot::Model(Access::String { set: Some(_), .. })) {
+                return Err(self.unknown(*vr, "settable String"));
+            }
+            if value.contains('\0') {
+                return Err(Failure::error(format!(
+                    "{} = {value:?} refused: a String value cannot hold a NUL character",
+                    self.table.rows[i].name
+                )));
+            }
+        }
+        let mut changed = false;
+        for (vr, value) in vrs.iter().zip(values.iter()) {
+            if let Slot::Model(Access::String { get, set: Some(set) }) = &self.table.rows[*vr as usize].slot {
+                changed |= get(&self.state.model) != *value;
+                set(&mut self.state.model, value);
+            }
+        }
+        self.after_set(phase, changed);
+        Ok(())
     }
 
     /// Checks that the row of `vr` may be set now (the fixed/tunable/input rules); returns its

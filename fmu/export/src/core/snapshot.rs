@@ -14,8 +14,9 @@ const MAGIC: &[u8; 4] = b"RFMS";
 /// had FMI 2.0's inside the core). Version 3: the core's Model Exchange fields and the Model
 /// Exchange states of the state machine. Version 4: the solver's state holds its pending step
 /// (the step across the communication point, its dense output and the point last handed out)
-/// and the new solver settings (`max_step`, the stop time).
-const FORMAT_VERSION: u16 = 4;
+/// and the new solver settings (`max_step`, the stop time). Version 5: models may hold String
+/// parameters (their text is in the model struct's encoding).
+const FORMAT_VERSION: u16 = 5;
 const HEADER_LEN: usize = 4 + 2 + 8 + 8 + 4;
 
 /// Encodes `state` and the front end's `phase` with a header tying them to the model whose

@@ -123,6 +123,13 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
                 },
                 ..Default::default()
             }),
+            BaseType::String => d::VariableType::String(d::StringVariable {
+                start: match start {
+                    Some(Start::String(v)) => Some(v),
+                    _ => None,
+                },
+                ..Default::default()
+            }),
         };
         let mut sv = d::ScalarVariable::new(row.name, vr as u32, var_type);
         sv.description = Some(row.description.to_owned());

@@ -280,8 +280,11 @@ pub unsafe fn get_boolean<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize,
 pub unsafe fn get_string<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize, value: *mut *const c_char) -> c_int {
     with_instance::<M>(c, Call::GetString, |inst| {
         let vrs = slice(vr, n, Call::GetString, "vr[]")?;
-        slice_mut(value, n, Call::GetString, "value[]")?;
-        ok(inst.get_string(vrs))
+        let values = slice_mut(value, n, Call::GetString, "value[]")?;
+        for (out, text) in values.iter_mut().zip(inst.get_string(vrs)?) {
+            *out = text.as_ptr();
+        }
+        Ok(Status::Ok)
     })
 }
 
@@ -319,8 +322,10 @@ pub unsafe fn set_boolean<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize,
 pub unsafe fn set_string<M: Model>(c: *mut c_void, vr: *const c_uint, n: usize, value: *const *const c_char) -> c_int {
     with_instance::<M>(c, Call::SetString, |inst| {
         let vrs = slice(vr, n, Call::SetString, "vr[]")?;
-        slice(value, n, Call::SetString, "value[]")?;
-        ok(inst.set_string(vrs))
+        let pointers = slice(value, n, Call::SetString, "value[]")?;
+        let texts = glue::texts(pointers, vrs, inst.table(), Call::SetString.name(), "value")?;
+        inst.trace(Call::SetString, || format!("vr={vrs:?}, value={texts:?}"));
+        ok(inst.set_string(vrs, &texts))
     })
 }
 

@@ -11,6 +11,8 @@ pub mod ffi;
 mod model_exchange;
 pub mod state_machine;
 
+use std::ffi::CString;
+
 use crate::core::{CallResult, Core, Failure, Names, Phase, State, StepEnd};
 use crate::logging::{Logger, Status, LOG_CALLS};
 use crate::model::Model;
@@ -26,6 +28,8 @@ pub struct Instance<M: Model> {
     core: Core<M>,
     state: FmiState,
     interface: Interface,
+    /// The C strings the last `fmi2GetString` handed out.
+    returned_strings: Vec<CString>,
 }
 
 impl<M: Model> Instance<M> {
@@ -36,7 +40,7 @@ impl<M: Model> Instance<M> {
 
     /// A new instance of `interface` in state Instantiated with the table's start values.
     pub fn for_interface(name: &str, logger: Logger, interface: Interface) -> Instance<M> {
-        Instance { core: Core::new(name, logger, NAMES), state: FmiState::Instantiated, interface }
+        Instance { core: Core::new(name, logger, NAMES), state: FmiState::Instantiated, interface, returned_strings: Vec::new() }
     }
 
     /// Lets the model read the FMU's resources from `dir` (at instantiation).
@@ -195,10 +199,15 @@ impl<M: Model> Instance<M> {
         self.core.get_boolean(vrs, values, self.phase())
     }
 
-    /// `fmi2GetString`: these FMUs have no String variables.
-    pub fn get_string(&mut self, vrs: &[u32]) -> CallResult {
+    /// `fmi2GetString`: the values as C strings, which the instance keeps until its next
+    /// `fmi2GetString` (or until it is freed): FMI 2.0 lets the importer use them until its
+    /// next call into the instance, and longer does no harm.
+    pub fn get_string(&mut self, vrs: &[u32]) -> CallResult<&[CString]> {
         self.check(Call::GetString)?;
-        self.core.no_strings(vrs)
+        let values = self.core.get_string(vrs, self.phase())?;
+        let texts: Result<Vec<CString>, _> = values.into_iter().map(CString::new).collect();
+        self.returned_strings = texts.map_err(|_| Failure::error("a String value holds a NUL character and cannot be handed out"))?;
+        Ok(&self.returned_strings)
     }
 
     /// `fmi2SetReal` (all or nothing: a refused call changes nothing).
@@ -219,10 +228,10 @@ impl<M: Model> Instance<M> {
         self.core.set_boolean(vrs, values, self.phase(), self.state.name())
     }
 
-    /// `fmi2SetString`: these FMUs have no String variables.
-    pub fn set_string(&mut self, vrs: &[u32]) -> CallResult {
+    /// `fmi2SetString` (all or nothing; the texts are copied).
+    pub fn set_string(&mut self, vrs: &[u32], values: &[&str]) -> CallResult {
         self.check(Call::SetString)?;
-        self.core.no_strings(vrs)
+        self.core.set_string(vrs, values, self.phase(), self.state.name())
     }
 
     /// `fmi2DoStep`: integrates from the current communication point over `h`, handling events.

@@ -137,6 +137,12 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
                     _ => None,
                 },
             },
+            BaseType::String => d::VariableKind::String {
+                start: match start {
+                    Some(Start::String(v)) => Some(vec![v]),
+                    _ => None,
+                },
+            },
         };
         let mut v = d::Variable::new(row.name, vr as u32, kind);
         v.description = Some(row.description.to_owned());

@@ -332,13 +332,43 @@ pub unsafe fn set_boolean<M: Model>(c: *mut c_void, vr: *const u32, n: usize, va
     })
 }
 
+/// `fmi3GetString`: `values[i]` points at the instance's copy of the value, valid until the
+/// next `fmi3GetString` on the instance (or until it is freed).
+pub unsafe fn get_string<M: Model>(c: *mut c_void, vr: *const u32, n: usize, values: *mut *const c_char, n_values: usize) -> c_int {
+    let call = Call::GetString;
+    with_instance::<M>(c, call, |inst| {
+        inst.check(call)?;
+        check_values(call, n, n_values)?;
+        let vrs = slice(vr, n, call.name(), "valueReferences[]")?;
+        let values = slice_mut(values, n, call.name(), "values[]")?;
+        for (out, text) in values.iter_mut().zip(inst.get_string(vrs)?) {
+            *out = text.as_ptr();
+        }
+        Ok(Status::Ok)
+    })
+}
+
+/// `fmi3SetString`: a NULL element or text that is not UTF-8 is refused, naming the variable.
+pub unsafe fn set_string<M: Model>(c: *mut c_void, vr: *const u32, n: usize, values: *const *const c_char, n_values: usize) -> c_int {
+    let call = Call::SetString;
+    with_instance::<M>(c, call, |inst| {
+        inst.check(call)?;
+        check_values(call, n, n_values)?;
+        let vrs = slice(vr, n, call.name(), "valueReferences[]")?;
+        let pointers = slice(values, n, call.name(), "values[]")?;
+        let texts = glue::texts(pointers, vrs, inst.table(), call.name(), "values")?;
+        inst.trace(call, || format!("valueReferences={vrs:?}, values={texts:?}"));
+        ok(inst.set_string(vrs, &texts))
+    })
+}
+
 /// A getter or setter of a type no variable of these FMUs has (`name` is the C function).
 pub unsafe fn no_such_type<M: Model>(c: *mut c_void, name: &'static str, set: bool) -> c_int {
     let call = if set { Call::SetOther(name) } else { Call::GetOther(name) };
     // "fmi3GetFloat32" -> "Float32"
     let ty = &name[7..];
     with_instance::<M>(c, call, |inst| {
-        ok(inst.not_applicable(call, &format!("this FMU has no {ty} variables (its variables are Float64, Int32 and Boolean)")))
+        ok(inst.not_applicable(call, &format!("this FMU has no {ty} variables (its variables are Float64, Int32, Boolean or String)")))
     })
 }
 
@@ -794,9 +824,17 @@ macro_rules! export_fmi3 {
                 f::set_boolean::<M>(c, vr, n, v, nv)
             }
             $crate::export_fmi3!(@absent_get fmi3GetFloat32 fmi3GetInt8 fmi3GetUInt8 fmi3GetInt16 fmi3GetUInt16 fmi3GetUInt32
-                fmi3GetInt64 fmi3GetUInt64 fmi3GetString);
+                fmi3GetInt64 fmi3GetUInt64);
             $crate::export_fmi3!(@absent_set fmi3SetFloat32 fmi3SetInt8 fmi3SetUInt8 fmi3SetInt16 fmi3SetUInt16 fmi3SetUInt32
-                fmi3SetInt64 fmi3SetUInt64 fmi3SetString);
+                fmi3SetInt64 fmi3SetUInt64);
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi3GetString(c: *mut c_void, vr: Vrs, n: usize, v: *mut *const c_char, nv: usize) -> c_int {
+                f::get_string::<M>(c, vr, n, v, nv)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi3SetString(c: *mut c_void, vr: Vrs, n: usize, v: *const *const c_char, nv: usize) -> c_int {
+                f::set_string::<M>(c, vr, n, v, nv)
+            }
             #[no_mangle]
             pub unsafe extern "C" fn fmi3GetBinary(c: *mut c_void, _vr: Vrs, _n: usize, _sizes: *mut usize, _v: *mut *const u8, _nv: usize) -> c_int {
                 f::no_such_type::<M>(c, "fmi3GetBinary", false)

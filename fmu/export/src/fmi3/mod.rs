@@ -21,6 +21,8 @@ pub mod describe;
 pub mod ffi;
 pub mod state_machine;
 
+use std::ffi::CString;
+
 use serde::{Deserialize, Serialize};
 
 use crate::core::{CallResult, Core, EventUpdate, Failure, Names, Phase, State, StepCompleted, StepEnd, StepStop};
@@ -79,12 +81,19 @@ pub struct Instance<M: Model> {
     core: Core<M>,
     machine: Machine,
     setup: Setup,
+    /// The C strings the last `fmi3GetString` handed out.
+    returned_strings: Vec<CString>,
 }
 
 impl<M: Model> Instance<M> {
     /// A new instance in state Instantiated with the table's start values.
     pub fn new(name: &str, logger: Logger, setup: Setup) -> Instance<M> {
-        Instance { core: Core::new(name, logger, NAMES), machine: Machine { state: FmiState::Instantiated, pending_event: None }, setup }
+        Instance {
+            core: Core::new(name, logger, NAMES),
+            machine: Machine { state: FmiState::Instantiated, pending_event: None },
+            setup,
+            returned_strings: Vec::new(),
+        }
     }
 
     /// The current state-machine state.
@@ -411,6 +420,22 @@ impl<M: Model> Instance<M> {
     pub fn get_boolean(&mut self, vrs: &[u32], values: &mut [bool]) -> CallResult {
         self.check(Call::GetBoolean)?;
         self.core.get_boolean(vrs, values, self.phase())
+    }
+
+    /// `fmi3GetString`: the values as C strings, which the instance keeps until its next
+    /// `fmi3GetString` (or until it is freed), at least as long as FMI 3.0 asks.
+    pub fn get_string(&mut self, vrs: &[u32]) -> CallResult<&[CString]> {
+        self.check(Call::GetString)?;
+        let values = self.core.get_string(vrs, self.phase())?;
+        let texts: Result<Vec<CString>, _> = values.into_iter().map(CString::new).collect();
+        self.returned_strings = texts.map_err(|_| Failure::error("a String value holds a NUL character and cannot be handed out"))?;
+        Ok(&self.returned_strings)
+    }
+
+    /// `fmi3SetString` (all or nothing; the texts are copied).
+    pub fn set_string(&mut self, vrs: &[u32], values: &[&str]) -> CallResult {
+        self.check(Call::SetString)?;
+        self.core.set_string(vrs, values, self.phase(), self.machine.state.name())
     }
 
     /// Refuses to set an event indicator (a computed local), naming it.

@@ -86,9 +86,11 @@ pub enum Call {
     GetFloat64,
     GetInt32,
     GetBoolean,
+    GetString,
     SetFloat64,
     SetInt32,
     SetBoolean,
+    SetString,
     /// A getter of a type no variable of these FMUs has (`fmi3GetFloat32`, ...): its name.
     GetOther(&'static str),
     /// A setter of a type no variable of these FMUs has.
@@ -151,9 +153,11 @@ impl Call {
             Call::GetFloat64 => "fmi3GetFloat64",
             Call::GetInt32 => "fmi3GetInt32",
             Call::GetBoolean => "fmi3GetBoolean",
+            Call::GetString => "fmi3GetString",
             Call::SetFloat64 => "fmi3SetFloat64",
             Call::SetInt32 => "fmi3SetInt32",
             Call::SetBoolean => "fmi3SetBoolean",
+            Call::SetString => "fmi3SetString",
             Call::GetOther(name) | Call::SetOther(name) | Call::Clock(name) => name,
             Call::GetNumberOfVariableDependencies => "fmi3GetNumberOfVariableDependencies",
             Call::GetVariableDependencies => "fmi3GetVariableDependencies",
@@ -216,10 +220,10 @@ impl Call {
             // eventModeUsed, which the front end checks).
             Call::EnterEventMode => CT | STEP,
             Call::Terminate => EVENT | CT | STEP,
-            Call::GetFloat64 | Call::GetInt32 | Call::GetBoolean | Call::GetOther(_) => READABLE,
+            Call::GetFloat64 | Call::GetInt32 | Call::GetBoolean | Call::GetString | Call::GetOther(_) => READABLE,
             // In Continuous-Time Mode only continuous-time inputs may be set, which are Float64.
             Call::SetFloat64 | Call::SetOther(_) => I | INIT | EVENT | CT | STEP,
-            Call::SetInt32 | Call::SetBoolean => I | INIT | EVENT | STEP,
+            Call::SetInt32 | Call::SetBoolean | Call::SetString => I | INIT | EVENT | STEP,
             Call::GetNumberOfVariableDependencies | Call::GetVariableDependencies => READABLE,
             Call::GetFMUState
             | Call::SetFMUState

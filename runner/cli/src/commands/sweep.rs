@@ -211,14 +211,17 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         true => None,
         false => Some(workers::isolation(timeout, options.worker_memory.unwrap_or_else(|| workers::default_memory_mib(threads)))?),
     };
-    let (held, source) = Held::open(&target.path, &options.integration, options.in_process)?;
-    // Workers start now: they load the FMU (from this process's unpacked copy) while this process
-    // checks the plan and opens its files.
+    // Workers start now, while this process unpacks the FMU; then they load it (from this
+    // process's copy) while this process checks the plan and opens its files.
     let points = ranges.iter().fold(1usize, |n, (_, v)| n.saturating_mul(v.len()));
     let mut pool = match &config {
-        Some(config) => Some(Workers::start(config, &source, threads.min(points))?),
+        Some(config) => Some(Workers::start(config, threads.min(points))?),
         None => None,
     };
+    let (held, source) = Held::open(&target.path, &options.integration, options.in_process)?;
+    if let Some(pool) = &mut pool {
+        pool.load(&source);
+    }
     let d = held.description();
     let mut grid = Grid::choose(d, &[options.run.grid(), defaults.run().grid()])?;
     grid.solver = solver;

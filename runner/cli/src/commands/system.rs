@@ -130,9 +130,11 @@ pub fn sweep(
             }
         }
         let mut acc = metrics.accumulators();
-        let result = bound.run(&format!("point{i}"), &grid, &assignments, |t, values| {
-            for (a, &column) in acc.iter_mut().zip(&sources) {
-                a.add(t, values[column]);
+        // Only the metrics' columns are read (and what feeds connections), as a single FMU's
+        // sweep reads only its metrics' variables.
+        let result = bound.run_recorded(&format!("point{i}"), &grid, &assignments, &sources, |t, values| {
+            for (a, &x) in acc.iter_mut().zip(values) {
+                a.add(t, x);
             }
             Ok(())
         });

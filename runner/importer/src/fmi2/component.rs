@@ -156,6 +156,10 @@ impl<'a> Component<'a> {
                 }
             }
         };
+        if status == OK || status == WARNING {
+            // The message is made only on failure: inputs are set at every step.
+            return Ok(());
+        }
         let kind = match variable.kind {
             Kind::Boolean => "Boolean",
             Kind::String => "String",
@@ -163,6 +167,25 @@ impl<'a> Component<'a> {
             _ => "Real",
         };
         self.check(&format!("fmi2Set{kind} of {}", variable.name), status)
+    }
+
+    /// Reads a String variable (fmi2GetString with one value reference): the FMU's text copied
+    /// at once, as the FMU may reuse its memory at the next call.
+    pub(crate) fn get_string(&mut self, variable: &Variable) -> Result<String, String> {
+        if variable.kind != Kind::String {
+            return Err(format!("{} is a {}, not a String", variable.name, variable.kind.as_str()));
+        }
+        let Some(get) = self.binary.api.get_string else {
+            return Err(format!("{}: the FMU does not export fmi2GetString", self.name));
+        };
+        let vr = variable.value_reference;
+        let mut value: c::FmiString = std::ptr::null();
+        trace::enter(Call::GetString, self.time);
+        // SAFETY: one value reference and room for one pointer.
+        let status = unsafe { get(self.raw, &vr, 1, &mut value) };
+        self.check(&format!("fmi2GetString of {}", variable.name), status)?;
+        // SAFETY: a non-NULL pointer from the FMU is a NUL-terminated string until its next call.
+        unsafe { crate::text_of(value, &variable.name, "fmi2GetString") }
     }
 
     /// Reads the variables of `reader` into `out` (one f64 per variable, Booleans as 0/1).
@@ -180,6 +203,17 @@ impl<'a> Component<'a> {
         self.read_groups(reader)?;
         reader.gather(out);
         Ok(())
+    }
+
+    /// Sets Real variables, `values[k]` to `vrs[k]`, in one fmi2SetReal call (a master's
+    /// inputs at every step: no allocation).
+    #[inline]
+    pub(crate) fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        debug_assert_eq!(vrs.len(), values.len());
+        trace::enter(Call::SetReal, self.time);
+        // SAFETY: `vrs.len()` value references and as many values, valid for the call.
+        let status = unsafe { (self.binary.api.set_real)(self.raw, vrs.as_ptr(), vrs.len().min(values.len()), values.as_ptr()) };
+        self.check("fmi2SetReal", status)
     }
 
     /// [`Component::read`] for variables of several types, through the reader's buffers.

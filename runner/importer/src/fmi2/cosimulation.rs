@@ -36,6 +36,11 @@ impl<'a> CoSimulation<'a> {
         self.component.exit_initialization_mode()
     }
 
+    /// Reads a String variable (fmi2GetString).
+    pub fn get_string(&mut self, variable: &Variable) -> Result<String, String> {
+        self.component.get_string(variable)
+    }
+
     /// Sets one variable (fmi2Set<Type> with one value reference).
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
         self.component.set(variable, value)
@@ -58,6 +63,12 @@ impl<'a> CoSimulation<'a> {
     #[inline]
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         self.component.read(reader, out)
+    }
+
+    /// Sets Real scalars, `values[k]` to `vrs[k]`, in one call.
+    #[inline]
+    pub fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        self.component.set_reals(vrs, values)
     }
 
     /// fmi2DoStep from `t` over `h`; a discard with fmi2Terminated becomes [`Step::Ended`].

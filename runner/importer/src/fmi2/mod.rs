@@ -82,6 +82,8 @@ pub(crate) struct Api {
     pub(crate) set_integer: c::SetInteger,
     pub(crate) set_boolean: c::SetBoolean,
     pub(crate) set_string: c::SetString,
+    /// `fmi2GetString`, looked up leniently: the runner reads Strings only when asked to.
+    pub(crate) get_string: Option<c::GetString>,
     pub(crate) do_step: Option<c::DoStep>,
     pub(crate) get_boolean_status: Option<c::GetBooleanStatus>,
     pub(crate) get_real_status: Option<c::GetRealStatus>,
@@ -185,6 +187,7 @@ impl Api {
             set_integer: symbol(lib, "fmi2SetInteger")?,
             set_boolean: symbol(lib, "fmi2SetBoolean")?,
             set_string: symbol(lib, "fmi2SetString")?,
+            get_string: symbol(lib, "fmi2GetString").ok(),
             do_step: optional(lib, "fmi2DoStep", co_simulation)?,
             get_boolean_status: optional(lib, "fmi2GetBooleanStatus", co_simulation)?,
             get_real_status: optional(lib, "fmi2GetRealStatus", co_simulation)?,

@@ -142,8 +142,17 @@ impl Exchange for Exchange2<'_> {
         self.component.set(variable, value)
     }
 
+    fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String> {
+        self.component.get_string(variable).map(|text| vec![text])
+    }
+
     #[inline]
     fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         self.component.read(reader, out)
+    }
+
+    #[inline]
+    fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        self.component.set_reals(vrs, values)
     }
 }

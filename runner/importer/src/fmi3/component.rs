@@ -221,6 +221,32 @@ impl<'a> Component<'a> {
         self.check(&format!("fmi3Set{} of {}", variable.kind, variable.name), status)
     }
 
+    /// Reads a String variable, every element of an array (fmi3GetString with one value
+    /// reference): the FMU's texts copied at once, as it may reuse their memory.
+    pub(crate) fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String> {
+        if variable.kind != Kind::String {
+            return Err(format!("{} is a {}, not a String", variable.name, variable.kind));
+        }
+        // Fixed dimensions only: a structural parameter's value is the FMU's to tell.
+        let n = variable
+            .dimensions
+            .iter()
+            .map(|d| match d {
+                crate::model::Dimension::Fixed(n) => usize::try_from(*n).ok(),
+                crate::model::Dimension::Variable(_) => None,
+            })
+            .product::<Option<usize>>()
+            .ok_or_else(|| format!("{}: a String array sized by a structural parameter is not read", variable.name))?;
+        let vr = [variable.value_reference];
+        let mut values: Vec<c::FmiString> = vec![std::ptr::null(); n];
+        trace::enter(Call::Fmi3Get, f64::NAN);
+        // SAFETY: one value reference and room for its `n` elements.
+        let status = unsafe { (self.binary.api.get_string)(self.instance, vr.as_ptr(), 1, values.as_mut_ptr(), n) };
+        self.check(&format!("fmi3GetString of {}", variable.name), status)?;
+        // SAFETY: non-NULL pointers from the FMU are NUL-terminated strings until its next call.
+        values.iter().map(|p| unsafe { crate::text_of(*p, &variable.name, "fmi3GetString") }).collect()
+    }
+
     /// Reads the variables of `reader` into `out` (one f64 per element, Booleans as 0/1).
     #[inline]
     pub(crate) fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
@@ -237,6 +263,18 @@ impl<'a> Component<'a> {
         self.read_groups(reader)?;
         reader.gather(out);
         Ok(())
+    }
+
+    /// Sets Float64 scalars, `values[k]` to `vrs[k]`, in one fmi3SetFloat64 call (a master's
+    /// inputs at every step: no allocation).
+    #[inline]
+    pub(crate) fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        debug_assert_eq!(vrs.len(), values.len());
+        let n = vrs.len().min(values.len());
+        trace::enter(Call::Fmi3Set, f64::NAN);
+        // SAFETY: `n` value references of scalars and `n` values, valid for the call.
+        let status = unsafe { (self.binary.api.set_float64)(self.instance, vrs.as_ptr(), n, values.as_ptr(), n) };
+        self.check("fmi3SetFloat64", status)
     }
 
     fn read_groups(&mut self, reader: &mut Reader) -> Result<(), String> {

@@ -96,6 +96,11 @@ impl<'a> CoSimulation<'a> {
         ))
     }
 
+    /// Reads a String variable, each element of an array (fmi3GetString).
+    pub fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String> {
+        self.component.get_string(variable)
+    }
+
     /// Sets one variable (a scalar, or an array whole); structural parameters are set in
     /// Configuration Mode, which this enters and leaves around the call.
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
@@ -106,6 +111,12 @@ impl<'a> CoSimulation<'a> {
     #[inline]
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         self.component.read(reader, out)
+    }
+
+    /// Sets Real scalars, `values[k]` to `vrs[k]`, in one call.
+    #[inline]
+    pub fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
+        self.component.set_reals(vrs, values)
     }
 
     /// One `fmi3DoStep` from `t` over `h`: [`Step::Done`] at `t + h`; [`Step::Event`] when the

@@ -248,14 +248,14 @@ impl<M> Table<M> {
 
 impl<M: Model> Table<M> {
     /// The value of every Real and Integer parameter of `model` by name (Integers as f64; the
-    /// solver controls left out): what the closed forms of a model's references.toml read.
+    /// Boolean and String ones and the solver controls left out): what the closed forms of a model's references.toml read.
     pub fn parameter_values(&self, model: &M) -> Vec<(&'static str, f64)> {
         let parameters = self.rows.iter().filter(|r| r.causality == Causality::Parameter && matches!(r.slot, Slot::Model(_)));
         parameters
             .filter_map(|r| match r.start(model)? {
                 Start::Real(v) => Some((r.name, v)),
                 Start::Integer(v) => Some((r.name, v as f64)),
-                Start::Boolean(_) => None,
+                Start::Boolean(_) | Start::String(_) => None,
             })
             .collect()
     }

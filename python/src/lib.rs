@@ -13,6 +13,7 @@ use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use runner_engine::input::InputTable;
+use runner_engine::references::References;
 use runner_engine::run::{self, Grid, GridSettings, Recording};
 use runner_engine::sweep::{PointResult, SweepSpec};
 use runner_engine::variables;
@@ -380,6 +381,23 @@ impl Model {
     }
 }
 
+/// Every entry of the references.toml at `path` (with the files it includes) as the engine
+/// evaluates it at `values`: scalars as floats, matrices as lists of rows. Not public API: the
+/// tests compare it with the Python evaluator of the same files (tests/fmpy/closed_form.py).
+#[pyfunction]
+fn reference_values<'py>(py: Python<'py>, path: &str, values: Vec<(String, f64)>) -> PyResult<Bound<'py, PyDict>> {
+    let references = References::from_file(Path::new(path)).map_err(err)?;
+    let values: Vec<(&str, f64)> = values.iter().map(|(name, value)| (name.as_str(), *value)).collect();
+    let out = PyDict::new(py);
+    for name in references.names() {
+        out.set_item(name, references.value(name, &values).map_err(err)?)?;
+    }
+    for name in references.matrix_names() {
+        out.set_item(name, references.matrix(name, &values).map_err(err)?)?;
+    }
+    Ok(out)
+}
+
 /// The runner's engine for Python (see the `fmurunner` package).
 #[pymodule]
 fn _engine(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -387,6 +405,7 @@ fn _engine(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(locate, m)?)?;
     m.add_function(wrap_pyfunction!(describe, m)?)?;
     m.add_function(wrap_pyfunction!(plan_sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(reference_values, m)?)?;
     m.add_class::<Model>()?;
     // The points a sweep may have, as the command line allows.
     m.add("MAX_POINTS", runner_engine::sweep::MAX_POINTS)?;

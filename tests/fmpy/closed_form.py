@@ -2,13 +2,15 @@
 and the Rust tests evaluate them (runner-engine's `metrics::Formula` and `references::References`),
 so each closed form is written once: experiment.toml's `[compare.reference]` (formulas of t and
 the parameters) and references.toml (named formulas, where a name that is another entry of the
-file stands for that entry's value). The grammar is the Formula's: numbers, names, `+ - * /`,
-`^` (right-associative, binding tighter than unary minus: -x^2 = -(x^2), 2^-1 = 0.5),
-parentheses and the one-argument functions exp log sqrt sin cos tan atan abs ellipk (the
-complete elliptic integral of the first kind of the parameter m = k^2, scipy's convention;
-scipy evaluates it here, an arithmetic-geometric mean in Rust); names take numpy arrays or
-numbers."""
+file stands for that entry's value; `include = [...]` takes the entries of other files, relative
+to it). The grammar is the Formula's: numbers, names, `+ - * /`, `^` (right-associative, binding
+tighter than unary minus: -x^2 = -(x^2), 2^-1 = 0.5), parentheses, the constant pi, the
+functions of one argument exp log sqrt sin cos tan asin acos atan abs ellipk (the complete
+elliptic integral of the first kind of the parameter m = k^2, scipy's convention; scipy
+evaluates it here, an arithmetic-geometric mean in Rust) and of two, atan2(y, x) and
+hypot(x, y); names take numpy arrays or numbers."""
 
+import pathlib
 import re
 import tomllib
 
@@ -17,8 +19,14 @@ from scipy.special import ellipk
 
 from conftest import ROOT
 
-FUNCTIONS = {"exp": np.exp, "log": np.log, "sqrt": np.sqrt, "sin": np.sin, "cos": np.cos, "tan": np.tan,
-             "atan": np.arctan, "abs": np.abs, "ellipk": ellipk}
+# The table of runner-engine's metrics::FUNCTIONS: name -> (number of arguments, numpy's function).
+FUNCTIONS = {"exp": (1, np.exp), "log": (1, np.log), "sqrt": (1, np.sqrt), "sin": (1, np.sin), "cos": (1, np.cos),
+             "tan": (1, np.tan), "asin": (1, np.arcsin), "acos": (1, np.arccos), "atan": (1, np.arctan),
+             "atan2": (2, np.arctan2), "hypot": (2, np.hypot), "abs": (1, np.abs), "ellipk": (1, ellipk)}
+# metrics::CONSTANTS: a name a formula cannot take from its caller.
+CONSTANTS = {"pi": np.pi}
+# The key of a references.toml that lists the files whose entries it takes too.
+INCLUDE = "include"
 TOKEN = re.compile(r"\s*(?:(\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?)|([A-Za-z_]\w*)|(\S))")
 
 
@@ -92,11 +100,20 @@ class Formula:
             return ("num", value)
         if kind == "name" and self._peek("("):
             if value not in FUNCTIONS:
-                raise ValueError(f"{value!r} is not a function in {self.text!r}")
+                raise ValueError(f"{value!r} is not a function in {self.text!r}; use one of {', '.join(FUNCTIONS)}")
             self._pos += 1
-            argument = self._expression()
+            arguments = [self._expression()]
+            while self._peek(","):
+                self._pos += 1
+                arguments.append(self._expression())
             self._take(")")
-            return ("call", value, argument)
+            arity = FUNCTIONS[value][0]
+            if len(arguments) != arity:
+                raise ValueError(f"{value!r} in {self.text!r} takes {arity} argument{'s' * (arity != 1)}, "
+                                 f"given {len(arguments)}")
+            return ("call", value, arguments)
+        if kind == "name" and value in CONSTANTS:
+            return ("num", CONSTANTS[value])
         if kind == "name":
             if value not in self.names:
                 self.names.append(value)
@@ -118,7 +135,7 @@ class Formula:
         if kind == "neg":
             return -self._eval(node[1], values)
         if kind == "call":
-            return FUNCTIONS[node[1]](self._eval(node[2], values))
+            return FUNCTIONS[node[1]][1](*(self._eval(a, values) for a in node[2]))
         a, b = self._eval(node[1], values), self._eval(node[2], values)
         return {"+": lambda: a + b, "-": lambda: a - b, "*": lambda: a * b, "/": lambda: a / b,
                 "^": lambda: np.power(a, b)}[kind]()
@@ -136,6 +153,11 @@ class References:
     `.matrix("name", ...)` evaluates a matrix entry (rows of formulas) to a numpy array."""
 
     def __init__(self, table):
+        if INCLUDE in table:
+            raise ValueError(f"{INCLUDE!r} names files relative to a references.toml: read it with load(path)")
+        for name in CONSTANTS:
+            if name in table:
+                raise ValueError(f"reference {name}: {name!r} is a constant of the formulas, not a name for an entry")
         self.formulas = {name: Formula(text) for name, text in table.items() if isinstance(text, str)}
         self.matrices = {name: [[Formula(cell) for cell in row] for row in rows]
                          for name, rows in table.items() if isinstance(rows, list)}
@@ -167,7 +189,33 @@ class References:
         return lambda **values: self.value(name, values)
 
 
+def _read_with_includes(path, stack, entries, origin):
+    """The entries of `path` and of the files it includes (relative to it, transitively) into
+    `entries`, as runner-engine's `References::from_file` reads them: a name given twice and a
+    cycle of includes are refused naming the files."""
+    path = pathlib.Path(path)
+    if path in stack:
+        raise ValueError(f"references include each other in a cycle: {' -> '.join(map(str, stack + [path]))}")
+    with open(path, "rb") as f:
+        table = tomllib.load(f)
+    includes = table.pop(INCLUDE, [])
+    if not isinstance(includes, list) or not all(isinstance(p, str) for p in includes):
+        raise ValueError(f"{path}: {INCLUDE!r} must be an array of file paths (relative to this file)")
+    for name, value in table.items():
+        if name in entries:
+            raise ValueError(f"reference {name} is given twice: in {origin[name]} and in {path}")
+        entries[name], origin[name] = value, path
+    for included in includes:
+        _read_with_includes(path.parent / included, stack + [path], entries, origin)
+
+
+def load(path):
+    """The references.toml at `path` with the files it includes."""
+    entries = {}
+    _read_with_includes(path, [], entries, {})
+    return References(entries)
+
+
 def references(model):
-    """The named closed forms of models/<model>/references.toml."""
-    with open(ROOT / "models" / model / "references.toml", "rb") as f:
-        return References(tomllib.load(f))
+    """The named closed forms of models/<model>/references.toml (and the files it includes)."""
+    return load(ROOT / "models" / model / "references.toml")

@@ -1,28 +1,39 @@
-"""fmpy Co-Simulation runs of the Ex. 5 mechanisms against closed-form geometry computed here
-with numpy (circle-line and circle-circle intersections), independently of the Rust code, and
-their derivatives by central finite differences of that closed form."""
+"""fmpy Co-Simulation runs of the Ex. 5 mechanisms against their closed forms (models/<id>/references.toml,
+with the four-bar's and the slider-crank's in models/linkages/references/: the law of cosines, the
+circle-line intersection and its chain rule, written once and evaluated by the Rust tests too),
+independent of the models' vector loops, and the derivatives of the closed forms where it has none by
+central finite differences."""
+
+import functools
 
 import numpy as np
 import pytest
+from fmpy import read_model_description
 
+from closed_form import references
 from conftest import fmu_path, simulate
 
 # Every test here runs on the FMI 2.0 and on the FMI 3.0 FMU, against the same references.
 pytestmark = pytest.mark.usefixtures("fmi_version")
-
-RPM = np.pi / 30
 
 
 def wrap(a):
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
-def slider_closed_form(theta, l_oa, l_ab, y_oc, branch):
-    """B where the circle of radius l_AB about A meets the line y = y_OC: (r1, theta3)."""
-    ax, ay = l_oa * np.cos(theta), l_oa * np.sin(theta)
-    dy = y_oc - ay
-    dx = branch * np.sqrt(l_ab**2 - dy**2)
-    return ax + dx, np.arctan2(dy, dx)
+@functools.cache
+def defaults(model):
+    """The model's numeric parameters and inputs at their start values (its FMI 2.0
+    modelDescription)."""
+    md = read_model_description(str(fmu_path(model, "2.0")))
+    return {v.name: float(v.start) for v in md.modelVariables
+            if v.causality in ("parameter", "input") and v.type in ("Real", "Integer") and v.start is not None}
+
+
+def closed(model, name, **inputs):
+    """Entry `name` of the model's references.toml: `inputs` (the input angle, and parameters that
+    differ from the defaults) over the model's default parameters."""
+    return references(model)[name](**{**defaults(model), **inputs})
 
 
 def central(f, theta, omega, h=1e-3):
@@ -44,8 +55,11 @@ def run(model, **start):
     return simulate(str(fmu_path(model)), fmi_type="CoSimulation", output_interval=0.01, start_values=start)
 
 
+SLIDER = ("r1", "theta3", "r1_dot", "theta3_dot", "r1_ddot", "theta3_ddot")
+
+
 def test_crank_slider_matches_circle_line_intersection():
-    l_oa, l_ab, omega, theta0 = 0.080, 0.120, 10 * RPM, np.radians(60)
+    omega, theta0 = defaults("crank_slider")["omega"], defaults("crank_slider")["theta0"]
     for branch in (1, -1):
         r = run("crank_slider", branch=branch)
         t = r["time"]
@@ -53,150 +67,117 @@ def test_crank_slider_matches_circle_line_intersection():
         assert t[-1] == pytest.approx(12.0)
         theta = theta0 + omega * t
         np.testing.assert_allclose(r["theta"], theta, rtol=0, atol=1e-12)
-        r1, th3 = slider_closed_form(theta, l_oa, l_ab, 0.0, branch)
-        # Projected onto the loop at every output: agreement to rounding (bound 1e-12 m / rad).
-        np.testing.assert_allclose(r["r1"], r1, rtol=0, atol=1e-12)
-        assert np.max(np.abs(wrap(r["theta3"] - th3))) < 1e-12
-        np.testing.assert_allclose(r["B_x"], r1, rtol=0, atol=1e-12)
+        # Positions and rates projected onto the loop at every output, accelerations from
+        # A x'' = b there: all agree with the closed form and its analytic derivatives to
+        # rounding (bounds 1e-12 m, rad, m/s, rad/s and 1e-11 m/s2, rad/s2 on values of order 0.1
+        # to 1; the Rust test measured 7e-14).
+        for name in SLIDER + ("A_x", "A_y", "v_A_x", "v_A_y"):
+            expected = closed("crank_slider", name, theta=theta, branch=branch)
+            bound = 1e-11 if name.endswith("_ddot") else 1e-12
+            assert np.max(np.abs(wrap(r[name] - expected))) < bound, name
+        np.testing.assert_allclose(r["B_x"], r["r1"], rtol=0, atol=0)
         np.testing.assert_allclose(r["B_y"], 0.0, atol=0)
-        np.testing.assert_allclose(r["A_x"], l_oa * np.cos(theta), atol=1e-12)
-        np.testing.assert_allclose(r["A_y"], l_oa * np.sin(theta), atol=1e-12)
-        np.testing.assert_allclose(r["v_A_x"], -l_oa * omega * np.sin(theta), atol=1e-12)
-        np.testing.assert_allclose(r["v_A_y"], l_oa * omega * np.cos(theta), atol=1e-12)
-        for name, k in (("r1", 0), ("theta3", 1)):
-            f = lambda th: slider_closed_form(th, l_oa, l_ab, 0.0, branch)[k]
-            d1, d2 = central(f, theta, omega)
-            # Bounds from central()'s error estimate (values of order 0.1 to 1).
-            np.testing.assert_allclose(r[name + "_dot"], d1, rtol=0, atol=1e-8)
-            np.testing.assert_allclose(r[name + "_ddot"], d2, rtol=0, atol=1e-7)
         np.testing.assert_allclose(r["v_B_x"], r["r1_dot"], atol=0)
         assert np.all(branch * (r["B_x"] - r["A_x"]) > 0)
         assert np.max(r["loop_residual"]) < 1e-9
 
 
-def fourbar_closed_form(theta, l_oa, l_ab, l_bc, l_co, theta_co, branch):
-    """B as an intersection of the circles about A (radius l_AB) and C (radius l_BC), the one
-    to the left of A->C for branch +1: (theta3, theta4)."""
-    a = np.stack([l_oa * np.cos(theta), l_oa * np.sin(theta)])
-    c = np.array([l_co * np.cos(theta_co), l_co * np.sin(theta_co)])[:, None]
-    ac = c - a
-    d = np.hypot(*ac)
-    u = ac / d
-    p = (l_ab**2 - l_bc**2 + d**2) / (2 * d)
-    h = np.sqrt(l_ab**2 - p**2)
-    b = a + p * u + branch * h * np.stack([-u[1], u[0]])
-    return np.arctan2(*(b - a)[::-1]), np.arctan2(*(b - c)[::-1])
-
-
-def check_fourbar(r, dims, theta0, omega, branch):
-    t = r["time"]
-    theta = theta0 + omega * t
+def check_fourbar(model, r, branch):
+    p = defaults(model)
+    theta = p["theta0"] + p["omega"] * r["time"]
     np.testing.assert_allclose(r["theta"], theta, rtol=0, atol=1e-12)
-    th3, th4 = fourbar_closed_form(theta, *dims, branch)
-    # Projected onto the loop at every output: angles agree to rounding (bound 1e-12 rad).
-    assert np.max(np.abs(wrap(r["theta3"] - th3))) < 1e-12
-    assert np.max(np.abs(wrap(r["theta4"] - th4))) < 1e-12
-    l_oa, l_ab, l_bc, l_co, theta_co = dims
-    np.testing.assert_allclose(r["B_x"], l_co * np.cos(theta_co) + l_bc * np.cos(th4), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(r["B_y"], l_co * np.sin(theta_co) + l_bc * np.sin(th4), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(r["A_x"], l_oa * np.cos(theta), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(r["v_A_x"], -l_oa * omega * np.sin(theta), rtol=0, atol=1e-12)
-    for k, name in enumerate(("theta3", "theta4")):
-        f = lambda th: fourbar_closed_form(th, *dims, branch)[k]
-        d1, d2 = central(f, theta, omega)
+    # Projected onto the loop at every output: angles and points agree to rounding (bound 1e-12
+    # rad, m, m/s).
+    for name in ("theta3", "theta4", "A_x", "A_y", "B_x", "B_y", "v_A_x", "v_A_y"):
+        expected = closed(model, name, theta=theta, branch=branch)
+        assert np.max(np.abs(wrap(r[name] - expected))) < 1e-12, name
+    for name in ("theta3", "theta4"):
+        d1, d2 = central(lambda th: closed(model, name, theta=th, branch=branch), theta, p["omega"])
         np.testing.assert_allclose(r[name + "_dot"], d1, rtol=0, atol=1e-8)
         np.testing.assert_allclose(r[name + "_ddot"], d2, rtol=0, atol=1e-7)
     assert np.max(r["loop_residual"]) < 1e-9
 
 
-def test_crank_rocker_matches_circle_circle_intersection_and_is_periodic():
-    dims = (0.100, 0.180, 0.500, 0.560, 0.0)
-    theta0, omega = np.radians(135), 5 * RPM
+def test_crank_rocker_matches_the_law_of_cosines_and_is_periodic():
     for branch in (1, -1):
         r = run("crank_rocker", branch=branch)
         # Two revolutions at 5 rpm: 24 s.
         assert r["time"][-1] == pytest.approx(24.0)
-        check_fourbar(r, dims, theta0, omega, branch)
+        check_fourbar("crank_rocker", r, branch)
         # One revolution (12 s, sample 1200) brings every output back (bound 1e-12).
         for name in ("theta3_dot", "theta4_dot", "B_x", "B_y", "v_B_x", "v_B_y"):
             assert abs(r[name][1200] - r[name][0]) < 1e-12, name
 
 
 def test_offset_crank_slider_matches_closed_form_and_stops_at_its_limit():
-    l_oa, l_ab, y_oc, omega, theta0 = 0.080, 0.100, 0.080, 15 * RPM, np.radians(60)
-    limit = np.pi + np.arcsin(0.25)  # l_OA sin(theta) = y_OC - l_AB: the rod is vertical
+    p = defaults("offset_crank_slider")
+    # l_OA sin(theta) = y_OC - l_AB: the rod is vertical.
+    limit = closed("offset_crank_slider", "theta_limit")
     r = run("offset_crank_slider")
     t = r["time"]
-    theta = theta0 + omega * t
+    theta = p["theta0"] + p["omega"] * t
     # fmpy records the located stop as the last row: just short of the limit (bound 1e-5 rad,
     # the 1e-3 threshold on cos(theta3) puts it ~6.5e-7 rad short), before the 2 s stop time.
     assert t[-1] < 2.0
     assert 0 <= limit - theta[-1] < 1e-5
     for name in r.dtype.names:
         assert np.all(np.isfinite(r[name])), name
-    r1, th3 = slider_closed_form(theta, l_oa, l_ab, y_oc, 1)
     # Projected rows (all but the located stop): rounding, amplified near the limit by
-    # 1/cos(theta3) ~ 1/0.1 on the 10 ms grid; bound 1e-11.
-    np.testing.assert_allclose(r["r1"][:-1], r1[:-1], rtol=0, atol=1e-11)
-    assert np.max(np.abs(wrap(r["theta3"][:-1] - th3[:-1]))) < 1e-11
-    # central()'s truncation error grows like a high power of 1/cos(theta3) near the limit:
-    # compare where cos(theta3) > 0.5.
-    ok = np.cos(th3) > 0.5
-    for name, k in (("r1", 0), ("theta3", 1)):
-        f = lambda th: slider_closed_form(th, l_oa, l_ab, y_oc, 1)[k]
-        d1, d2 = central(f, theta[ok], omega)
-        np.testing.assert_allclose(r[name + "_dot"][ok], d1, rtol=0, atol=1e-8)
-        np.testing.assert_allclose(r[name + "_ddot"][ok], d2, rtol=0, atol=1e-7)
-    np.testing.assert_allclose(r["B_y"], y_oc, atol=0)
+    # 1/cos(theta3) ~ 1/0.1 on the 10 ms grid for positions, and by its square and cube for
+    # rates and accelerations, relative to max(1, |value|) (the Rust test measured 1.3e-12,
+    # 6e-11, 1.8e-10 on a 1 ms grid, closer to the limit); bounds 1e-11, 1e-9 and 1e-9.
+    for name, bound in zip(SLIDER, (1e-11, 1e-11, 1e-9, 1e-9, 1e-9, 1e-9)):
+        expected = closed("offset_crank_slider", name, theta=theta[:-1])
+        error = np.abs(wrap(r[name][:-1] - expected)) / np.maximum(1, np.abs(expected))
+        assert np.max(error) < bound, name
+    np.testing.assert_allclose(r["B_y"], p["y_OC"], atol=0)
     assert np.all(r["B_x"] > r["A_x"])
     assert np.max(r["loop_residual"]) < 1e-9
 
 
 def test_double_rocker_matches_closed_form_and_stops_at_its_limit():
-    dims = (0.400, 0.100, 0.410, 0.190, np.radians(90))
-    theta0, omega = np.radians(150), 8 * RPM
+    p = defaults("double_rocker")
     # |AC| = l_AB + l_BC: AB and BC collinear, theta = 90 + 114.901 deg.
-    limit = dims[4] + np.arccos((0.4**2 + 0.19**2 - 0.51**2) / (2 * 0.4 * 0.19))
+    limit = closed("double_rocker", "theta_limit")
     for branch in (1, -1):
         r = run("double_rocker", branch=branch)
         t = r["time"]
-        theta = theta0 + omega * t
+        theta = p["theta0"] + p["omega"] * t
         # The located stop is the last row: just short of the limit (bound 1e-5 rad), before 2 s.
         assert t[-1] < 2.0 and 0 <= limit - theta[-1] < 1e-5
         for name in r.dtype.names:
             assert np.all(np.isfinite(r[name])), name
-        th3, th4 = fourbar_closed_form(theta[:-1], *dims, branch)
+        th3, th4 = (closed("double_rocker", name, theta=theta[:-1], branch=branch) for name in ("theta3", "theta4"))
         # Projected rows: rounding amplified by 1/|sin(theta4 - theta3)| near the limit: 1e-11.
         assert np.max(np.abs(wrap(r["theta3"][:-1] - th3))) < 1e-11
         assert np.max(np.abs(wrap(r["theta4"][:-1] - th4))) < 1e-11
         # Derivatives where central() is valid: |sin(theta4 - theta3)| > 0.6 (its truncation
         # grows like powers of 1/sin: at 0.5 it reaches 1.3e-8 rad/s, at 0.6 1.8e-9).
         ok = np.abs(np.sin(th4 - th3)) > 0.6
-        for k, name in enumerate(("theta3", "theta4")):
-            d1, d2 = central(lambda th: fourbar_closed_form(th, *dims, branch)[k], theta[:-1][ok], omega)
+        for name in ("theta3", "theta4"):
+            f = lambda th: closed("double_rocker", name, theta=th, branch=branch)
+            d1, d2 = central(f, theta[:-1][ok], p["omega"])
             np.testing.assert_allclose(r[name + "_dot"][:-1][ok], d1, rtol=0, atol=1e-8)
             np.testing.assert_allclose(r[name + "_ddot"][:-1][ok], d2, rtol=0, atol=1e-7)
         assert np.max(r["loop_residual"]) < 1e-9
         # B never changes side of A->C (no jump to the other branch).
-        cx, cy = 0.0, 0.19
+        cx, cy = closed("double_rocker", "C_x"), closed("double_rocker", "C_y")
         cross = (cx - r["A_x"]) * (r["B_y"] - r["A_y"]) - (cy - r["A_y"]) * (r["B_x"] - r["A_x"])
         assert np.all(branch * cross > 0)
 
 
 def test_inverted_crank_slider_kinematics_and_power_balance():
-    r1, r2, L3, m3 = 0.240, 0.080, 0.350, 0.5
-    I3, omega = m3 * L3**2 / 12, -60 * RPM
+    p = defaults("inverted_crank_slider")
+    L3, m3, I3, omega = p["L3"], p["m3"], p["I3"], p["omega"]
     r = simulate(str(fmu_path("inverted_crank_slider")), fmi_type="CoSimulation", output_interval=1e-3)
     t = r["time"]
     assert t[-1] == pytest.approx(2.0)  # two revolutions at 60 rpm
-    th2 = omega * t
-    closed = lambda th: (np.hypot(r1 + r2 * np.cos(th), r2 * np.sin(th)), np.arctan2(r2 * np.sin(th), r1 + r2 * np.cos(th)))
-    r3, th3 = closed(th2)
-    # Projected at every output: rounding (bound 1e-12).
-    np.testing.assert_allclose(r["r3"], r3, rtol=0, atol=1e-12)
-    assert np.max(np.abs(wrap(r["theta3"] - th3))) < 1e-12
-    for k, name in enumerate(("r3", "theta3")):
-        d1, d2 = central(lambda th: closed(th)[k], th2, omega)
+    th2 = p["theta2_0"] + omega * t
+    for name in ("r3", "theta3"):
+        exact = lambda th: closed("inverted_crank_slider", name, theta2=th)
+        # Projected at every output: rounding (bound 1e-12).
+        assert np.max(np.abs(wrap(r[name] - exact(th2)))) < 1e-12, name
+        d1, d2 = central(exact, th2, omega)
         # central()'s error estimate at omega = 6.3 rad/s: rounding 4 eps |f| / h^2 * omega^2
         # ~ 1e-7 dominates the second derivative (measured 2.9e-8), ~1e-11 the first
         # (measured 7e-12). Bounds 1e-9 and 2e-7.

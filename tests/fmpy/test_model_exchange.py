@@ -17,7 +17,7 @@ from fmpy import extract, instantiate_fmu, read_model_description, simulate_fmu
 from closed_form import reference, references
 from conftest import MODELS, fmu_path
 from test_lab_models import zero_crossings
-from test_mechanisms import RPM, fourbar_closed_form, slider_closed_form, wrap
+from test_mechanisms import closed, defaults, wrap
 
 FMI2_ME_FUNCTIONS = """
 fmi2EnterEventMode fmi2NewDiscreteStates fmi2EnterContinuousTimeMode fmi2CompletedIntegratorStep
@@ -245,17 +245,16 @@ def test_trebuchet_lands_where_its_co_simulation_lands(tmp_path):
 
 @pytest.mark.usefixtures("fmi_version")
 def test_offset_crank_slider_reaches_its_limit_position():
-    l_oa, l_ab, y_oc, omega, theta0 = 0.080, 0.100, 0.080, 15 * RPM, np.radians(60)
-    limit = np.pi + np.arcsin(0.25)
+    p = defaults("offset_crank_slider")
     # rtol 1e-9: at 1e-10 CVODE exhausts its 500 steps per output interval in the last
     # milliseconds before the limit, where the accelerations grow like 1/cos(theta3)^3.
     r = me("offset_crank_slider", relative_tolerance=1e-9, output_interval=0.01, output=["theta", "r1", "theta3", "loop_residual"])
-    theta = theta0 + omega * r["time"]
+    theta = p["theta0"] + p["omega"] * r["time"]
     # The limit is a state event (|cos theta3| = 1e-3 there, 6.5e-7 rad short of the exact
     # limit); terminateSimulation ends the run there: the last row is within 1e-5 rad of it
     # (measured 8.9e-7 rad).
-    assert r["time"][-1] < 2.0 and 0 <= limit - theta[-1] < 1e-5
-    r1, th3 = slider_closed_form(theta, l_oa, l_ab, y_oc, 1)
+    assert r["time"][-1] < 2.0 and 0 <= closed("offset_crank_slider", "theta_limit") - theta[-1] < 1e-5
+    r1, th3 = (closed("offset_crank_slider", name, theta=theta) for name in ("r1", "theta3"))
     ok = np.cos(th3) > 0.2
     # The drift is projected at step events when it exceeds rtol times the links' length, as
     # fmpy reports completed steps once per output interval; in between CVODE's own error grows
@@ -268,15 +267,14 @@ def test_offset_crank_slider_reaches_its_limit_position():
 
 @pytest.mark.usefixtures("fmi_version")
 def test_double_rocker_reaches_its_limit_position():
-    dims = (0.400, 0.100, 0.410, 0.190, np.radians(90))
-    theta0, omega = np.radians(150), 8 * RPM
-    limit = dims[4] + np.arccos((0.4**2 + 0.19**2 - 0.51**2) / (2 * 0.4 * 0.19))
+    p = defaults("double_rocker")
+    limit = closed("double_rocker", "theta_limit")
     for branch in (1, -1):
         r = me("double_rocker", relative_tolerance=1e-9, output_interval=0.01, start_values={"branch": branch},
                output=["theta", "theta3", "theta4"])
-        theta = theta0 + omega * r["time"]
+        theta = p["theta0"] + p["omega"] * r["time"]
         assert r["time"][-1] < 2.0 and 0 <= limit - theta[-1] < 1e-5
-        th3, th4 = fourbar_closed_form(theta, *dims, branch)
+        th3, th4 = (closed("double_rocker", name, theta=theta, branch=branch) for name in ("theta3", "theta4"))
         ok = np.abs(np.sin(th4 - th3)) > 0.2
         # As for the offset crank-slider (measured 4.6e-7 rad where |sin(theta4 - theta3)| >
         # 0.2): bound 5e-6 rad.
@@ -284,26 +282,24 @@ def test_double_rocker_reaches_its_limit_position():
         assert np.max(np.abs(wrap(r["theta4"][ok] - th4[ok]))) < 5e-6
 
 
+# Each model's input angle, its start and the two outputs its closed form gives.
+FULL_TURN = {
+    "crank_slider": ("theta", "theta0", ("r1", "theta3")),
+    "crank_rocker": ("theta", "theta0", ("theta3", "theta4")),
+    "inverted_crank_slider": ("theta2", "theta2_0", ("r3", "theta3")),
+}
+
+
 @pytest.mark.usefixtures("fmi_version")
-@pytest.mark.parametrize("model", ["crank_slider", "crank_rocker", "inverted_crank_slider"])
+@pytest.mark.parametrize("model", sorted(FULL_TURN))
 def test_full_turn_linkages_follow_their_closed_forms(model):
     r = me(model, relative_tolerance=1e-10, output_interval=0.01)
     t = r["time"]
-    if model == "crank_slider":
-        theta = np.radians(60) + 10 * RPM * t
-        assert t[-1] == pytest.approx(12.0)
-        r1, th3 = slider_closed_form(theta, 0.080, 0.120, 0.0, 1)
-        errors = [np.abs(r["r1"] - r1), np.abs(wrap(r["theta3"] - th3))]
-    elif model == "crank_rocker":
-        theta = np.radians(135) + 5 * RPM * t
-        assert t[-1] == pytest.approx(24.0)
-        th3, th4 = fourbar_closed_form(theta, 0.100, 0.180, 0.500, 0.560, 0.0, 1)
-        errors = [np.abs(wrap(r["theta3"] - th3)), np.abs(wrap(r["theta4"] - th4))]
-    else:
-        th2 = -60 * RPM * t
-        assert t[-1] == pytest.approx(2.0)
-        x, y = 0.240 + 0.080 * np.cos(th2), 0.080 * np.sin(th2)
-        errors = [np.abs(r["r3"] - np.hypot(x, y)), np.abs(wrap(r["theta3"] - np.arctan2(y, x)))]
+    p, (angle, start, outputs) = defaults(model), FULL_TURN[model]
+    # The default experiments: two revolutions.
+    assert t[-1] == pytest.approx(4 * np.pi / abs(p["omega"]))
+    inputs = {angle: p[start] + p["omega"] * t}
+    errors = [np.abs(wrap(r[name] - closed(model, name, **inputs))) for name in outputs]
     # Loop closure projected at step events (a drift above rtol 1e-10 of the lengths, checked
     # at every output point) and CVODE's error over 2 to 24 s of a periodic motion (measured
     # 6.2e-8 at most, loop gaps 2e-8 m): bounds 2e-7 and 1e-7 m.

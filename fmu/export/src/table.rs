@@ -246,6 +246,21 @@ impl<M> Table<M> {
     }
 }
 
+impl<M: Model> Table<M> {
+    /// The value of every Real and Integer parameter of `model` by name (Integers as f64; the
+    /// Boolean and String ones and the solver controls left out): what the closed forms of a model's references.toml read.
+    pub fn parameter_values(&self, model: &M) -> Vec<(&'static str, f64)> {
+        let parameters = self.rows.iter().filter(|r| r.causality == Causality::Parameter && matches!(r.slot, Slot::Model(_)));
+        parameters
+            .filter_map(|r| match r.start(model)? {
+                Start::Real(v) => Some((r.name, v)),
+                Start::Integer(v) => Some((r.name, v as f64)),
+                Start::Boolean(_) | Start::String(_) => None,
+            })
+            .collect()
+    }
+}
+
 /// FNV-1a over `bytes`, from `seed`: a stable hash (std's hashers may change between releases).
 fn fnv1a(seed: u64, bytes: &[u8]) -> u64 {
     bytes.iter().fold(seed, |h, b| (h ^ *b as u64).wrapping_mul(0x0000_0100_0000_01b3))

@@ -184,6 +184,15 @@ fn the_rows_are_the_fields_in_order_with_the_states_placed() {
     assert!(problems.is_empty(), "{problems:?}");
 }
 
+/// The parameters by name with the model's values (not the defaults), Integers as f64, without
+/// the Boolean, the input, the outputs and the solver controls.
+#[test]
+fn parameter_values_are_the_models_by_name() {
+    let toy = Toy::<With> { k: 3.5, sign: -1, ..Toy::default() };
+    let values = Table::<Toy<With>>::new().parameter_values(&toy);
+    assert_eq!(values, [("M", 2.0), ("k", 3.5), ("x0", 0.5), ("fraction", 0.25), ("extra", 0.0), ("sign", -1.0)]);
+}
+
 /// The struct's layout, every field in order (variables or not), for the FMU-state tag.
 #[test]
 fn the_layout_lists_every_field_in_order() {

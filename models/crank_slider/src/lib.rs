@@ -39,26 +39,26 @@ mod tests {
     use super::*;
     use fmu_export::harness::Harness;
     use fmu_export::logging::Status;
+    use fmu_export::table::Table;
     #[allow(unused_imports)]
     use fmu_export::Model;
+    use runner_engine::references::References;
     use std::f64::consts::PI;
 
-    /// Closed form, independent of the vector loop: B is where the circle of radius l_AB about
-    /// A = l_OA (cos t, sin t) meets the line y = h; x_B = A_x + branch sqrt(l_AB^2 - (h - A_y)^2).
-    /// Returns (r1, theta3) and their first and second time derivatives (chain rule, theta' = w).
-    pub(crate) fn closed_form(a: f64, l: f64, h: f64, br: f64, w: f64, th: f64) -> [f64; 6] {
-        let (s, c) = th.sin_cos();
-        let (dy, dy1, dy2) = (h - a * s, -a * c * w, a * s * w * w);
-        let d = (l * l - dy * dy).sqrt();
-        let d1 = -dy * dy1 / d;
-        let d2 = -(dy1 * dy1 + dy * dy2 + d1 * d1) / d;
-        let r1 = a * c + br * d;
-        let r1_1 = -a * s * w + br * d1;
-        let r1_2 = -a * c * w * w + br * d2;
-        let th3 = dy.atan2(br * d);
-        let th3_1 = dy1 / (br * d);
-        let th3_2 = (dy2 * d - dy1 * d1) / (br * d * d);
-        [r1, th3, r1_1, th3_1, r1_2, th3_2]
+    /// Entry `name` of references.toml at the crank angle `th` for the parameters of `p`: the
+    /// slider-crank's closed form (circle meets line, and the chain rule), independent of the
+    /// vector loop (models/linkages/references/slider_crank.toml, shared with the offset crank-slider),
+    /// and the short rod's limit position; tests/fmpy evaluates them too.
+    fn reference(name: &str, p: &CrankSlider, th: f64) -> f64 {
+        let mut values = Table::<CrankSlider>::new().parameter_values(p);
+        values.push(("theta", th));
+        References::of_model(env!("CARGO_MANIFEST_DIR")).and_then(|r| r.value(name, &values)).expect("a reference of the parameters")
+    }
+
+    /// The closed form's (r1, theta3) and their first and second time derivatives at the crank
+    /// angle `th`, on the branch of `p`.
+    fn closed_form(p: &CrankSlider, th: f64) -> [f64; 6] {
+        ["r1", "theta3", "r1_dot", "theta3_dot", "r1_ddot", "theta3_ddot"].map(|name| reference(name, p, th))
     }
 
     const NAMES: [&str; 16] = [
@@ -90,7 +90,7 @@ mod tests {
 
     /// Largest errors of (positions, velocities, accelerations) of a run against the closed form.
     fn errors(branch: f64, tol: Option<f64>) -> [f64; 3] {
-        let p = CrankSlider::default();
+        let p = CrankSlider { branch: branch as i32, ..CrankSlider::default() };
         let mut h = harness(&[("branch", branch), ("abs_tol", 1e-12)], tol);
         let tr = h.run(12.0, 0.01, &NAMES).unwrap();
         assert_eq!(tr.time.len(), 1201);
@@ -99,13 +99,14 @@ mod tests {
             let g = |n: &str| tr.get(n)[k];
             let th = p.theta0 + p.omega * tr.time[k];
             assert!((g("theta") - th).abs() < 1e-12);
-            let cf = closed_form(p.l_oa, p.l_ab, 0.0, branch, p.omega, th);
+            let cf = closed_form(&p, th);
             err[0] = err[0].max((g("r1") - cf[0]).abs()).max(p.l_ab * wrap(g("theta3") - cf[1]).abs());
             err[1] = err[1].max((g("r1_dot") - cf[2]).abs()).max(p.l_ab * (g("theta3_dot") - cf[3]).abs());
             err[2] = err[2].max((g("r1_ddot") - cf[4]).abs()).max(p.l_ab * (g("theta3_ddot") - cf[5]).abs());
             // Point coordinates and velocities: A from the crank alone, B on the x-axis at r1.
-            assert!((g("A_x") - p.l_oa * th.cos()).abs() < 1e-12 && (g("A_y") - p.l_oa * th.sin()).abs() < 1e-12);
-            assert!((g("v_A_x") + p.l_oa * p.omega * th.sin()).abs() < 1e-12 && (g("v_A_y") - p.l_oa * p.omega * th.cos()).abs() < 1e-12);
+            for point in ["A_x", "A_y", "v_A_x", "v_A_y"] {
+                assert!((g(point) - reference(point, &p, th)).abs() < 1e-12, "{point} at t = {}", tr.time[k]);
+            }
             assert!((g("B_x") - cf[0]).abs() < 1e-9 && g("B_y") == 0.0 && g("v_B_y") == 0.0);
             assert!((g("v_B_x") - cf[2]).abs() < 1e-9);
             assert!(branch * (g("B_x") - g("A_x")) > 0.0, "branch {branch} at t = {}", tr.time[k]);
@@ -152,7 +153,7 @@ mod tests {
             let k4 = f(&add(&x, &k3, dt));
             x = std::array::from_fn(|i| x[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]));
         }
-        let cf = closed_form(p.l_oa, p.l_ab, 0.0, 1.0, p.omega, x[0]);
+        let cf = closed_form(&p, x[0]);
         let (er, ev) = ((x[1] - cf[0]).abs(), (x[3] - cf[2]).abs());
         eprintln!("unprojected RK4 after one revolution: |r1 err| {er:.2e} m, |r1' err| {ev:.2e} m/s");
         assert!(er < 1e-10 && ev < 1e-10);
@@ -171,14 +172,16 @@ mod tests {
 
     /// The crank turns fully (l_AB > l_OA): the default run reaches the stop time with Ok.
     /// With l_AB = 60 mm < l_OA it cannot: from theta0 = 0 the rod becomes vertical when
-    /// sin(theta) = l_AB / l_OA = 0.75, theta = 48.590 deg; the FMU must stop there with
+    /// sin(theta) = l_AB / l_OA = 0.75 (references.toml's theta_limit), theta = 48.590 deg;
+    /// the FMU must stop there with
     /// Discard, a message naming the limit and the angle, finite outputs, and no jump of branch.
     #[test]
     fn short_rod_stops_at_the_limit_position() {
         let mut h = harness(&[("l_AB", 0.06), ("theta0", 0.0)], None);
         let tr = h.run(12.0, 0.01, &NAMES).unwrap();
         let t_end = *tr.time.last().unwrap();
-        let limit = (0.75f64).asin();
+        let p = CrankSlider { l_ab: 0.06, theta0: 0.0, ..CrankSlider::default() };
+        let limit = reference("theta_limit", &p, p.theta0);
         let th_end = *tr.get("theta").last().unwrap();
         eprintln!("stopped at t = {t_end}, theta = {:.6} deg (limit {:.6} deg)", th_end.to_degrees(), limit.to_degrees());
         assert_eq!(h.instance.do_step_status().unwrap(), Status::Discard);

@@ -49,23 +49,25 @@ mod tests {
     use super::*;
     use fmu_export::harness::Harness;
     use fmu_export::logging::Status;
+    use fmu_export::table::Table;
     #[allow(unused_imports)]
     use fmu_export::Model;
+    use runner_engine::references::References;
     use std::f64::consts::PI;
 
-    /// Closed form by the law of cosines, independent of the vector loop: with d = |AC| and
-    /// phi the direction of A->C, the coupler makes the angle alpha with AC where
-    /// cos(alpha) = (l_AB^2 + d^2 - l_BC^2) / (2 l_AB d); branch +1 (B left of A->C) turns
-    /// counter-clockwise from AC. Returns (theta3, theta4).
-    fn closed_form(p: &FourBar, th: f64, br: f64) -> (f64, f64) {
-        let (ax, ay) = (p.l_oa * th.cos(), p.l_oa * th.sin());
-        let (cx, cy) = (p.l_co * p.theta_co.cos(), p.l_co * p.theta_co.sin());
-        let d = ((cx - ax).powi(2) + (cy - ay).powi(2)).sqrt();
-        let phi = (cy - ay).atan2(cx - ax);
-        let alpha = ((p.l_ab * p.l_ab + d * d - p.l_bc * p.l_bc) / (2.0 * p.l_ab * d)).clamp(-1.0, 1.0).acos();
-        let th3 = phi + br * alpha;
-        let (bx, by) = (ax + p.l_ab * th3.cos(), ay + p.l_ab * th3.sin());
-        (th3, (by - cy).atan2(bx - cx))
+    /// Entry `name` of references.toml at the input angle `th` for the parameters of `p`: the
+    /// four-bar's closed form by the law of cosines, independent of the vector loop
+    /// (models/linkages/references/four_bar.toml, shared with the crank-rocker), and the limit
+    /// position; tests/fmpy evaluates them too.
+    fn reference(name: &str, p: &FourBar, th: f64) -> f64 {
+        let mut values = Table::<FourBar>::new().parameter_values(p);
+        values.push(("theta", th));
+        References::of_model(env!("CARGO_MANIFEST_DIR")).and_then(|r| r.value(name, &values)).expect("a reference of the parameters")
+    }
+
+    /// The closed form's (theta3, theta4) at the input angle `th`, on the branch of `p`.
+    fn closed_form(p: &FourBar, th: f64) -> (f64, f64) {
+        (reference("theta3", p, th), reference("theta4", p, th))
     }
 
     fn wrap(a: f64) -> f64 {
@@ -76,10 +78,10 @@ mod tests {
     /// (five points, step h = 1e-3 rad): truncation ~h^4 f(5)/30 and h^4 f(6)/90 ~ 1e-12 f(5),
     /// rounding ~eps pi / h ~ 1e-12 (first) and eps pi / h^2 ~ 1e-9 (second derivative).
     /// (Second-order differences were tried: their h^2 f(3)/6 ~ 6e-8 is too coarse here.)
-    fn fd(p: &FourBar, th: f64, br: f64) -> [f64; 4] {
+    fn fd(p: &FourBar, th: f64) -> [f64; 4] {
         let h = 1e-3;
-        let c = closed_form(p, th, br);
-        let at = |k: f64| closed_form(p, th + k * h, br);
+        let c = closed_form(p, th);
+        let at = |k: f64| closed_form(p, th + k * h);
         let (p1, p2, m1, m2) = (at(1.0), at(2.0), at(-1.0), at(-2.0));
         let w = p.omega;
         // Differences relative to the centre value, wrapped, so branch cuts of atan2 do not matter.
@@ -113,22 +115,16 @@ mod tests {
         "loop_residual",
     ];
 
-    /// The exact limit angle: |AC| = l_AB + l_BC, cos(theta - theta_CO) = (l_OA^2 + l_CO^2 -
-    /// (l_AB + l_BC)^2) / (2 l_OA l_CO): theta = 90 + 114.901 = 204.901 deg.
-    fn limit_angle(p: &FourBar) -> f64 {
-        let s = p.l_ab + p.l_bc;
-        p.theta_co + ((p.l_oa.powi(2) + p.l_co.powi(2) - s * s) / (2.0 * p.l_oa * p.l_co)).acos()
-    }
-
     /// Both branches on a 1 ms grid up to the limit position: every projected point against
-    /// the law-of-cosines closed form (angles to 1e-11 rad: rounding amplified by the
+    /// the law-of-cosines closed form (finite there, angles to 1e-11 rad: rounding amplified by the
     /// conditioning 1/|sin(theta4 - theta3)| near the limit), rates and accelerations
     /// against its finite differences where |sin(theta4 - theta3)| > 0.5: the derivatives of
     /// the closed form grow like powers of 1/sin near the limit and so does fd()'s truncation
     /// (measured at sin = 0.5: 1.3e-8 rad/s and 2e-7 rad/s2, at sin = 1: 4e-12 and 1e-9;
     /// bounds 5e-8 and 5e-7).
     /// Then the stop: Discard and terminated, the message names the limit and the angle,
-    /// the last point (located event) within 1e-5 rad of the exact limit angle, all outputs
+    /// the last point (located event) within 1e-5 rad of the exact limit angle (references.toml's
+    /// |AC| = l_AB + l_BC: theta = 90 + 114.901 = 204.901 deg), all outputs
     /// finite, loop gap below 1e-9 m, and B never changes side of A->C.
     #[test]
     fn motion_matches_the_closed_form_and_stops_at_the_limit() {
@@ -156,16 +152,17 @@ mod tests {
                 if k == n - 1 {
                     break;
                 }
-                let (t3, t4) = closed_form(&p, th, br);
+                let (t3, t4) = closed_form(&p, th);
+                assert!(t3.is_finite() && t4.is_finite(), "the closed form assembles before the limit, t = {}", tr.time[k]);
                 err[0] = err[0].max(wrap(g("theta3") - t3).abs()).max(wrap(g("theta4") - t4).abs());
                 if (t4 - t3).sin().abs() > 0.5 {
-                    let d = fd(&p, th, br);
+                    let d = fd(&p, th);
                     err[1] = err[1].max((g("theta3_dot") - d[0]).abs()).max((g("theta4_dot") - d[1]).abs());
                     err[2] = err[2].max((g("theta3_ddot") - d[2]).abs()).max((g("theta4_ddot") - d[3]).abs());
                 }
             }
             let th_end = *tr.get("theta").last().unwrap();
-            let limit = limit_angle(&p);
+            let limit = reference("theta_limit", &p, p.theta0);
             eprintln!(
                 "branch {br}: {n} points, max |angle err| {:.2e} rad, rates {:.2e}, accelerations {:.2e}; stopped at t = {:.6} s, theta = {:.6} deg (limit {:.6} deg), last |e| = {:.2e} m",
                 err[0],

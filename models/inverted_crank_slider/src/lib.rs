@@ -322,17 +322,23 @@ fmu_export::export_fmu!(InvertedCrankSlider);
 mod tests {
     use super::*;
     use fmu_export::harness::{Harness, Trajectory};
+    use fmu_export::table::Table;
+    use runner_engine::references::References;
     use std::f64::consts::PI;
 
     fn wrap(a: f64) -> f64 {
         (a + PI).rem_euclid(2.0 * PI) - PI
     }
 
-    /// Closed form of the loop: B = A + r2 (cos, sin)(theta2) with C at the origin and A at
-    /// (r1, 0); r3 = |CB|, theta3 = its direction.
+    /// The closed form's (r3, theta3) at the crank angle `th2` for the parameters of `p`:
+    /// references.toml's, in the triangle CAB, independent of the vector loop; tests/fmpy
+    /// evaluates it too.
     fn closed_form(p: &InvertedCrankSlider, th2: f64) -> (f64, f64) {
-        let (bx, by) = (p.r1 + p.r2 * th2.cos(), p.r2 * th2.sin());
-        (bx.hypot(by), by.atan2(bx))
+        let mut values = Table::<InvertedCrankSlider>::new().parameter_values(p);
+        values.push(("theta2", th2));
+        let references = References::of_model(env!("CARGO_MANIFEST_DIR")).expect("valid references");
+        let at = |name| references.value(name, &values).expect("a reference of the parameters");
+        (at("r3"), at("theta3"))
     }
 
     /// Time derivatives of the closed form by fourth-order central differences in theta2

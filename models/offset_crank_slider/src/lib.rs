@@ -41,21 +41,26 @@ mod tests {
     use super::*;
     use fmu_export::harness::Harness;
     use fmu_export::logging::Status;
+    use fmu_export::table::Table;
     #[allow(unused_imports)]
     use fmu_export::Model;
+    use runner_engine::references::References;
     use std::f64::consts::PI;
 
-    /// Closed form, independent of the vector loop: B is where the circle of radius l_AB about
-    /// A = l_OA (cos t, sin t) meets the line y = h; x_B = A_x + branch sqrt(l_AB^2 - (h - A_y)^2).
-    /// Returns (r1, theta3) and their first and second time derivatives (chain rule, theta' = w).
-    fn closed_form(a: f64, l: f64, h: f64, br: f64, w: f64, th: f64) -> [f64; 6] {
-        let (s, c) = th.sin_cos();
-        let (dy, dy1, dy2) = (h - a * s, -a * c * w, a * s * w * w);
-        let d = (l * l - dy * dy).sqrt();
-        let d1 = -dy * dy1 / d;
-        let d2 = -(dy1 * dy1 + dy * dy2 + d1 * d1) / d;
-        let th3 = dy.atan2(br * d);
-        [a * c + br * d, th3, -a * s * w + br * d1, dy1 / (br * d), -a * c * w * w + br * d2, (dy2 * d - dy1 * d1) / (br * d * d)]
+    /// Entry `name` of references.toml at the crank angle `th` for the parameters of `p`: the
+    /// slider-crank's closed form (circle meets line, and the chain rule), independent of the
+    /// vector loop (models/linkages/references/slider_crank.toml, shared with the crank-slider),
+    /// and the limit position; tests/fmpy evaluates them too.
+    fn reference(name: &str, p: &OffsetCrankSlider, th: f64) -> f64 {
+        let mut values = Table::<OffsetCrankSlider>::new().parameter_values(p);
+        values.push(("theta", th));
+        References::of_model(env!("CARGO_MANIFEST_DIR")).and_then(|r| r.value(name, &values)).expect("a reference of the parameters")
+    }
+
+    /// The closed form's (r1, theta3) and their first and second time derivatives at the crank
+    /// angle `th`, on the branch of `p`.
+    fn closed_form(p: &OffsetCrankSlider, th: f64) -> [f64; 6] {
+        ["r1", "theta3", "r1_dot", "theta3_dot", "r1_ddot", "theta3_ddot"].map(|name| reference(name, p, th))
     }
 
     const NAMES: [&str; 16] = [
@@ -100,7 +105,7 @@ mod tests {
         for k in 0..n {
             let g = |n: &str| tr.get(n)[k];
             let th = p.theta0 + p.omega * tr.time[k];
-            let cf = closed_form(p.l_oa, p.l_ab, p.y_oc, br, p.omega, th);
+            let cf = closed_form(p, th);
             err[0] = err[0].max((g("r1") - cf[0]).abs()).max(wrap(g("theta3") - cf[1]).abs());
             let rel = |v: f64, r: f64| (v - r).abs() / r.abs().max(1.0);
             err[1] = err[1].max(rel(g("r1_dot"), cf[2])).max(rel(g("theta3_dot"), cf[3]));
@@ -148,7 +153,7 @@ mod tests {
     }
 
     /// The handbook's dimensions: the rod reaches the vertical when A_y = y_OC - l_AB, i.e.
-    /// sin(theta) = -0.25, theta = 194.4775 deg, t = 1.4942 s. The FMU stops there with
+    /// sin(theta) = -0.25, theta = 194.4775 deg (references.toml's theta_limit), t = 1.4942 s. The FMU stops there with
     /// Discard and terminated, the message names the limit and the angle, all outputs are
     /// finite, the last point (the located event, cos(theta3) = 1e-3) is within 1e-5 rad of the
     /// exact limit angle (the threshold puts it ~l_AB 1e-6 / (2 l_OA |cos theta|) = 6.5e-7 rad
@@ -160,7 +165,8 @@ mod tests {
             let tr = h.run(2.0, 1e-2, &NAMES).unwrap();
             assert_eq!(h.instance.do_step_status().unwrap(), Status::Discard);
             assert!(h.instance.terminated().unwrap());
-            let limit = PI + 0.25f64.asin();
+            let p = OffsetCrankSlider::default();
+            let limit = reference("theta_limit", &p, p.theta0);
             let th_end = *tr.get("theta").last().unwrap();
             let t_end = *tr.time.last().unwrap();
             let res_end = *tr.get("loop_residual").last().unwrap();
@@ -194,7 +200,8 @@ mod tests {
             let mut h = harness(&[("solver", solver)]);
             let tr = h.run(2.0, 1e-2, &NAMES).unwrap();
             assert!(h.instance.terminated().unwrap());
-            let limit = PI + 0.25f64.asin();
+            let p = OffsetCrankSlider::default();
+            let limit = reference("theta_limit", &p, p.theta0);
             let th_end = *tr.get("theta").last().unwrap();
             let gap = *tr.get("loop_residual").last().unwrap();
             eprintln!(

@@ -5,7 +5,8 @@
 //!
 //! The same grammar, with names instead of summaries, gives [`Formula`]: closed-form
 //! expressions of `t` and parameters, such as the analytical references of `runner compare`.
-//! Both also take `^` and the functions of [`FUNCTIONS`].
+//! Both also take `^`, the functions of [`FUNCTIONS`] (of one or two arguments) and the
+//! constant `pi`.
 
 /// A per-run statistic of one variable.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -42,21 +43,47 @@ pub struct Source {
     pub from: f64,
 }
 
-/// A function of one argument an expression may call, and its name.
-pub type Function = (&'static str, fn(f64) -> f64);
+/// How a function an expression may call maps its arguments.
+#[derive(Debug, Clone, Copy)]
+pub enum Function {
+    /// A function of one argument, `sqrt(x)`.
+    One(fn(f64) -> f64),
+    /// A function of two arguments, `atan2(y, x)`.
+    Two(fn(f64, f64) -> f64),
+}
 
-/// Functions an expression may call, with one argument each.
-pub const FUNCTIONS: &[Function] = &[
-    ("exp", f64::exp),
-    ("log", f64::ln),
-    ("sqrt", f64::sqrt),
-    ("sin", f64::sin),
-    ("cos", f64::cos),
-    ("tan", f64::tan),
-    ("atan", f64::atan),
-    ("abs", f64::abs),
-    ("ellipk", elliptic_k),
+impl Function {
+    /// How many arguments it takes.
+    pub fn arity(self) -> usize {
+        match self {
+            Function::One(_) => 1,
+            Function::Two(_) => 2,
+        }
+    }
+}
+
+/// Functions an expression may call, by name. The same table, with the same names and argument
+/// orders, is tests/fmpy/closed_form.py's `FUNCTIONS` (numpy's functions of the same meaning).
+pub const FUNCTIONS: &[(&str, Function)] = &[
+    ("exp", Function::One(f64::exp)),
+    ("log", Function::One(f64::ln)),
+    ("sqrt", Function::One(f64::sqrt)),
+    ("sin", Function::One(f64::sin)),
+    ("cos", Function::One(f64::cos)),
+    ("tan", Function::One(f64::tan)),
+    ("asin", Function::One(f64::asin)),
+    ("acos", Function::One(f64::acos)),
+    ("atan", Function::One(f64::atan)),
+    // atan2(y, x): the direction of the vector (x, y), in (-pi, pi].
+    ("atan2", Function::Two(f64::atan2)),
+    // hypot(x, y) = sqrt(x^2 + y^2) without overflow.
+    ("hypot", Function::Two(f64::hypot)),
+    ("abs", Function::One(f64::abs)),
+    ("ellipk", Function::One(elliptic_k)),
 ];
+
+/// The one named constant: `pi` (a formula cannot take a name `pi` from its caller).
+pub const CONSTANTS: &[(&str, f64)] = &[("pi", std::f64::consts::PI)];
 
 /// The complete elliptic integral of the first kind K(m) of the parameter m = k² (scipy's
 /// `ellipk` convention): pi / (2 AGM(1, sqrt(1 - m))), the arithmetic-geometric mean converging
@@ -87,8 +114,8 @@ pub enum Expr {
     Summary(Stat, usize),
     /// Name number `.0` of a [`Formula`] (index into [`Formula::names`]).
     Name(usize),
-    /// Function number `.0` of [`FUNCTIONS`] applied to the argument.
-    Call(usize, Box<Expr>),
+    /// Function number `.0` of [`FUNCTIONS`] applied to the arguments (as many as it takes).
+    Call(usize, Vec<Expr>),
     /// Unary minus.
     Negate(Box<Expr>),
     /// A binary operation: one of + - * / ^.
@@ -177,7 +204,10 @@ fn eval(e: &Expr, leaf: &dyn Fn(&Expr) -> f64) -> f64 {
     match e {
         Expr::Number(x) => *x,
         Expr::Summary(..) | Expr::Name(_) => leaf(e),
-        Expr::Call(f, a) => (FUNCTIONS[*f].1)(eval(a, leaf)),
+        Expr::Call(f, args) => match FUNCTIONS[*f].1 {
+            Function::One(f) => f(eval(&args[0], leaf)),
+            Function::Two(f) => f(eval(&args[0], leaf), eval(&args[1], leaf)),
+        },
         Expr::Negate(a) => -eval(a, leaf),
         Expr::Binary(op, a, b) => {
             let (a, b) = (eval(a, leaf), eval(b, leaf));
@@ -263,7 +293,7 @@ enum Mode<'s> {
 
 /// Recursive descent over `expr := term (('+'|'-') term)*`, `term := unary (('*'|'/') unary)*`,
 /// `unary := '-' unary | power`, `power := atom ['^' unary]` (so -x^2 = -(x^2), 2^-1 = 0.5),
-/// `atom := NUMBER | '(' expr ')' | FUNCTION '(' expr ')' | leaf`, where a leaf is
+/// `atom := NUMBER | '(' expr ')' | FUNCTION '(' expr (',' expr)* ')' | 'pi' | leaf`, where a leaf is
 /// `STAT '(' VARIABLE [',' NUMBER] ')'` for metrics and `NAME` for formulas.
 struct Parser<'t, 's> {
     text: &'t str,
@@ -360,19 +390,38 @@ impl Parser<'_, '_> {
         }))
     }
 
-    /// A word: a function call, a summary (metrics) or a name (formulas).
+    /// A word: a function call, the constant `pi`, a summary (metrics) or a name (formulas).
     fn word(&mut self) -> Result<Expr, String> {
+        let start = self.pos;
         let len: usize = self.rest().chars().take_while(|&c| c.is_alphanumeric() || c == '_').map(char::len_utf8).sum();
         let word = self.rest()[..len].to_owned();
         let called = self.rest()[len..].trim_start().starts_with('(');
         if let Some(f) = FUNCTIONS.iter().position(|(n, _)| *n == word.as_str()).filter(|_| called) {
             self.pos += len;
             self.eat('(');
-            let argument = self.expression()?;
-            if !self.eat(')') {
-                return Err(self.error("expected ')'"));
+            let mut args = vec![self.expression()?];
+            while self.eat(',') {
+                args.push(self.expression()?);
             }
-            return Ok(Expr::Call(f, Box::new(argument)));
+            if !self.eat(')') {
+                return Err(self.error("expected ',' or ')'"));
+            }
+            let arity = FUNCTIONS[f].1.arity();
+            if args.len() != arity {
+                let plural = |n: usize| if n == 1 { "argument" } else { "arguments" };
+                return Err(format!(
+                    "'{word}' at column {} of '{}' takes {arity} {}, given {}",
+                    start + 1,
+                    self.text,
+                    plural(arity),
+                    args.len()
+                ));
+            }
+            return Ok(Expr::Call(f, args));
+        }
+        if let Some((_, value)) = CONSTANTS.iter().find(|(n, _)| *n == word.as_str()).filter(|_| !called) {
+            self.pos += len;
+            return Ok(Expr::Number(*value));
         }
         if let Mode::Formula(names) = &mut self.mode {
             if called {
@@ -540,6 +589,49 @@ mod tests {
             Metrics::parse(&["a=t".into()]).unwrap_err().contains("'t' at column 1 of 't' is not a summary"),
             "metrics take no bare names"
         );
+    }
+
+    /// The inverse trigonometric functions, atan2 and hypot (two arguments, y before x as in C
+    /// and numpy) and the constant pi, each against f64's own function: the evaluator must add
+    /// nothing to them (exact equality).
+    #[test]
+    fn two_argument_functions_and_pi() {
+        let eval = |text: &str, values: &[f64]| Formula::parse(text).unwrap().evaluate(values);
+        assert_eq!(eval("atan2(y, x)", &[-1.0, -2.0]), (-1.0f64).atan2(-2.0));
+        assert_eq!(eval("atan2(1, -1)", &[]), 0.75 * std::f64::consts::PI, "the second quadrant, not atan(-1)");
+        assert_eq!(eval("hypot(3, 4)", &[]), 5.0);
+        assert_eq!(eval("hypot(a - 1, 2*b)", &[4.0, 2.0]), 5.0, "arguments are whole expressions");
+        assert_eq!(eval("asin(x) + acos(x)", &[0.3]), 0.3f64.asin() + 0.3f64.acos());
+        assert_eq!(eval("atan(x)", &[0.5]), 0.5f64.atan());
+        assert_eq!(eval("abs(-x)", &[2.5]), 2.5);
+        assert_eq!(eval("pi", &[]), std::f64::consts::PI);
+        assert_eq!(eval("2*pi - atan2(0, -1)", &[]), std::f64::consts::PI);
+        let f = Formula::parse("r*cos(pi/2 + theta)").unwrap();
+        assert_eq!(f.names, ["r", "theta"], "pi is a constant, not a name the caller gives");
+        assert!(eval("acos(1.5)", &[]).is_nan(), "outside the domain: NaN, as f64::acos");
+        assert_eq!(run("a=pi*max(x)", &[(0.0, &[2.0])]).unwrap(), 2.0 * std::f64::consts::PI, "metrics take pi too");
+    }
+
+    /// A call with the wrong number of arguments, or of a function that does not exist, is
+    /// refused naming the function, the count and the place.
+    #[test]
+    fn wrong_argument_counts_and_unknown_functions_are_refused() {
+        let e = Formula::parse("atan2(y)").unwrap_err();
+        assert_eq!(e, "'atan2' at column 1 of 'atan2(y)' takes 2 arguments, given 1");
+        let e = Formula::parse("1 + sqrt(x, y)").unwrap_err();
+        assert_eq!(e, "'sqrt' at column 5 of '1 + sqrt(x, y)' takes 1 argument, given 2");
+        let e = Formula::parse("hypot(x, y, z)").unwrap_err();
+        assert!(e.contains("takes 2 arguments, given 3"), "{e}");
+        let e = Formula::parse("atan2(y, x").unwrap_err();
+        assert!(e.contains("expected ',' or ')'"), "{e}");
+        let e = Formula::parse("atan2(y,)").unwrap_err();
+        assert!(e.contains("expected a number, '(', a function"), "{e}");
+        let e = Formula::parse("arctan2(y, x)").unwrap_err();
+        assert!(e.contains("'arctan2' at column 1") && e.contains("is not a function") && e.contains("atan2, hypot"), "{e}");
+        let e = Formula::parse("pi(2)").unwrap_err();
+        assert!(e.contains("'pi' at column 1 of 'pi(2)' is not a function"), "{e}");
+        let e = Metrics::parse(&["a=atan2(max(y))".into()]).unwrap_err();
+        assert!(e.contains("takes 2 arguments, given 1"), "{e}");
     }
 
     #[test]

@@ -156,6 +156,27 @@ def children(pid):
         return []
 
 
+FIXED_ROUNDS = 15
+
+
+def fixed_cost(workdir):
+    """The sweep's fixed cost: the benchmark's 1-thread sweep with runs of one 1 ms step (start,
+    unpacking, workers, files, cleanup), in-process and in worker processes, beside the runner's
+    own start (`--version`); {label: (fastest, median) seconds} over interleaved rounds."""
+    tiny = [*EX4[:2], "--stop-time", "0.001", *EX4[4:]]
+    out = Path(workdir) / "fixed.csv"
+    sweep = [RUNNER, "sweep", FMU, "--param", "speed=1:50:0.5", *tiny, "--threads", "1", "--out", out]
+    ways = {"runner --version": [RUNNER, "--version"], "sweep --in-process": [*sweep, "--in-process"],
+            "sweep (worker processes)": sweep}
+    times = {label: [] for label in ways}
+    for _ in range(FIXED_ROUNDS):
+        for label, cmd in ways.items():
+            for leftover in (out, Path(f"{out}.sweep")):
+                leftover.unlink(missing_ok=True)
+            times[label].append(timed(cmd)[0])
+    return {label: (min(t), sorted(t)[len(t) // 2]) for label, t in times.items()}
+
+
 def largest_difference(values, reference):
     """Largest relative difference over the speeds both have."""
     return max(abs(v / reference[s] - 1) for s, v in values.items())
@@ -243,6 +264,15 @@ def main():
         for label, runs, per_run, values in rows:
             print(f"{label:<38}{runs:>6}{per_run * 1e3:>13.3f}{per_run / base:>20.2f}{largest_difference(values, reference):>38.1e}")
         disagreement = max(largest_difference(values, reference) for label, *_, values in rows if label != CVODE)
+        fixed = fixed_cost(work)
+        version = fixed["runner --version"][0]
+        print(f"\nfixed cost of the 1-thread sweep (the same command with --stop-time 0.001, so its runs are trivial; "
+              f"fastest and median of {FIXED_ROUNDS} interleaved rounds):")
+        for label, (fastest, median) in fixed.items():
+            share = "" if label == "runner --version" else \
+                f"; {(fastest - version) / len(SPEEDS) * 1e3:.3f} ms per run beyond process start, " \
+                f"{(fastest - version) / len(SPEEDS) / rows[0][2]:.1%} of the bare loop's"
+            print(f"  {label:<38}{fastest * 1e3:7.1f} ms (median {median * 1e3:.1f}){share}")
 
         # The same work counted in instructions (cachegrind), which this VM's load does not move:
         # what the FMI layer adds per run, apart from the sweep's fixed cost (the sweep again with

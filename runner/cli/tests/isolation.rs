@@ -251,11 +251,109 @@ fn compare_records_crashed_runs_and_goes_on() {
 /// Workers start before the FMU is unpacked: when it turns out unusable, the sweep fails with the
 /// FMU's problem alone, the workers let go before they were told what to load (they would
 /// complain on stderr if they took that for a broken request).
+/// No process is left running either: the workers are found by a mark in their environment
+/// (inherited from the runner), whoever their parent is by then.
 #[test]
 fn workers_started_ahead_of_an_unusable_fmu_leave_only_its_error() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("bad.fmu"), "not a zip").unwrap();
-    let err = fails(runner(dir.path(), &["sweep", "bad.fmu", "--param", "k=1,2", "--metric", "end=final(x)", "--threads", "2"]));
+    let mark = format!("RUNNER_TEST_MARK=unusable-fmu-{}", std::process::id());
+    let sweep = |fmu: &str| {
+        let args = ["sweep", fmu, "--param", "k=1,2", "--metric", "end=final(x)", "--threads", "2", "--out", "s.csv"];
+        let (key, value) = mark.split_once('=').unwrap();
+        std::process::Command::new(env!("CARGO_BIN_EXE_runner")).current_dir(dir.path()).env(key, value).args(args).output().unwrap()
+    };
+    let err = fails(sweep("bad.fmu"));
     assert_eq!(err.lines().count(), 1, "one line, the FMU's problem: {err}");
     assert!(err.contains("bad.fmu is not a zip archive"), "{err}");
+    let err = fails(sweep("/nonexistent.fmu"));
+    assert_eq!(err.trim_end(), "error: FMU file /nonexistent.fmu does not exist");
+    // A released worker exits within moments; one still there after seconds was left behind.
+    let marked = || -> Vec<String> {
+        std::fs::read_dir("/proc")
+            .unwrap()
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().bytes().all(|b| b.is_ascii_digit()))
+            .filter(|e| std::fs::read(e.path().join("environ")).is_ok_and(|env| env.split(|&b| b == 0).any(|v| v == mark.as_bytes())))
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect()
+    };
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(5);
+    while !marked().is_empty() && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert_eq!(marked(), Vec::<String>::new(), "processes of the failed sweeps still running");
+    assert!(!dir.path().join("s.csv.sweep").exists() && !dir.path().join("s.csv.partial").exists(), "nothing written");
+}
+
+/// The `runner-fmu-*` directories in the temporary directories (and /dev/shm).
+fn unpack_dirs() -> BTreeSet<std::path::PathBuf> {
+    let parents = [std::env::temp_dir(), "/tmp".into(), "/dev/shm".into()];
+    parents
+        .iter()
+        .filter_map(|p| std::fs::read_dir(p).ok())
+        .flat_map(|d| d.flatten().collect::<Vec<_>>())
+        .filter(|e| e.file_name().to_string_lossy().starts_with("runner-fmu-"))
+        .map(|e| e.path())
+        .collect()
+}
+
+/// Those of the FMUs unpacked from a modelDescription.xml holding `token`, other than `old` ones.
+fn unpacked_copies(token: &str, old: &BTreeSet<std::path::PathBuf>) -> Vec<std::path::PathBuf> {
+    unpack_dirs()
+        .into_iter()
+        .filter(|d| !old.contains(d))
+        .filter(|d| std::fs::read_to_string(d.join("modelDescription.xml")).is_ok_and(|xml| xml.contains(token)))
+        .collect()
+}
+
+/// A sweep unpacks its FMU once, into a directory of its own (in memory, /dev/shm, when TMPDIR
+/// is unset and the temporary directory is on disk), and removes it before it exits, in worker
+/// processes and in-process alike. The copy is looked for while the sweep runs, so the test
+/// knows where it was and cannot pass by looking in the wrong place.
+#[test]
+fn a_sweeps_unpacked_copy_is_removed_before_it_exits_in_both_modes() {
+    let dir = tempfile::tempdir().unwrap();
+    let so = dir.path().join("dahlquist.so");
+    compile_c_fmu(&so, &[]);
+    let token = format!(
+        "unpack-test-{}-{}",
+        std::process::id(),
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos()
+    );
+    let xml = std::fs::read_to_string(c_fmu_dir().join("modelDescription.xml")).unwrap().replace("Dahlquist test equation", &token);
+    assert!(xml.contains(&token));
+    let fmu = dir.path().join("marked.fmu");
+    let binary = std::fs::read(&so).unwrap();
+    write_zip(&fmu, &[ZipItem::File("modelDescription.xml", xml.as_bytes()), ZipItem::File("binaries/linux64/dahlquist.so", &binary)]);
+    for mode in [&[][..], &["--in-process"][..]] {
+        let mut args =
+            vec!["sweep", fmu.to_str().unwrap(), "--param", "k=0.5:1.3:0.004", "--metric", "end=final(x)", "--output-interval", "1e-3"];
+        args.extend_from_slice(&["--threads", "2", "--out", "s.csv"]);
+        args.extend_from_slice(mode);
+        let _ = std::fs::remove_file(dir.path().join("s.csv"));
+        // Directories left by other (killed) runs are not looked into.
+        let old = unpack_dirs();
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_runner"))
+            .current_dir(dir.path())
+            .env_remove("TMPDIR")
+            .args(&args)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut seen = Vec::new();
+        let status = loop {
+            if seen.is_empty() {
+                seen = unpacked_copies(&token, &old);
+            }
+            if let Some(status) = child.try_wait().unwrap() {
+                break status;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        };
+        assert!(status.success(), "the sweep {mode:?} failed");
+        assert_eq!(seen.len(), 1, "one unpacked copy while the sweep {mode:?} ran: {seen:?}");
+        assert_eq!(unpacked_copies(&token, &old), Vec::<std::path::PathBuf>::new(), "the sweep {mode:?} left its copy behind");
+    }
 }

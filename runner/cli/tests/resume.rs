@@ -166,6 +166,33 @@ fn resume_refuses_a_partial_file_of_another_sweep_and_names_the_difference() {
     assert!(err.contains("--resume needs --out"), "{err}");
 }
 
+/// The record names the FMU by its content: the same path holding another build is refused on
+/// `--resume` with the digests side by side, and accepted again once the first build is back.
+#[test]
+fn resume_refuses_a_changed_fmu_at_the_same_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "m.fmu", "linux64", &[]);
+    let original = std::fs::read(&fmu).unwrap();
+    let other = std::fs::read(c_fmu(dir.path(), "other.fmu", "linux64", &["-O0"])).unwrap();
+    assert_ne!(original, other);
+    let f = fmu.to_str().unwrap();
+    let mut args = vec!["sweep", f, "--param", "k=0.5:1.3:0.1", "--metric", "end=final(x)", "--out", "s.csv"];
+    ok(runner(dir.path(), &args));
+    let complete = std::fs::read(dir.path().join("s.csv")).unwrap();
+    // As a kill leaves it: the header and three rows in the partial file.
+    let rows: usize = complete.split_inclusive(|&b| b == b'\n').take(4).map(<[u8]>::len).sum();
+    std::fs::write(dir.path().join("s.csv.partial"), &complete[..rows]).unwrap();
+    std::fs::remove_file(dir.path().join("s.csv")).unwrap();
+    args.push("--resume");
+    std::fs::write(&fmu, &other).unwrap();
+    let err = fails(runner(dir.path(), &args));
+    assert!(err.contains("s.csv.partial is not from this sweep") && err.contains("fmu_sha256: the partial file's sweep has"), "{err}");
+    std::fs::write(&fmu, &original).unwrap();
+    let o = runner(dir.path(), &args);
+    assert!(o.status.success() && stderr(&o).contains("resuming: 3 of 9 points"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(dir.path().join("s.csv")).unwrap(), complete);
+}
+
 /// A write that fails (here past a file size limit, EFBIG, as a full disk fails with ENOSPC) stops
 /// the sweep with a message naming the file and the cause; the partial file keeps exactly its
 /// complete rows, and `--resume` once it can be written finishes it to the reference's bytes.

@@ -91,6 +91,60 @@ fn shown(name: &str) -> String {
 /// anything) entries with absolute paths, `..` components or symbolic links, names that occur
 /// twice, and archives over `limits`.
 pub fn extract_zip_with(archive: &Path, dest: &Path, limits: Limits) -> Result<(), String> {
+    check_zip(archive, limits)?.extract(dest)
+}
+
+/// An archive whose entry names and sizes passed the checks of [`extract_zip_with`], ready to be
+/// extracted: what it will unpack to is known before a directory is chosen for it.
+pub struct Checked {
+    zip: zip::ZipArchive<std::fs::File>,
+    /// (index, path inside the target, is a directory, declared size) per entry.
+    plan: Vec<(usize, PathBuf, bool, u64)>,
+    total: u64,
+    at: String,
+}
+
+impl Checked {
+    /// The bytes all files together declare: what extracting needs on disk.
+    pub fn total_bytes(&self) -> u64 {
+        self.total
+    }
+
+    /// Extracts the checked archive into the existing directory `dest`.
+    pub fn extract(self, dest: &Path) -> Result<(), String> {
+        let Checked { mut zip, plan, at, .. } = self;
+        for (i, relative, is_dir, declared) in plan {
+            let target = dest.join(&relative);
+            let what = shown(&relative.to_string_lossy());
+            // The temporary path means nothing to the user; the entry's path inside the archive does.
+            let fail = |e: &dyn std::fmt::Display| format!("{at}: cannot extract '{what}': {e}");
+            if is_dir || relative.as_os_str().is_empty() {
+                std::fs::create_dir_all(&target).map_err(|e| fail(&e))?;
+                continue;
+            }
+            if let Some(parent) = target.parent() {
+                std::fs::create_dir_all(parent).map_err(|e| fail(&e))?;
+            }
+            let mut entry = zip.by_index(i).map_err(|e| fail(&e))?;
+            // create_new: never overwrite (or follow a link at) a path an earlier entry made.
+            let file = std::fs::OpenOptions::new().write(true).create_new(true).open(&target).map_err(|e| fail(&e))?;
+            // A large buffer: a shared library in 8 KiB writes is 150 system calls.
+            let mut out = std::io::BufWriter::with_capacity(1 << 18, file);
+            // Declared sizes can lie: copy at most one byte more than declared, enough to tell.
+            // Each file then stays within its declared size, so the total stays within the limit.
+            let copied = std::io::copy(&mut (&mut entry).take(declared.saturating_add(1)), &mut out).map_err(|e| fail(&e))?;
+            if copied > declared {
+                return Err(fail(&format!("it unpacks to more than its declared size of {declared} bytes")));
+            }
+            out.flush().map_err(|e| fail(&e))?;
+        }
+        Ok(())
+    }
+}
+
+/// Opens the zip at `archive` and checks every entry's name and declared size against the rules
+/// of [`extract_zip_with`] and `limits`, writing nothing.
+pub fn check_zip(archive: &Path, limits: Limits) -> Result<Checked, String> {
     let file = std::fs::File::open(archive).map_err(|e| format!("cannot open {}: {e}", archive.display()))?;
     let mut zip = zip::ZipArchive::new(file).map_err(|e| format!("{} is not a zip archive (an .fmu is one): {e}", archive.display()))?;
     let at = archive.display();
@@ -139,32 +193,7 @@ pub fn extract_zip_with(archive: &Path, dest: &Path, limits: Limits) -> Result<(
         }
         plan.push((i, relative, entry.is_dir(), size));
     }
-    for (i, relative, is_dir, declared) in plan {
-        let target = dest.join(&relative);
-        let what = shown(&relative.to_string_lossy());
-        // The temporary path means nothing to the user; the entry's path inside the archive does.
-        let fail = |e: &dyn std::fmt::Display| format!("{at}: cannot extract '{what}': {e}");
-        if is_dir || relative.as_os_str().is_empty() {
-            std::fs::create_dir_all(&target).map_err(|e| fail(&e))?;
-            continue;
-        }
-        if let Some(parent) = target.parent() {
-            std::fs::create_dir_all(parent).map_err(|e| fail(&e))?;
-        }
-        let mut entry = zip.by_index(i).map_err(|e| fail(&e))?;
-        // create_new: never overwrite (or follow a link at) a path an earlier entry made.
-        let file = std::fs::OpenOptions::new().write(true).create_new(true).open(&target).map_err(|e| fail(&e))?;
-        // A large buffer: a shared library in 8 KiB writes is 150 system calls.
-        let mut out = std::io::BufWriter::with_capacity(1 << 18, file);
-        // Declared sizes can lie: copy at most one byte more than declared, enough to tell.
-        // Each file then stays within its declared size, so the total stays within the limit.
-        let copied = std::io::copy(&mut (&mut entry).take(declared.saturating_add(1)), &mut out).map_err(|e| fail(&e))?;
-        if copied > declared {
-            return Err(fail(&format!("it unpacks to more than its declared size of {declared} bytes")));
-        }
-        out.flush().map_err(|e| fail(&e))?;
-    }
-    Ok(())
+    Ok(Checked { zip, plan, total, at: at.to_string() })
 }
 
 #[cfg(test)]

@@ -12,6 +12,7 @@ pub mod fmi3;
 mod logging;
 pub mod model;
 mod reader;
+pub mod scratch;
 pub mod trace;
 
 use std::ffi::CString;
@@ -57,7 +58,7 @@ pub struct Unpacked {
     pub identifier: String,
     /// The shared library for this platform inside `dir`.
     pub binary: PathBuf,
-    /// The directory the archive was extracted into (deleted on drop).
+    /// The directory the archive was extracted into (deleted on drop): see [`scratch`].
     pub dir: tempfile::TempDir,
 }
 
@@ -75,9 +76,10 @@ impl Unpacked {
         if !path.is_file() {
             return Err(format!("FMU file {} does not exist", path.display()));
         }
-        let dir =
-            tempfile::Builder::new().prefix("runner-fmu-").tempdir().map_err(|e| format!("cannot create a temporary directory: {e}"))?;
-        archive::extract_zip(path, dir.path())?;
+        // Checked first: a refused archive creates no directory, and its size picks the place.
+        let checked = archive::check_zip(path, archive::Limits::FMU)?;
+        let dir = scratch::unpack_dir(checked.total_bytes())?;
+        checked.extract(dir.path())?;
         let found = inspect(path, dir.path(), interface)?;
         Ok(Unpacked {
             description: found.description,

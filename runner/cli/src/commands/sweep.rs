@@ -115,7 +115,7 @@ fn value_text(value: &Value) -> String {
 /// The record of this sweep: what `--resume` compares (see [`partial`]).
 fn record(
     path: &Path,
-    fmu_bytes: &[u8],
+    fmu_sha256: &str,
     interface: fmi_importer::Interface,
     plan: &Plan,
     spec: &SweepSpec,
@@ -124,7 +124,7 @@ fn record(
     let mut entries: Vec<(String, String)> = Vec::new();
     let mut put = |k: &str, v: String| entries.push((k.to_owned(), v));
     put("fmu", path.display().to_string());
-    put("fmu_sha256", format!("{:x}", Sha256::digest(fmu_bytes)));
+    put("fmu_sha256", fmu_sha256.to_owned());
     put("interface", interface.name().to_owned());
     put("points", plan.space.len.to_string());
     for (name, values) in &plan.space.ranges {
@@ -167,6 +167,23 @@ fn record(
     Record { entries }
 }
 
+/// The sha256 of the file at `path` in hex, read in pieces (no copy of the whole file).
+fn file_sha256(path: &Path) -> Result<String, String> {
+    use std::io::Read;
+    let cannot = |e: std::io::Error| format!("cannot read {}: {e}", path.display());
+    let mut file = std::fs::File::open(path).map_err(cannot)?;
+    let mut hash = Sha256::new();
+    let mut buffer = vec![0u8; 1 << 16];
+    loop {
+        match file.read(&mut buffer) {
+            Ok(0) => return Ok(format!("{:x}", hash.finalize())),
+            Ok(n) => hash.update(&buffer[..n]),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(cannot(e)),
+        }
+    }
+}
+
 /// Where a durable sweep starts: the points already on file and their values.
 struct Start {
     partial: PartialCsv,
@@ -207,6 +224,13 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         return Err("--worker-memory limits worker processes: drop --in-process".to_owned());
     }
     let solver = options.integration.solver()?;
+    let (out_path, plot_path) = output_paths(options, defaults);
+    // The record identifies the FMU by its file's sha256, hashed while this thread starts the
+    // workers and unpacks the FMU: off the path to the first point when a core is free.
+    let fmu_sha256 = out_path.as_ref().map(|_| {
+        let path = target.path.clone();
+        std::thread::spawn(move || file_sha256(&path))
+    });
     let config: Option<Isolation> = match options.in_process {
         true => None,
         false => Some(workers::isolation(timeout, options.worker_memory.unwrap_or_else(|| workers::default_memory_mib(threads)))?),
@@ -243,7 +267,6 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         pool.one_instance_per_process(once);
     }
 
-    let (out_path, plot_path) = output_paths(options, defaults);
     if let Some(plot) = &plot_path {
         output::check_destination(plot)?;
     }
@@ -261,8 +284,11 @@ pub fn run(options: &Options) -> Result<Summary, String> {
     let mut start: Option<Start> = None;
     if let Some(out) = &out_path {
         output::check_destination(out)?;
-        let fmu_bytes = std::fs::read(&target.path).map_err(|e| format!("cannot read {}: {e}", target.path.display()))?;
-        let current = record(&target.path, &fmu_bytes, held.interface(), &plan, &spec, options.point_timeout);
+        let digest = match fmu_sha256 {
+            Some(hashing) => hashing.join().map_err(|_| format!("hashing {} failed", target.path.display()))??,
+            None => file_sha256(&target.path)?,
+        };
+        let current = record(&target.path, &digest, held.interface(), &plan, &spec, options.point_timeout);
         let (partial_path, record_path) = (partial::partial_path(out), partial::record_path(out));
         let earlier = || -> Result<Record, String> {
             let text = std::fs::read_to_string(&record_path).map_err(|e| {
@@ -484,6 +510,21 @@ pub fn run(options: &Options) -> Result<Summary, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_fmu_is_hashed_in_pieces_to_the_digest_of_its_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.fmu");
+        std::fs::write(&path, b"abc").unwrap();
+        // FIPS 180-2's example: sha256("abc").
+        assert_eq!(file_sha256(&path).unwrap(), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+        // Many pieces, the last one short: the same digest as of the whole in memory.
+        let bytes: Vec<u8> = (0..200_003u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8).collect();
+        std::fs::write(&path, &bytes).unwrap();
+        assert_eq!(file_sha256(&path).unwrap(), format!("{:x}", Sha256::digest(&bytes)));
+        let missing = file_sha256(&dir.path().join("gone.fmu")).unwrap_err();
+        assert!(missing.starts_with("cannot read ") && missing.contains("gone.fmu"), "{missing}");
+    }
 
     #[test]
     fn naming_the_csv_drops_the_experiments_default_plot() {

@@ -2,7 +2,9 @@
 //! description (the schema's rules, the instantiationToken) and the binary (every one of the
 //! 75 functions of fmi3Functions.h exported, fmi3GetVersion "3.0"), then the dynamic probes,
 //! each in its own child process, for each declared interface (Co-Simulation with Event Mode
-//! and early return where offered, Model Exchange). Scheduled Execution is not probed.
+//! and early return where offered, Model Exchange): the lifecycle and the state machine
+//! (probes.rs), then FMU state, NULL arguments, threads and String variables
+//! (capabilities.rs). Scheduled Execution is not probed.
 
 mod capabilities;
 mod probes;

@@ -1,11 +1,11 @@
 //! The FMI 3.0 probes of what an FMU declares it can do, and of its robustness, the FMI 2.0
-//! set's counterparts (FMI 3.0.2 sections 2.2.6.4 and 2.4.2, 2.2.4):
+//! set's counterparts (FMU state: FMI 3.0.2 section 2.2.6.4):
 //!
 //! - `fmu-state` / `serialize`: with canGetAndSetFMUState (canSerializeFMUState), a state
 //!   saved half-way (fmi3GetFMUState; serialized with fmi3SerializedFMUStateSize and
 //!   fmi3SerializeFMUState, the original freed, and fmi3DeserializeFMUState) and restored with
 //!   fmi3SetFMUState must continue bit for bit as the run did; fmi3FreeFMUState must give
-//!   back NULL ("The function returns a null pointer in argument FMUState").
+//!   back NULL (the standard: "The function returns a null pointer in argument FMUState").
 //! - `arguments`: a NULL instance, NULL value-reference arrays with nvr > 0 and NULL value or
 //!   output arrays; the importer's error, which a robust FMU refuses with fmi3Error (any
 //!   other answer, or a crash, is a warning, as for FMI 2.0).
@@ -27,7 +27,7 @@ use crate::report::{Finding, Severity};
 /// Instances the threads probe runs at once.
 const INSTANCES: usize = 3;
 
-/// The probe's capability flags of the probed interface.
+/// The capability flags of the probed interface.
 fn common<'m>(ctx: &Ctx<'m>) -> Option<&'m s::InterfaceCommon> {
     let md = &ctx.child.model.md;
     match ctx.interface {
@@ -264,8 +264,8 @@ fn make(ctx: &Ctx, inst: &Instance, call: &Call) -> Code {
                         f(null, m.start, m.h, true, &mut event, &mut terminate, &mut early, &mut last)
                     })
                 }
-                // Returns nothing: the FMU must ignore it ("If a null pointer is provided for
-                // argument instance, the function call is ignored").
+                // Returns nothing: the FMU must ignore it ("If a NULL pointer is provided for
+                // argument instance, the function call is ignored (does not have an effect)").
                 _ => inst.call(name, api.free_instance, |f, _| {
                     unsafe { f(null) };
                     Code::OK.0

@@ -3,8 +3,13 @@ with the Rust engine, the results gathered as chunks finish into one table in po
 
 Dask schedules, retries and reports; nothing here is a scheduler. What this module decides:
 
-- the FMU's bytes are scattered once to every worker (``broadcast``), and each worker process
-  unpacks and loads them once (``_loaded``), whatever the number of its tasks;
+- the FMU's bytes are the result of one task of their own (``_fmu_bytes``), which every chunk
+  depends on: Dask copies them to each worker that runs a chunk with its ordinary transfers,
+  and recomputes them from the task if every worker holding them is lost (scattered data
+  cannot be recomputed, and ``scatter(broadcast=True)`` replicates through a path Dask's
+  maintainers call fragile: under load it once failed a sweep with "Key lost during
+  replication"). Each worker process unpacks and loads them once (``_loaded``), whatever the
+  number of its tasks;
 - chunk sizes: a first chunk per worker thread of a few points measures a point's cost on the
   cluster itself, and the following chunks are sized so a task takes about a second (never
   more than half of a thread's fair share of what is left, so the end of a sweep stays
@@ -60,6 +65,11 @@ def _loaded(digest: str, data: bytes, name: str) -> _engine.Model:
                 _models.popitem(last=False)
         _models.move_to_end(digest)
         return model
+
+
+def _fmu_bytes(data: bytes) -> bytes:
+    """A task: the FMU's bytes, held in the graph so that Dask can compute them again."""
+    return data
 
 
 def _run_chunk(data: bytes, digest: str, name: str, spec: str, start: int, stop: int):
@@ -157,8 +167,8 @@ def sweep_on_cluster(
     values = np.full((n, m), np.nan)
     status = np.full(n, "ok", dtype=object)
     filled = np.zeros(n, dtype=bool)
-    fmu = client.scatter(data, broadcast=True, hash=True)
     sweep_id = uuid.uuid4().hex[:12]
+    fmu = client.submit(_fmu_bytes, data, key=f"fmurunner-fmu-{sweep_id}", pure=False)
     next_point = 0
     progress = _Progress(n)
 
@@ -175,8 +185,12 @@ def sweep_on_cluster(
     # worker, so a worker lost later has nothing of it left to recompute.
     pending = as_completed([submit() for _ in range(min(threads, n))], with_results=True)
     try:
-        for future, (start, stop, chunk, failures, seconds) in pending:
+        for future, result in pending:
             del future
+            # A cancelled task (its inputs lost on the cluster) comes as its exception.
+            if isinstance(result, BaseException):
+                raise RunnerError(f"a chunk of the sweep was lost on the cluster: {result!r}") from result
+            start, stop, chunk, failures, seconds = result
             if filled[start:stop].any():
                 raise RunnerError(f"points {start}..{stop} arrived twice")
             values[start:stop] = np.frombuffer(chunk, dtype="<f8").reshape(stop - start, m)

@@ -24,11 +24,13 @@ way is run in several interleaved rounds and keeps its fastest. Every way's tran
 compared with the runner's at the speeds it ran; the largest difference is printed, because a
 benchmark that compares different work is worthless.
 
-Then: 2 threads against 1 on a 1000-point sweep, and the peak RSS of a 100-point and a
-10,000-point sweep (stop time 1 s: memory does not depend on the run's length, and it keeps the
-big sweep short). `runner sweep` runs its points in worker processes by default; the isolation
-section measures that default against `--in-process` (threads) on 99 and 1,000 points, and the
-peak RSS of the supervisor and of its workers apart.
+Then the runner and the bare loop counted in instructions (cachegrind, 10 speeds; the sweep's
+fixed cost apart), which the machine's load does not move. Then: 2 threads against 1 on a
+1000-point sweep, and the peak RSS of a 100-point and a 10,000-point sweep (stop time 1 s:
+memory does not depend on the run's length, and it keeps the big sweep short). `runner sweep`
+runs its points in worker processes by default; the isolation section measures that default
+against `--in-process` (threads) on 99 and 1,000 points, and the peak RSS of the supervisor and
+of its workers apart.
 """
 
 import argparse
@@ -42,6 +44,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from counting import instructions
+
 ROOT = Path(__file__).resolve().parents[2]
 CVODE = "fmpy CVODE on Model Exchange, 1 process"
 RUNNER = ROOT / "target/release/runner"
@@ -51,6 +55,8 @@ FMU = ROOT / "target/fmu/quarter_car.fmu"
 FMU3 = ROOT / "target/fmu3/quarter_car.fmu"
 FMI3 = "runner sweep, FMI 3.0 FMU, 1 thread"
 PEERS = Path(__file__).with_name("peers.py")
+# Runs of the instruction count (spread over the speeds like the peers' subsets).
+COUNTED_RUNS = 10
 
 # The handbook's sweep: 99 speeds.
 SPEEDS = [1 + 0.5 * i for i in range(99)]
@@ -237,6 +243,24 @@ def main():
         for label, runs, per_run, values in rows:
             print(f"{label:<38}{runs:>6}{per_run * 1e3:>13.3f}{per_run / base:>20.2f}{largest_difference(values, reference):>38.1e}")
         disagreement = max(largest_difference(values, reference) for label, *_, values in rows if label != CVODE)
+
+        # The same work counted in instructions (cachegrind), which this VM's load does not move:
+        # what the FMI layer adds per run, apart from the sweep's fixed cost (the sweep again with
+        # runs of one step). Printed, not a target: the targets are times.
+        counted_speeds = ",".join(f"{s:g}" for s in pick(COUNTED_RUNS))
+        def sweep(stop):
+            ex4 = [stop if previous == "--stop-time" else arg for previous, arg in zip([None, *EX4], EX4)]
+            return [RUNNER, "sweep", FMU, "--param", f"speed={counted_speeds}", *ex4, "--threads", "1", "--in-process",
+                    "--out", Path(work) / "counted_instructions.csv"]
+        bare_i = instructions([BARE, counted_speeds])
+        if bare_i is not None:
+            runner_i = instructions(sweep("10"))
+            fixed_i = instructions(sweep("0.001"))
+            per_run = (runner_i - fixed_i) / COUNTED_RUNS
+            print(f"\ninstructions per run (cachegrind, {COUNTED_RUNS} speeds, 1 thread, in-process): bare loop "
+                  f"{bare_i / COUNTED_RUNS / 1e6:.2f} M, runner {per_run / 1e6:.2f} M ({per_run / (bare_i / COUNTED_RUNS):.3f}x) "
+                  f"plus {fixed_i / 1e6:.1f} M per sweep of fixed cost (under valgrind SHA-256 runs without the CPU's "
+                  f"SHA instructions)")
 
         # The work and the accuracy, untimed, at the reference speeds: the runner's evaluations
         # per run (its n_rhs counter) against scipy RK45's at the same tolerance, speed by speed,

@@ -33,14 +33,14 @@ baseline does not match the system's numbers.
 import argparse
 import math
 import os
-import re
 import resource
-import shutil
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from counting import instructions
 
 ROOT = Path(__file__).resolve().parents[2]
 RUNNER = ROOT / "target/release/runner"
@@ -77,19 +77,6 @@ def cpu(cmd):
     if proc.returncode != 0:
         sys.exit(f"{' '.join(map(str, cmd))} failed ({proc.returncode}):\n{proc.stderr.decode()}")
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-
-
-def instructions(cmd):
-    """Instructions `cmd` executes (all threads), counted by valgrind's cachegrind; None without
-    valgrind."""
-    if shutil.which("valgrind") is None:
-        return None
-    proc = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null", *map(str, cmd)],
-                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    found = re.search(r"I\s+refs:\s+([\d,]+)", proc.stderr)
-    if proc.returncode != 0 or not found:
-        sys.exit(f"valgrind {' '.join(map(str, cmd))} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
-    return int(found.group(1).replace(",", ""))
 
 
 def libcosim(stop):

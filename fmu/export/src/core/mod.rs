@@ -365,9 +365,40 @@ impl<M: Model> Core<M> {
 
     /// Reads Real variables in one pass (see [`Core::prepare_read`]). A value that is not
     /// finite is refused, naming it; after initialization that breaks the instance.
+    ///
+    /// The loop here reads states, time and variables that need no model evaluation (what a
+    /// sweep reads at every communication point); at the first other one it hands the rest to
+    /// [`Core::get_real_rest`], out of line, so this stays a small function with a small frame:
+    /// the derivative branch inlined here cost every read about 40 instructions. Always
+    /// inlined into the front ends' GetReal, which saves a frame per call.
+    #[inline(always)]
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64], phase: Phase) -> CallResult {
         self.prepare_read(phase)?;
         let mut all_finite = true;
+        for (k, (vr, value)) in vrs.iter().zip(values.iter_mut()).enumerate() {
+            let i = *vr as usize;
+            *value = match self.table.rows.get(i).map(|r| &r.slot) {
+                Some(Slot::Model(Access::State(j))) => self.state.x[*j],
+                Some(Slot::Time) => self.state.t,
+                Some(Slot::Model(Access::Real { get, .. })) if !self.table.computed[i] => get(&self.state.model),
+                _ => return self.get_real_rest(&vrs[k..], &mut values[k..], phase, all_finite),
+            };
+            all_finite &= value.is_finite();
+        }
+        if all_finite {
+            Ok(())
+        } else {
+            Err(self.non_finite(vrs, values, phase))
+        }
+    }
+
+    /// [`Core::get_real`] from the first variable its loop leaves: computed outputs, solver
+    /// controls, derivatives and unknown references. `finite` says whether the values before
+    /// these were all finite.
+    #[cold]
+    #[inline(never)]
+    fn get_real_rest(&mut self, vrs: &[u32], values: &mut [f64], phase: Phase, finite: bool) -> CallResult {
+        let mut all_finite = finite;
         // The derivatives, computed at the first der(x) read (rare: sweeps read outputs).
         let mut dx: Option<Vec<f64>> = None;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
@@ -394,22 +425,30 @@ impl<M: Model> Core<M> {
             };
             all_finite &= value.is_finite();
         }
-        // Never a silent NaN or inf. The solver refuses non-finite states during a step, but
-        // outputs are computed lazily, here: one that overflowed means the solution diverged,
-        // and the instance is broken as after a failed step.
         if all_finite {
-            return Ok(());
+            Ok(())
+        } else {
+            Err(self.non_finite(vrs, values, phase))
         }
+    }
+
+    /// The refusal of a read that gave a value that is not finite (the first of `values`).
+    /// Never a silent NaN or inf. The solver refuses non-finite states during a step, but
+    /// outputs are computed lazily, in the reads: one that overflowed means the solution
+    /// diverged, and the instance is broken as after a failed step.
+    #[cold]
+    #[inline(never)]
+    fn non_finite(&self, vrs: &[u32], values: &[f64], phase: Phase) -> Failure {
         let (vr, value) = vrs.iter().zip(values.iter()).find(|(_, v)| !v.is_finite()).expect("a value is not finite");
         let name = self.table.rows[*vr as usize].name;
         let t = self.state.t;
         let message = format!("{name} = {value} at t = {t} s is not finite: the solution diverged ({DIVERGED_ADVICE})");
         // While initializing, the parameters can still be corrected: the instance is not broken.
         // Under Model Exchange the states are the importer's, who may set others.
-        Err(match phase {
+        match phase {
             Phase::Initializing | Phase::Event | Phase::ContinuousTime => Failure::error(message),
             Phase::Running => Failure::broken(format!("{message}; the instance is now in the Error state")),
-        })
+        }
     }
 
     /// Reads Integer variables.
@@ -663,6 +702,8 @@ impl<M: Model> Core<M> {
 
     /// Ends the experiment early at the current time (`Discard`, terminated); a broken
     /// instance instead if the state or the outputs there are not finite.
+    #[cold]
+    #[inline(never)]
     fn stop_early(&mut self, t_start: f64, reason: &str) -> CallResult<StepEnd> {
         if let Some(bad) = self.first_non_finite() {
             let message = Self::diverged(&bad, t_start, self.state.t);
@@ -678,6 +719,8 @@ impl<M: Model> Core<M> {
 
     /// A computation failed inside a step: restore the state at the step's start (so outputs
     /// stay finite); the instance is broken.
+    #[cold]
+    #[inline(never)]
     fn fail_step(&mut self, t_start: f64, message: String) -> Failure {
         self.state.x.copy_from_slice(&self.x_start);
         self.state.t = t_start;
@@ -761,7 +804,10 @@ impl<M: Model> Core<M> {
     }
 
     /// One communication step from `current` over `h`, handling events: `Completed`, or
-    /// `EndedEarly` when the model ended the experiment inside it.
+    /// `EndedEarly` when the model ended the experiment inside it. Always inlined into the
+    /// front ends' DoStep (one frame fewer per communication step); events and failures
+    /// continue out of line.
+    #[inline(always)]
     pub fn do_step(&mut self, current: f64, h: f64) -> CallResult<StepEnd> {
         // The usual call, at the FMU's own time with a positive finite step, passes one test;
         // anything else gets the full checks (out of line, with their messages).

@@ -157,3 +157,27 @@ fn fmu_states_carry_the_pending_step_and_continue_bit_for_bit() {
         }
     }
 }
+
+/// One GetReal of every kind of Real variable, in an order that leaves the fast loop of
+/// `Core::get_real` at its third value (a derivative) and comes back to states and inputs
+/// after: the values are those of one read per variable, which go through either path alone.
+/// An unknown value reference after a state is refused by its number, and the values before it
+/// are not handed out as a success.
+#[test]
+fn a_read_of_mixed_kinds_equals_one_read_per_variable() {
+    let mut h = lag(1e-8, 2.0);
+    h.set("u", 0.5).unwrap();
+    run(&mut h, 0.3, |_, _| {});
+    let table = h.instance.table();
+    let names = ["x", "time", "der(x)", "u", "abs_tol", "x", "max_step"];
+    let vrs: Vec<u32> = names.iter().map(|n| table.value_reference(n).unwrap_or_else(|| panic!("no {n}"))).collect();
+    let mut together = vec![f64::NAN; vrs.len()];
+    h.instance.get_real(&vrs, &mut together).unwrap();
+    let alone: Vec<f64> = names.iter().map(|n| h.get(n).unwrap()).collect();
+    assert_eq!(together.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), alone.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+    // der(x) = u - x: the derivative is the model's, at the state read beside it.
+    assert_eq!(together[2], 0.5 - together[0]);
+    let unknown = 9_999;
+    let err = h.instance.get_real(&[vrs[0], unknown], &mut [0.0; 2]).unwrap_err();
+    assert!(err.message.contains("value reference 9999"), "{}", err.message);
+}

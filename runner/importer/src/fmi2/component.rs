@@ -189,7 +189,7 @@ impl<'a> Component<'a> {
     }
 
     /// Reads the variables of `reader` into `out` (one f64 per variable, Booleans as 0/1).
-    #[inline]
+    #[inline(always)]
     pub(crate) fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         if reader.direct {
             // Only Reals (the usual sweep): they are in `out`'s order, so read straight into it.

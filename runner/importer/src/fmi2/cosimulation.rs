@@ -60,7 +60,7 @@ impl<'a> CoSimulation<'a> {
     }
 
     /// Reads the variables of `reader` into `out` (one f64 per variable, Booleans as 0/1).
-    #[inline]
+    #[inline(always)]
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         self.component.read(reader, out)
     }
@@ -73,7 +73,7 @@ impl<'a> CoSimulation<'a> {
 
     /// fmi2DoStep from `t` over `h`; a discard with fmi2Terminated becomes [`Step::Ended`].
     /// Inlined into the run loop, with the discard handling out of line.
-    #[inline]
+    #[inline(always)]
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         let do_step = self.component.binary.api.do_step.expect("resolved for Co-Simulation");
         trace::enter(Call::DoStep, t);

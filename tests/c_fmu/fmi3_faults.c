@@ -3,11 +3,13 @@
  * built with one -DFAULT_... flag, it has exactly that fault and validate must name it.
  *
  * The model: x' = -k x, x(0) = x0 (= 1), with the event indicator z = x - 0.5; `crossings`
- * (a discrete output) counts how often z changed sign. Co-Simulation (without Event Mode) steps
+ * (a discrete output) counts how often z changed sign; `label`, a tunable String parameter, says what it
+ * is. Co-Simulation (without Event Mode) steps
  * with the exact solution; Model Exchange leaves the integration to the importer. Every call
  * checks the FMI 3.0.2 state machine (each state's "Allowed Function Calls", sections 2.3, 3.2,
- * 4.2) and its value references; a refused call returns fmi3Error. All 75 functions of
- * fmi3Functions.h are exported; those for capabilities it lacks return fmi3Error.
+ * 4.2), its value references and its pointer arguments (NULL refused); a refused call returns fmi3Error.
+ * It can get, set and serialize its FMU state. All 75 functions of fmi3Functions.h are exported; those
+ * for capabilities it lacks return fmi3Error.
  *
  * The faults:
  *   FAULT_NO_EXPORT  fmi3GetClock is not exported
@@ -15,7 +17,10 @@
  *   FAULT_SET_FIXED  fmi3SetFloat64 sets the fixed parameter k after initialization
  *   FAULT_RESET      fmi3Reset leaves the crossings counter of the run before
  *   FAULT_NAN        x becomes NaN from t = 1 on (Co-Simulation) / x' is NaN (Model Exchange)
- *   FAULT_SIZES      fmi3GetNumberOfContinuousStates reports 2 states, the description 1 */
+ *   FAULT_SIZES      fmi3GetNumberOfContinuousStates reports 2 states, the description 1
+ *   FAULT_STATE      fmi3SetFMUState brings back the start values, not the state it is given
+ *   FAULT_NULL_VR    fmi3GetFloat64 does not check its arrays for NULL (and crashes on them)
+ *   FAULT_STRING_NULL fmi3GetString returns fmi3OK with a NULL pointer for `label` */
 
 #include <math.h>
 #include <stdbool.h>
@@ -48,7 +53,11 @@ typedef void (*fmi3UnlockPreemptionCallback)(void);
 
 #define TOKEN "{7d1c2f40-5b8e-4c3a-9f61-0e2d4b6a8c13}"
 
-enum { VR_TIME = 0, VR_X = 1, VR_DER_X = 2, VR_K = 3, VR_CROSSINGS = 4, VR_Z = 5 };
+enum { VR_TIME = 0, VR_X = 1, VR_DER_X = 2, VR_K = 3, VR_CROSSINGS = 4, VR_Z = 5, VR_LABEL = 6 };
+
+/* The longest label (with its NUL) the FMU keeps; a longer one is refused. */
+#define LABEL_SIZE 128
+#define LABEL_START "exponential decay"
 
 typedef enum {
     Instantiated = 1 << 0,
@@ -70,7 +79,16 @@ typedef struct {
     fmi3LogMessageCallback log;
     double time, x, k, crossings;
     bool below; /* z <= 0 at the last event */
+    char label[LABEL_SIZE];
 } Model;
+
+/* An FMU state: everything of the instance but its name and callbacks. */
+typedef struct {
+    State state;
+    double time, x, k, crossings;
+    bool below;
+    char label[LABEL_SIZE];
+} Snapshot;
 
 static void say(Model *m, fmi3Status status, const char *text) {
     if (m->log) m->log(m->env, status, status == fmi3OK ? "logEvents" : "logStatusError", text);
@@ -86,9 +104,21 @@ static bool allowed(Model *m, int mask, const char *call) {
     return false;
 }
 
+/* A get or set of values: allowed in `mask`, its arrays not NULL where nvr > 0, one value a reference. */
+static bool values_call(Model *m, int mask, const char *call, const void *vr, const void *values, size_t nvr, size_t n) {
+    if (!allowed(m, mask, call)) return false;
+    if ((nvr > 0 && (!vr || !values)) || n != nvr) {
+        say(m, fmi3Error, "NULL arrays, or not one value a value reference");
+        return false;
+    }
+    return true;
+}
+
 #define ME_ONLY(m, call) \
+    if (!(m)) return fmi3Error; \
     if (!(m)->me) { say((m), fmi3Error, call " is a Model Exchange function"); return fmi3Error; }
 #define CS_ONLY(m, call) \
+    if (!(m)) return fmi3Error; \
     if ((m)->me) { say((m), fmi3Error, call " is a Co-Simulation function"); return fmi3Error; }
 
 static double der_x(Model *m) {
@@ -106,6 +136,7 @@ static void start_values(Model *m) {
     m->crossings = 0;
 #endif
     m->below = false;
+    strcpy(m->label, LABEL_START);
 }
 
 static fmi3Instance instantiate(fmi3String name, fmi3String token, bool me, fmi3InstanceEnvironment env, fmi3LogMessageCallback log) {
@@ -211,9 +242,11 @@ EXPORT fmi3Status fmi3Reset(fmi3Instance instance) {
 /* Float64: every variable; the others have no variables of their type. */
 EXPORT fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3Float64 values[], size_t n) {
     Model *m = instance;
-    if (!allowed(m, ANY, "fmi3GetFloat64")) return fmi3Error;
-    if (nvr > 0 && (!vr || !values)) return fmi3Error;
-    if (n != nvr) return fmi3Error;
+#ifdef FAULT_NULL_VR
+    if (!allowed(m, ANY, "fmi3GetFloat64") || n != nvr) return fmi3Error;
+#else
+    if (!values_call(m, ANY, "fmi3GetFloat64", vr, values, nvr, n)) return fmi3Error;
+#endif
     for (size_t i = 0; i < nvr; i++) {
         switch (vr[i]) {
         case VR_TIME: values[i] = m->time; break;
@@ -230,9 +263,7 @@ EXPORT fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference
 
 EXPORT fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3Float64 values[], size_t n) {
     Model *m = instance;
-    if (!allowed(m, ANY & ~Terminated, "fmi3SetFloat64")) return fmi3Error;
-    if (nvr > 0 && (!vr || !values)) return fmi3Error;
-    if (n != nvr) return fmi3Error;
+    if (!values_call(m, ANY & ~Terminated, "fmi3SetFloat64", vr, values, nvr, n)) return fmi3Error;
     for (size_t i = 0; i < nvr; i++) {
         bool before = m->state & (Instantiated | InitializationMode);
         switch (vr[i]) {
@@ -281,7 +312,38 @@ NO_VARIABLES(UInt32, uint32_t)
 NO_VARIABLES(Int64, int64_t)
 NO_VARIABLES(UInt64, uint64_t)
 NO_VARIABLES(Boolean, fmi3Boolean)
-NO_VARIABLES(String, fmi3String)
+
+/* String: `label` alone. The returned pointer is the instance's copy, valid until the label changes. */
+EXPORT fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, fmi3String values[], size_t n) {
+    Model *m = instance;
+    if (!values_call(m, ANY, "fmi3GetString", vr, values, nvr, n)) return fmi3Error;
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] != VR_LABEL) {
+            say(m, fmi3Error, "unknown String value reference");
+            return fmi3Error;
+        }
+#ifdef FAULT_STRING_NULL
+        values[i] = NULL;
+#else
+        values[i] = m->label;
+#endif
+    }
+    return fmi3OK;
+}
+
+EXPORT fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, const fmi3String values[], size_t n) {
+    Model *m = instance;
+    if (!values_call(m, ANY & ~Terminated, "fmi3SetString", vr, values, nvr, n)) return fmi3Error;
+    for (size_t i = 0; i < nvr; i++) {
+        if (vr[i] != VR_LABEL || !values[i] || strlen(values[i]) >= LABEL_SIZE) {
+            say(m, fmi3Error, "not a String variable, or a NULL or too long text");
+            return fmi3Error;
+        }
+    }
+    /* Copied: the caller's texts are the caller's. */
+    for (size_t i = 0; i < nvr; i++) strcpy(m->label, values[i]);
+    return fmi3OK;
+}
 
 EXPORT fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr, size_t sizes[], fmi3Binary values[], size_t n) {
     (void)vr; (void)sizes; (void)values; (void)n;
@@ -296,7 +358,7 @@ EXPORT fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference 
     return nvr == 0 ? fmi3OK : fmi3Error;
 }
 
-/* What this FMU does not offer (clocks, FMU state, derivatives, configuration): fmi3Error. */
+/* What this FMU does not offer (clocks, derivatives, configuration): fmi3Error. */
 #define UNSUPPORTED(call)                                               \
     do {                                                                \
         if (instance) say(instance, fmi3Error, call " is not supported"); \
@@ -322,20 +384,75 @@ EXPORT fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueRe
     (void)dependent; (void)elements; (void)independents; (void)independentElements; (void)kinds; (void)n;
     UNSUPPORTED("fmi3GetVariableDependencies");
 }
-EXPORT fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *state) { (void)state; UNSUPPORTED("fmi3GetFMUState"); }
-EXPORT fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState state) { (void)state; UNSUPPORTED("fmi3SetFMUState"); }
-EXPORT fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *state) { (void)state; UNSUPPORTED("fmi3FreeFMUState"); }
+
+/* FMU state: a Snapshot on the heap; serialized, its bytes. COPY_STATE copies what a Snapshot
+ * holds from a Model to a Snapshot or back. */
+#define COPY_STATE(to, from)                                 \
+    do {                                                     \
+        (to)->state = (from)->state;                         \
+        (to)->time = (from)->time;                           \
+        (to)->x = (from)->x;                                 \
+        (to)->k = (from)->k;                                 \
+        (to)->crossings = (from)->crossings;                 \
+        (to)->below = (from)->below;                         \
+        memcpy((to)->label, (from)->label, LABEL_SIZE);      \
+    } while (0)
+
+static void save(const Model *m, Snapshot *s) { COPY_STATE(s, m); }
+
+static void restore(Model *m, const Snapshot *s) {
+#ifdef FAULT_STATE
+    start_values(m);
+    m->crossings = 0;
+    m->state = s->state;
+#else
+    COPY_STATE(m, s);
+#endif
+}
+
+EXPORT fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *state) {
+    Model *m = instance;
+    if (!allowed(m, ANY, "fmi3GetFMUState")) return fmi3Error;
+    if (!state) return fmi3Error;
+    if (!*state) *state = malloc(sizeof(Snapshot));
+    if (!*state) return fmi3Error;
+    save(m, *state);
+    return fmi3OK;
+}
+EXPORT fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState state) {
+    Model *m = instance;
+    if (!allowed(m, ANY, "fmi3SetFMUState")) return fmi3Error;
+    if (!state) return fmi3Error;
+    restore(m, state);
+    return fmi3OK;
+}
+EXPORT fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *state) {
+    if (!allowed(instance, ANY, "fmi3FreeFMUState")) return fmi3Error;
+    if (!state) return fmi3Error;
+    free(*state);
+    *state = NULL;
+    return fmi3OK;
+}
 EXPORT fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState state, size_t *size) {
-    (void)state; (void)size;
-    UNSUPPORTED("fmi3SerializedFMUStateSize");
+    if (!allowed(instance, ANY, "fmi3SerializedFMUStateSize")) return fmi3Error;
+    if (!state || !size) return fmi3Error;
+    *size = sizeof(Snapshot);
+    return fmi3OK;
 }
 EXPORT fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState state, fmi3Byte bytes[], size_t size) {
-    (void)state; (void)bytes; (void)size;
-    UNSUPPORTED("fmi3SerializeFMUState");
+    if (!allowed(instance, ANY, "fmi3SerializeFMUState")) return fmi3Error;
+    if (!state || !bytes || size != sizeof(Snapshot)) return fmi3Error;
+    memcpy(bytes, state, sizeof(Snapshot));
+    return fmi3OK;
 }
 EXPORT fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte bytes[], size_t size, fmi3FMUState *state) {
-    (void)bytes; (void)size; (void)state;
-    UNSUPPORTED("fmi3DeserializeFMUState");
+    if (!allowed(instance, ANY, "fmi3DeserializeFMUState")) return fmi3Error;
+    if (!bytes || !state || size != sizeof(Snapshot)) return fmi3Error;
+    Snapshot *s = malloc(sizeof(Snapshot));
+    if (!s) return fmi3Error;
+    memcpy(s, bytes, sizeof(Snapshot));
+    *state = s;
+    return fmi3OK;
 }
 EXPORT fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference u[], size_t nu, const fmi3ValueReference k[],
                                                size_t nk, const fmi3Float64 seed[], size_t ns, fmi3Float64 s[], size_t n) {

@@ -495,6 +495,20 @@ fn fmi3_a_correct_fmu_is_clean_and_each_fault_is_named() {
     {
         assert!(v.has_passed(check, interface), "{check} {interface}: {}", v.stdout);
     }
+    // It declares FMU state and serialization, has a String parameter and may be instantiated
+    // many times: the capability probes run, and pass, on both interfaces.
+    for interface in ["Co-Simulation", "Model Exchange"] {
+        for check in [
+            "capability.fmu-state",
+            "capability.serialize",
+            "arguments.null-instance",
+            "arguments.null-arrays",
+            "capability.threads",
+            "variables.string",
+        ] {
+            assert!(v.has_passed(check, interface), "{check} {interface}: {}", v.stdout);
+        }
+    }
     // (interface, check, call, state, variable) of each expected error.
     type Expected<'a> = &'a [(&'a str, &'a str, &'a str, &'a str, &'a str)];
     let cases: [(&str, Expected); 6] = [
@@ -547,6 +561,101 @@ fn fmi3_a_correct_fmu_is_clean_and_each_fault_is_named() {
     assert!(f["message"].as_str().unwrap().contains("crossings at t = "), "the variable that differs is named: {f}");
 }
 
+/// The FMI 3.0 probes of FMU state, NULL arguments and String variables (which the correct C
+/// FMU passes: see the test above): each fault injected into it is reported by the probe meant
+/// for it, naming the function and the problem, and by no other probe. A probe that passed
+/// everything, or failed everything, fails here.
+#[test]
+fn fmi3_the_capability_probes_name_each_fault() {
+    let dir = tempfile::tempdir().unwrap();
+    // (severity, interface, check, call, state, variable, words of the message) of each trouble.
+    type Expected<'a> = &'a [(&'a str, &'a str, &'a str, &'a str, &'a str, &'a str, &'a str)];
+    let cases: [(&str, Expected); 3] = [
+        (
+            // The restore brings back the start values: both round trips continue differently
+            // (after fmi3SetFMUState, in the state the run was saved in).
+            "STATE",
+            &[
+                (
+                    "error",
+                    "Co-Simulation",
+                    "capability.fmu-state",
+                    "fmi3SetFMUState",
+                    "StepMode",
+                    "",
+                    "does not reproduce the continuation",
+                ),
+                (
+                    "error",
+                    "Co-Simulation",
+                    "capability.serialize",
+                    "fmi3SetFMUState",
+                    "StepMode",
+                    "",
+                    "does not reproduce the continuation",
+                ),
+                (
+                    "error",
+                    "Model Exchange",
+                    "capability.fmu-state",
+                    "fmi3SetFMUState",
+                    "ContinuousTimeMode",
+                    "",
+                    "does not reproduce the continuation",
+                ),
+                (
+                    "error",
+                    "Model Exchange",
+                    "capability.serialize",
+                    "fmi3SetFMUState",
+                    "ContinuousTimeMode",
+                    "",
+                    "does not reproduce the continuation",
+                ),
+            ],
+        ),
+        (
+            // fmi3GetFloat64 dereferences its NULL arrays: a crash in the call, a warning (NULL
+            // arrays are the importer's error; a robust FMU refuses them), and the probe goes on.
+            "NULL_VR",
+            &[
+                ("warning", "Co-Simulation", "arguments.null-arrays", "fmi3GetFloat64", "StepMode", "", "crashed"),
+                ("warning", "Co-Simulation", "arguments.null-arrays", "fmi3GetFloat64", "StepMode", "x", "crashed"),
+                ("warning", "Model Exchange", "arguments.null-arrays", "fmi3GetFloat64", "EventMode", "", "crashed"),
+                ("warning", "Model Exchange", "arguments.null-arrays", "fmi3GetFloat64", "EventMode", "x", "crashed"),
+            ],
+        ),
+        (
+            // fmi3GetString says fmi3OK but hands out NULL: found at the first read.
+            "STRING_NULL",
+            &[
+                ("error", "Co-Simulation", "variables.string", "fmi3GetString", "InitializationMode", "label", "NULL pointer"),
+                ("error", "Model Exchange", "variables.string", "fmi3GetString", "InitializationMode", "label", "NULL pointer"),
+            ],
+        ),
+    ];
+    for (fault, expected) in cases {
+        let fmu = fmi3_fmu(dir.path(), fault, &[&format!("-DFAULT_{fault}")]);
+        let v = validate(dir.path(), &[fmu.to_str().unwrap()]);
+        let want: BTreeSet<_> = expected
+            .iter()
+            .map(|(sev, i, c, call, s, var, _)| {
+                (sev.to_string(), i.to_string(), c.to_string(), call.to_string(), s.to_string(), var.to_string())
+            })
+            .collect();
+        assert_eq!(v.troubles(), want, "{fault}: {}", v.stdout);
+        for (severity, interface, check, call, .., words) in expected.iter() {
+            let f = v.find(severity, check, Some(interface));
+            let message = f["message"].as_str().unwrap();
+            assert!(message.contains(words) && message.contains(call), "{fault}: {check} names {call} and says {words:?}: {f}");
+        }
+        // After the crash the rest of the arguments probe ran: the NULL instance cells passed.
+        if fault == "NULL_VR" {
+            assert!(v.has_passed("arguments.null-instance", "Model Exchange"), "{}", v.stdout);
+        }
+    }
+}
+
 /// The FMI 3.0 Reference FMUs are validated to the end, and their only errors are the
 /// deviations from FMI 3.0.2 the README lists and explains (each confirmed in the sources they
 /// ship: the state masks of fmi3Functions.c, setFloat64 in model.c).
@@ -580,14 +689,28 @@ fn fmi3_the_reference_fmus_show_exactly_their_known_deviations() {
     ] {
         common.insert(error(interface, call, state, ""));
     }
-    // With Event Mode (hasEventMode): the Model Exchange calls in a Co-Simulation Event Mode.
+    // The arguments probe's warnings, every one of them: fmi3GetFMUState(instance, NULL) and
+    // fmi3GetNumberOfContinuousStates(instance, NULL) crash (fmi3Functions.c passes the pointer
+    // on without the NULL check its other functions make: getFMUState in cosimulation.c
+    // reallocates *FMUState, fmi3GetNumberOfContinuousStates writes *nContinuousStates). NULL
+    // is the importer's error, so these are warnings; every NULL value array or value
+    // reference array, and every NULL instance, is refused as it should be.
+    let null_crash = |interface: &str, call: &str, state: &str| -> Trouble {
+        ("warning".into(), interface.into(), "arguments.null-arrays".into(), call.into(), state.into(), String::new())
+    };
+    common.insert(null_crash("Model Exchange", "fmi3GetFMUState", "EventMode"));
+    common.insert(null_crash("Model Exchange", "fmi3GetNumberOfContinuousStates", "EventMode"));
+    // With Event Mode (hasEventMode): the Model Exchange calls in a Co-Simulation Event Mode
+    // (where the arguments probe calls, after initialization).
     let event_mode = [
         error("Co-Simulation", "fmi3EnterContinuousTimeMode", "EventMode", ""),
         error("Co-Simulation", "fmi3GetContinuousStateDerivatives", "EventMode", ""),
         error("Co-Simulation", "fmi3SetTime", "EventMode", ""),
+        null_crash("Co-Simulation", "fmi3GetFMUState", "EventMode"),
     ];
     // Without it: fmi3EnterEventMode in Step Mode of an instance made with eventModeUsed false.
-    let no_event_mode = [error("Co-Simulation", "fmi3EnterEventMode", "StepMode", "")];
+    let no_event_mode =
+        [error("Co-Simulation", "fmi3EnterEventMode", "StepMode", ""), null_crash("Co-Simulation", "fmi3GetFMUState", "StepMode")];
     // A fixed parameter set after initialization: setFloat64 checks the state only for Model
     // Exchange (VanDerPol's mu: and lets Event Mode through).
     let fixed = |name: &str, states: &[&str]| states.iter().map(|s| error("Co-Simulation", "fmi3SetFloat64", s, name)).collect::<Vec<_>>();
@@ -614,10 +737,25 @@ fn fmi3_the_reference_fmus_show_exactly_their_known_deviations() {
         assert_eq!(v.code, 1, "{name}: {}", v.stdout);
         let want: BTreeSet<Trouble> = common.iter().cloned().chain(own).collect();
         assert_eq!(v.troubles(), want, "{name}: {}", v.stdout);
+        // All of them declare canGetAndSetFMUState and canSerializeFMUState, and may be
+        // instantiated many times: their FMU state round trips continue bit for bit (as fmpy
+        // finds too: tests/fmpy/test_fmi3_fmu_state.py), their instances run alike on threads.
         for interface in ["Co-Simulation", "Model Exchange"] {
-            for check in ["lifecycle.run", "lifecycle.reset", "state-machine.legal"] {
+            for check in [
+                "lifecycle.run",
+                "lifecycle.reset",
+                "state-machine.legal",
+                "capability.fmu-state",
+                "capability.serialize",
+                "capability.threads",
+                "arguments.null-instance",
+            ] {
                 assert!(v.has_passed(check, interface), "{name} {interface} {check}: {}", v.stdout);
             }
+            // Feedthrough alone has String variables (a parameter and an input): read with their
+            // start values, and the input set and read back.
+            let strings = v.has_passed("variables.string", interface);
+            assert_eq!(strings, name == "Feedthrough", "{name} {interface} variables.string: {}", v.stdout);
         }
     }
     // Clocks offers Scheduled Execution only: nothing to probe, and that is said.

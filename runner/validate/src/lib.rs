@@ -15,6 +15,7 @@
 #![allow(clippy::result_large_err)]
 
 mod archive;
+mod concurrent;
 mod fmi2;
 mod fmi3;
 mod isolation;

@@ -2,8 +2,11 @@
 //! description (the schema's rules, the instantiationToken) and the binary (every one of the
 //! 75 functions of fmi3Functions.h exported, fmi3GetVersion "3.0"), then the dynamic probes,
 //! each in its own child process, for each declared interface (Co-Simulation with Event Mode
-//! and early return where offered, Model Exchange). Scheduled Execution is not probed.
+//! and early return where offered, Model Exchange): the lifecycle and the state machine
+//! (probes.rs), then FMU state, NULL arguments, threads and String variables
+//! (capabilities.rs). Scheduled Execution is not probed.
 
+mod capabilities;
 mod probes;
 mod raw;
 
@@ -104,13 +107,25 @@ pub(crate) fn validate(xml: &str, dir: &Path, work: &Path, options: &Options, re
     for (interface, binary) in usable {
         let before = prober.report.findings.len();
         prober.probe(Some(interface), "lifecycle", &binary, interface.arg())?;
-        let instantiated =
-            !prober.report.findings[before..].iter().any(|f| f.severity == Severity::Error && f.check == "lifecycle.instantiate");
+        let failed = |check: &str| prober.report.findings[before..].iter().any(|f| f.severity == Severity::Error && f.check == check);
+        let (instantiated, ran) = (!failed("lifecycle.instantiate"), !failed("lifecycle.run"));
         if instantiated {
-            prober.probe(Some(interface), "state-machine", &binary, interface.arg())?;
+            for probe in &probes::PROBES[1..] {
+                if !ran && probes::runs_the_experiment(probe) {
+                    let skipped = Finding::skipped(
+                        probes::first_check(probe),
+                        "not run: the run it repeats failed (see lifecycle.run), and would fail here alike",
+                    );
+                    prober.report.findings.push(skipped.interface(Some(interface.title())));
+                    continue;
+                }
+                prober.probe(Some(interface), probe, &binary, interface.arg())?;
+            }
         } else {
-            let skipped =
-                Finding::skipped("dynamic checks", "the state machine was not probed: the FMU cannot be instantiated (see lifecycle)");
+            let skipped = Finding::skipped(
+                "dynamic checks",
+                "the state machine, capabilities and arguments were not probed: the FMU cannot be instantiated (see lifecycle)",
+            );
             prober.report.findings.push(skipped.interface(Some(interface.title())));
         }
     }

@@ -14,6 +14,7 @@ use std::collections::HashSet;
 
 use fmi_schema::fmi3::{self as s, Causality, Variability};
 
+use super::capabilities;
 use super::raw::{Code, CsOptions, Instance, Interface};
 use super::Child;
 use crate::isolation::Message;
@@ -32,18 +33,32 @@ const MAX_EVENTS: usize = 10_000;
 
 /// The probes there are.
 pub(crate) fn known(probe: &str) -> bool {
-    matches!(probe, "lifecycle" | "state-machine")
+    PROBES.contains(&probe)
+}
+
+/// Every probe, in the order they run (the first two are the lifecycle's and the state
+/// machine's; the rest, of capabilities and robustness, are in capabilities.rs).
+pub(crate) const PROBES: [&str; 7] = ["lifecycle", "state-machine", "fmu-state", "serialize", "arguments", "threads", "strings"];
+
+/// Whether a probe repeats the DefaultExperiment's run (so fails alike when that run fails).
+pub(crate) fn runs_the_experiment(probe: &str) -> bool {
+    matches!(probe, "fmu-state" | "serialize" | "threads")
 }
 
 /// Whether a probe may resume after a crash in one of its cells (its cells are independent).
 pub(crate) fn resumable(probe: &str) -> bool {
-    probe == "state-machine"
+    probe == "state-machine" || probe == "arguments"
 }
 
 /// The check a crash before a probe's first cell counts against.
 pub(crate) fn first_check(probe: &str) -> &'static str {
     match probe {
         "lifecycle" => "lifecycle.instantiate",
+        "fmu-state" => "capability.fmu-state",
+        "serialize" => "capability.serialize",
+        "arguments" => "arguments.null-instance",
+        "threads" => "capability.threads",
+        "strings" => "variables.string",
         _ => "state-machine.illegal",
     }
 }
@@ -158,68 +173,77 @@ impl<'a> Ctx<'a> {
     }
 
     /// Starts the next cell, of `check`: false when it lies before the resume point.
-    fn cell(&mut self, check: &str) -> bool {
+    pub(super) fn cell(&mut self, check: &str) -> bool {
+        self.cell_with(check, Severity::Error)
+    }
+
+    /// Starts the next cell, of `check`, whose crash is a finding of severity `crash`.
+    pub(super) fn cell_with(&mut self, check: &str, crash: Severity) -> bool {
         let index = self.next_cell;
         self.next_cell += 1;
         if index < self.resume {
             return false;
         }
-        self.child.out.send(&Message::Cell { check: check.to_owned(), index, crash: Severity::Error });
+        self.child.out.send(&Message::Cell { check: check.to_owned(), index, crash });
         eprintln!("{}{index}", crate::isolation::CELL_MARK);
         true
     }
 
-    fn report(&mut self, finding: Finding) {
+    pub(super) fn report(&mut self, finding: Finding) {
         if finding.severity <= Severity::Warning {
             self.troubled.insert(finding.check.clone());
         }
         self.child.out.send(&Message::Finding(finding.interface(Some(self.interface.title()))));
     }
 
-    fn pass(&mut self, check: &str, message: impl Into<String>) {
+    pub(super) fn pass(&mut self, check: &str, message: impl Into<String>) {
         if !self.troubled.contains(check) {
             self.report(Finding::passed(check, message));
         }
     }
 
     /// A new instance of this interface with the FMU's own token.
-    fn instantiate(&self, cs: CsOptions) -> Result<Instance<'a>, Failure> {
+    pub(super) fn instantiate(&self, cs: CsOptions) -> Result<Instance<'a>, Failure> {
+        self.instantiate_in(cs, 0)
+    }
+
+    /// [`Ctx::instantiate`] for the thread of progress slot `slot`.
+    pub(super) fn instantiate_in(&self, cs: CsOptions, slot: usize) -> Result<Instance<'a>, Failure> {
         let c = self.child;
-        Instance::new(c.api, self.interface, NAME, &c.model.md.instantiation_token, &c.resources, cs, c.progress, c.timeout).map_err(
-            |(code, log)| {
+        Instance::new(c.api, self.interface, NAME, &c.model.md.instantiation_token, &c.resources, cs, (c.progress, slot), c.timeout)
+            .map_err(|(code, log)| {
                 let what = if code == Code::MISSING { "is not exported" } else { "returned NULL with the FMU's own instantiationToken" };
                 let call = match self.interface {
                     Interface::CoSimulation => "fmi3InstantiateCoSimulation",
                     Interface::ModelExchange => "fmi3InstantiateModelExchange",
                 };
                 Failure { message: format!("{call} {what}"), call: call.into(), state: "(no instance)".into(), log }
-            },
-        )
+            })
     }
 
     /// The options the runs use: Event Mode and early return when the FMU offers them.
-    fn cs_options(&self) -> CsOptions {
+    pub(super) fn cs_options(&self) -> CsOptions {
         let m = &self.child.model;
         CsOptions { event_mode_used: m.has_event_mode(), early_return_allowed: m.might_return_early() }
     }
 }
 
 /// A call that went wrong.
-struct Failure {
-    message: String,
-    call: String,
-    state: String,
-    log: Option<String>,
+pub(super) struct Failure {
+    pub message: String,
+    pub call: String,
+    pub state: String,
+    pub log: Option<String>,
 }
 
 impl Failure {
-    fn finding(self, check: &str) -> Finding {
+    pub(super) fn finding(self, check: &str) -> Finding {
         Finding::error(check, self.message).call(self.call).state(self.state).log(self.log)
     }
 }
 
 /// Fails unless `code` is fmi3OK or fmi3Warning.
-fn legal(inst: &Instance, call: &str, code: Code) -> Result<(), Failure> {
+pub(super) fn legal(inst: &Instance, call: &str, code: Code) -> Result<(), Failure> {
     if code.ok() {
         return Ok(());
     }
@@ -233,9 +257,9 @@ fn legal(inst: &Instance, call: &str, code: Code) -> Result<(), Failure> {
 
 /// A run's record: the recorded values at each communication point, where it ended and why.
 #[derive(PartialEq)]
-struct Trajectory {
+pub(super) struct Trajectory {
     values: Vec<u64>,
-    end: f64,
+    pub end: f64,
     ended: Option<String>,
 }
 
@@ -244,6 +268,11 @@ pub(crate) fn run(probe: &str, ctx: &mut Ctx) -> Result<(), String> {
     match probe {
         "lifecycle" => lifecycle(ctx),
         "state-machine" => state_machine(ctx),
+        "fmu-state" => capabilities::fmu_state(ctx, false),
+        "serialize" => capabilities::fmu_state(ctx, true),
+        "arguments" => capabilities::arguments(ctx),
+        "threads" => capabilities::threads(ctx),
+        "strings" => capabilities::string_variables(ctx),
         other => return Err(format!("unknown probe {other:?}")),
     }
     Ok(())
@@ -262,7 +291,8 @@ fn lifecycle(ctx: &mut Ctx) {
         }
         let c = ctx.child;
         let token = wrong_token(&c.model.md.instantiation_token);
-        if let Ok(mut inst) = Instance::new(c.api, ctx.interface, NAME, &token, &c.resources, ctx.cs_options(), c.progress, c.timeout) {
+        if let Ok(mut inst) = Instance::new(c.api, ctx.interface, NAME, &token, &c.resources, ctx.cs_options(), (c.progress, 0), c.timeout)
+        {
             inst.free();
             ctx.report(
                 Finding::warning(
@@ -319,25 +349,31 @@ fn lifecycle(ctx: &mut Ctx) {
         Err(f) => {
             ctx.report(Failure { message: format!("after fmi3Reset, the same run failed: {}", f.message), ..f }.finding("lifecycle.reset"))
         }
-        Ok(second) if second != first => {
-            let recorded = &ctx.child.model.recorded;
-            let difference = match first.values.iter().zip(&second.values).position(|(a, b)| a != b) {
-                Some(i) if !recorded.is_empty() => {
-                    let (name, point) = (&recorded[i % recorded.len()].0, i / recorded.len());
-                    let (a, b) = (f64::from_bits(first.values[i]), f64::from_bits(second.values[i]));
-                    format!("{name} at t = {} was {a} in the first run and {b} after fmi3Reset", model.point(point))
-                }
-                _ => format!("the runs ended at t = {} and t = {}", first.end, second.end),
-            };
-            ctx.report(Finding::error(
-                "lifecycle.reset",
-                format!("after fmi3Reset the same run gave other results ({difference}): fmi3Reset must bring the instance back to the state after instantiation"),
-            ))
-        }
+        Ok(second) if second != first => ctx.report(Finding::error(
+            "lifecycle.reset",
+            format!(
+                "after fmi3Reset the same run gave other results ({}): fmi3Reset must bring the instance back to the state after instantiation",
+                difference(&ctx.child.model, &first, &second, "in the first run", "after fmi3Reset")
+            ),
+        )),
         Ok(_) => {
             let _ = inst.plain("fmi3Terminate", inst.api.terminate);
             ctx.pass("lifecycle.reset", "fmi3Terminate, fmi3Reset and the same run again: the same results to the bit");
         }
+    }
+}
+
+/// Where two runs of the same grid first differ: the variable, time and both values (`mine`
+/// and `theirs` say which run is which), or where they ended.
+pub(super) fn difference(model: &Model, first: &Trajectory, second: &Trajectory, mine: &str, theirs: &str) -> String {
+    let recorded = &model.recorded;
+    match first.values.iter().zip(&second.values).position(|(a, b)| a != b) {
+        Some(i) if !recorded.is_empty() => {
+            let (name, point) = (&recorded[i % recorded.len()].0, i / recorded.len());
+            let (a, b) = (f64::from_bits(first.values[i]), f64::from_bits(second.values[i]));
+            format!("{name} at t = {} was {a} {mine} and {b} {theirs}", model.point(point))
+        }
+        _ => format!("the runs ended at t = {} and t = {}", first.end, second.end),
     }
 }
 
@@ -421,33 +457,90 @@ fn record(ctx: &Ctx, inst: &Instance, t: f64, into: &mut Vec<u64>) -> Result<(),
 }
 
 /// One run of the DefaultExperiment grid.
-fn simulate(ctx: &Ctx, inst: &mut Instance) -> Result<Trajectory, Failure> {
-    initialize(ctx, inst)?;
-    match ctx.interface {
-        Interface::CoSimulation => co_simulation(ctx, inst),
-        Interface::ModelExchange => model_exchange(ctx, inst),
+pub(super) fn simulate(ctx: &Ctx, inst: &mut Instance) -> Result<Trajectory, Failure> {
+    let mut run = begin(ctx, inst)?;
+    advance(ctx, inst, &mut run, ctx.child.model.steps)?;
+    Ok(run.trajectory())
+}
+
+/// Where a run is: the communication point it reached, what it recorded, and what the
+/// validator's integrator keeps between steps (Model Exchange), so that a run can be taken
+/// up again from a copy after an FMU state is restored.
+#[derive(Clone)]
+pub(super) struct Cursor {
+    pub k: usize,
+    pub t: f64,
+    values: Vec<u64>,
+    pub ended: bool,
+    x: Vec<f64>,
+    z: Vec<f64>,
+    next_event: Option<f64>,
+}
+
+impl Cursor {
+    pub(super) fn trajectory(self) -> Trajectory {
+        Trajectory { values: self.values, end: self.t, ended: self.ended.then(|| "terminateSimulation".to_owned()) }
     }
 }
 
-fn failure(inst: &Instance, call: &str, message: String) -> Failure {
+/// Initializes `inst` and records the start of a run.
+pub(super) fn begin(ctx: &Ctx, inst: &mut Instance) -> Result<Cursor, Failure> {
+    initialize(ctx, inst)?;
+    let t = ctx.child.model.start;
+    let mut run = Cursor { k: 0, t, values: Vec::new(), ended: false, x: Vec::new(), z: Vec::new(), next_event: None };
+    let stop = match ctx.interface {
+        Interface::CoSimulation if ctx.cs_options().event_mode_used => {
+            let stop = event_iteration(inst, t)?.0;
+            if !stop {
+                legal(inst, "fmi3EnterStepMode", inst.plain("fmi3EnterStepMode", inst.api.enter_step_mode))?;
+                inst.state = "StepMode";
+            }
+            stop
+        }
+        Interface::CoSimulation => false,
+        Interface::ModelExchange => {
+            let (nx, nz) = sizes(ctx, inst)?;
+            (run.x, run.z) = (vec![0.0; nx], vec![0.0; nz]);
+            let (stop, next) = event_iteration(inst, t)?;
+            run.next_event = next;
+            if !stop {
+                continuous_time(inst, &mut run.x, &mut run.z)?;
+            }
+            stop
+        }
+    };
+    run.ended = stop;
+    if !stop {
+        record(ctx, inst, t, &mut run.values)?;
+    }
+    Ok(run)
+}
+
+/// Runs on to communication point `until` (or the model's end of the run).
+pub(super) fn advance(ctx: &Ctx, inst: &mut Instance, run: &mut Cursor, until: usize) -> Result<(), Failure> {
+    if run.ended {
+        return Ok(());
+    }
+    match ctx.interface {
+        Interface::CoSimulation => co_simulation(ctx, inst, run, until),
+        Interface::ModelExchange => model_exchange(ctx, inst, run, until),
+    }
+}
+
+pub(super) fn failure(inst: &Instance, call: &str, message: String) -> Failure {
     Failure { message, call: call.into(), state: inst.state.into(), log: inst.log.take() }
 }
 
-fn co_simulation(ctx: &Ctx, inst: &mut Instance) -> Result<Trajectory, Failure> {
+/// fmi3DoStep on the grid (with Event Mode and early returns where the FMU offers them).
+fn co_simulation(ctx: &Ctx, inst: &mut Instance, run: &mut Cursor, until: usize) -> Result<(), Failure> {
     let m = &ctx.child.model;
     let options = ctx.cs_options();
-    let mut values = Vec::new();
-    let mut t = m.start;
-    let ended = |t: f64, values: Vec<u64>| Ok(Trajectory { values, end: t, ended: Some("terminateSimulation".into()) });
-    if options.event_mode_used {
-        if event_iteration(inst, t)?.0 {
-            return ended(t, values);
-        }
-        legal(inst, "fmi3EnterStepMode", inst.plain("fmi3EnterStepMode", inst.api.enter_step_mode))?;
-        inst.state = "StepMode";
-    }
-    record(ctx, inst, t, &mut values)?;
-    for k in 1..=m.steps {
+    let mut t = run.t;
+    let ended = |run: &mut Cursor, t: f64| {
+        (run.t, run.ended) = (t, true);
+        Ok(())
+    };
+    for k in run.k + 1..=until {
         let target = m.point(k);
         let mut events = 0;
         while t < target {
@@ -469,7 +562,7 @@ fn co_simulation(ctx: &Ctx, inst: &mut Instance) -> Result<Trajectory, Failure> 
                 target
             };
             if terminate {
-                return ended(reached, values);
+                return ended(run, reached);
             }
             t = reached;
             if event && options.event_mode_used {
@@ -480,7 +573,7 @@ fn co_simulation(ctx: &Ctx, inst: &mut Instance) -> Result<Trajectory, Failure> 
                 legal(inst, "fmi3EnterEventMode", inst.plain("fmi3EnterEventMode", inst.api.enter_event_mode))?;
                 inst.state = "EventMode";
                 if event_iteration(inst, t)?.0 {
-                    return ended(t, values);
+                    return ended(run, t);
                 }
                 legal(inst, "fmi3EnterStepMode", inst.plain("fmi3EnterStepMode", inst.api.enter_step_mode))?;
                 inst.state = "StepMode";
@@ -495,9 +588,10 @@ fn co_simulation(ctx: &Ctx, inst: &mut Instance) -> Result<Trajectory, Failure> 
                 }
             }
         }
-        record(ctx, inst, t, &mut values)?;
+        record(ctx, inst, t, &mut run.values)?;
+        (run.k, run.t) = (k, t);
     }
-    Ok(Trajectory { values, end: t, ended: None })
+    Ok(())
 }
 
 /// The sizes the FMU reports, checked against the description.
@@ -561,22 +655,18 @@ fn derivatives(inst: &Instance, t: f64, x: &[f64], dx: &mut [f64]) -> Result<(),
 /// The validator's integration: classical RK4 on the communication grid, each step cut at the
 /// next time event; a sign change of an event indicator over a step, a time event or a step
 /// event is handled at the step's end (the validator checks the calls, not the accuracy).
-fn model_exchange(ctx: &Ctx, inst: &mut Instance) -> Result<Trajectory, Failure> {
+fn model_exchange(ctx: &Ctx, inst: &mut Instance, run: &mut Cursor, until: usize) -> Result<(), Failure> {
     let m = &ctx.child.model;
-    let (nx, nz) = sizes(ctx, inst)?;
-    let mut t = m.start;
-    let (mut x, mut z, mut z_new) = (vec![0.0; nx], vec![0.0; nz], vec![0.0; nz]);
-    let mut values = Vec::new();
-    let ended = |t: f64, values: Vec<u64>| Ok(Trajectory { values, end: t, ended: Some("terminateSimulation".into()) });
-    let (stop, mut next_event) = event_iteration(inst, t)?;
-    if stop {
-        return ended(t, values);
-    }
-    continuous_time(inst, &mut x, &mut z)?;
-    record(ctx, inst, t, &mut values)?;
+    let (nx, nz) = (run.x.len(), run.z.len());
+    let (mut t, mut next_event) = (run.t, run.next_event);
+    let (x, z) = (&mut run.x, &mut run.z);
+    let mut z_new = vec![0.0; nz];
+    let values = &mut run.values;
+    let mut ended = false;
     let mut k = [vec![0.0; nx], vec![0.0; nx], vec![0.0; nx], vec![0.0; nx]];
     let mut probe = vec![0.0; nx];
-    for step in 1..=m.steps {
+    let mut reached = run.k;
+    'steps: for step in run.k + 1..=until {
         let target = m.point(step);
         let mut events = 0;
         while t < target {
@@ -584,7 +674,7 @@ fn model_exchange(ctx: &Ctx, inst: &mut Instance) -> Result<Trajectory, Failure>
             let t_next = time_event.map_or(target, |te| te.max(t));
             let dt = t_next - t;
             if dt > 0.0 {
-                derivatives(inst, t, &x, &mut k[0])?;
+                derivatives(inst, t, x, &mut k[0])?;
                 for (stage, factor) in [(1, 0.5), (2, 0.5), (3, 1.0)] {
                     for i in 0..nx {
                         probe[i] = x[i] + factor * dt * k[stage - 1][i];
@@ -599,14 +689,15 @@ fn model_exchange(ctx: &Ctx, inst: &mut Instance) -> Result<Trajectory, Failure>
             t = t_next;
             legal(inst, "fmi3SetTime", inst.set_time(t))?;
             if nx > 0 {
-                legal(inst, "fmi3SetContinuousStates", inst.set_continuous_states(&x))?;
+                legal(inst, "fmi3SetContinuousStates", inst.set_continuous_states(x))?;
             }
             let mut step_event = false;
             if m.needs_completed_integrator_step() {
                 let (code, enter, terminate) = inst.completed_integrator_step();
                 legal(inst, "fmi3CompletedIntegratorStep", code)?;
                 if terminate {
-                    return ended(t, values);
+                    ended = true;
+                    break 'steps;
                 }
                 step_event = enter;
             }
@@ -626,15 +717,18 @@ fn model_exchange(ctx: &Ctx, inst: &mut Instance) -> Result<Trajectory, Failure>
                 inst.state = "EventMode";
                 let (stop, next) = event_iteration(inst, t)?;
                 if stop {
-                    return ended(t, values);
+                    ended = true;
+                    break 'steps;
                 }
                 next_event = next;
-                continuous_time(inst, &mut x, &mut z)?;
+                continuous_time(inst, x, z)?;
             }
         }
-        record(ctx, inst, t, &mut values)?;
+        record(ctx, inst, t, values)?;
+        reached = step;
     }
-    Ok(Trajectory { values, end: t, ended: None })
+    (run.k, run.t, run.next_event, run.ended) = (reached, t, next_event, ended);
+    Ok(())
 }
 
 /// The states the state-machine probe drives an instance into, in order.
@@ -649,7 +743,7 @@ fn states(ctx: &Ctx) -> Vec<&'static str> {
 }
 
 /// A fresh instance driven into `state` by legal calls.
-fn drive<'a>(ctx: &Ctx<'a>, state: &str) -> Result<Instance<'a>, Failure> {
+pub(super) fn drive<'a>(ctx: &Ctx<'a>, state: &str) -> Result<Instance<'a>, Failure> {
     let mut inst = ctx.instantiate(ctx.cs_options())?;
     if state == "Instantiated" {
         return Ok(inst);

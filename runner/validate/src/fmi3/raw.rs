@@ -3,6 +3,7 @@
 //! makes any call in any state, recording each call in the progress file before making it.
 //! This is the child side; nothing here is safe to run in the validator's own process.
 
+use std::cell::RefCell;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::path::Path;
 use std::sync::Mutex;
@@ -60,6 +61,18 @@ api! {
     get_number_of_continuous_states: GetNumberOfContinuousStates = "fmi3GetNumberOfContinuousStates",
     enter_step_mode: EnterStepMode = "fmi3EnterStepMode",
     do_step: DoStep = "fmi3DoStep",
+    get_int32: GetInt32 = "fmi3GetInt32",
+    set_int32: SetInt32 = "fmi3SetInt32",
+    get_boolean: GetBoolean = "fmi3GetBoolean",
+    set_boolean: SetBoolean = "fmi3SetBoolean",
+    get_string: GetString = "fmi3GetString",
+    set_string: SetString = "fmi3SetString",
+    get_fmu_state: GetFmuState = "fmi3GetFMUState",
+    set_fmu_state: SetFmuState = "fmi3SetFMUState",
+    free_fmu_state: FreeFmuState = "fmi3FreeFMUState",
+    serialized_fmu_state_size: SerializedFmuStateSize = "fmi3SerializedFMUStateSize",
+    serialize_fmu_state: SerializeFmuState = "fmi3SerializeFMUState",
+    deserialize_fmu_state: DeserializeFmuState = "fmi3DeserializeFMUState",
 }
 
 impl Api {
@@ -78,6 +91,10 @@ impl Api {
         unsafe { self.library.get::<*const c_void>(symbol.as_bytes_with_nul()).is_ok() }
     }
 }
+
+/// The largest serialized FMU state the validator allocates (1 GiB): a larger size is taken
+/// for garbage.
+const MAX_SERIALIZED: usize = 1 << 30;
 
 /// A status code as returned, including values the standard does not define.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -190,9 +207,13 @@ pub(crate) struct Instance<'a> {
     /// The FMU's log messages (its instance environment: boxed, so it stays put).
     pub log: Box<Log>,
     progress: &'a Progress,
+    /// The progress file's slot of the thread that uses the instance.
+    slot: usize,
     timeout: Duration,
     /// The standard's name of the state the validator believes the instance is in.
     pub state: &'static str,
+    /// The variable and the arguments the next call records (see [`Instance::note`]).
+    note: RefCell<(Option<String>, Option<String>)>,
     freed: bool,
 }
 
@@ -207,7 +228,7 @@ impl<'a> Instance<'a> {
         token: &str,
         resource_path: &str,
         cs: CsOptions,
-        progress: &'a Progress,
+        (progress, slot): (&'a Progress, usize),
         timeout: Duration,
     ) -> Result<Instance<'a>, (Code, Option<String>)> {
         let log = Box::new(Log::default());
@@ -226,7 +247,7 @@ impl<'a> Instance<'a> {
             variable: None,
             value: None,
         };
-        progress.begin(0, &record, timeout);
+        progress.begin(slot, &record, timeout);
         // SAFETY: every pointer is valid for the call; the log outlives the instance.
         let raw = unsafe {
             match interface {
@@ -251,21 +272,30 @@ impl<'a> Instance<'a> {
                     .map(|f| f(name.as_ptr(), token.as_ptr(), resources.as_ptr(), false, false, env, Some(log_message))),
             }
         };
-        progress.end(0);
+        progress.end(slot);
         match raw {
             None => Err((Code::MISSING, None)),
             Some(p) if p.is_null() => Err((Code::ERROR, log.take())),
-            Some(raw) => Ok(Instance { api, raw, log, progress, timeout, state: "Instantiated", freed: false }),
+            Some(raw) => {
+                Ok(Instance { api, raw, log, progress, slot, timeout, state: "Instantiated", note: RefCell::default(), freed: false })
+            }
         }
+    }
+
+    /// Has the next call recorded with `variable` and `value` (what its arguments are), which
+    /// a crash in it then reports.
+    pub(crate) fn note(&self, variable: Option<String>, value: Option<String>) {
+        *self.note.borrow_mut() = (variable, value);
     }
 
     /// Makes `call` (the C name, for the record), through `f` when exported.
     pub(crate) fn call<F>(&self, name: &str, f: Option<F>, make: impl FnOnce(F, c::Instance) -> c_int) -> Code {
+        let (variable, value) = self.note.take();
         let Some(f) = f else { return Code::MISSING };
-        let record = CallRecord { call: name.into(), state: self.state.into(), variable: None, value: None };
-        self.progress.begin(0, &record, self.timeout);
+        let record = CallRecord { call: name.into(), state: self.state.into(), variable, value };
+        self.progress.begin(self.slot, &record, self.timeout);
         let code = Code(make(f, self.raw));
-        self.progress.end(0);
+        self.progress.end(self.slot);
         code
     }
 
@@ -360,6 +390,84 @@ impl<'a> Instance<'a> {
         self.call("fmi3SetFloat64", self.api.set_float64, |f, raw| unsafe { f(raw, &vr, 1, &value, 1) })
     }
 
+    /// fmi3GetFMUState into `state` (NULL on entry: a new copy; else the copy is overwritten).
+    pub(crate) fn get_fmu_state(&self, state: &mut c::FmuState) -> Code {
+        // SAFETY: a valid out pointer.
+        self.call("fmi3GetFMUState", self.api.get_fmu_state, |f, raw| unsafe { f(raw, state) })
+    }
+
+    /// fmi3SetFMUState.
+    pub(crate) fn set_fmu_state(&self, state: c::FmuState) -> Code {
+        // SAFETY: a state this instance's FMU returned.
+        self.call("fmi3SetFMUState", self.api.set_fmu_state, |f, raw| unsafe { f(raw, state) })
+    }
+
+    /// fmi3FreeFMUState, which must set `*state` to NULL.
+    pub(crate) fn free_fmu_state(&self, state: &mut c::FmuState) -> Code {
+        // SAFETY: a state this instance's FMU returned, and a valid pointer to it.
+        self.call("fmi3FreeFMUState", self.api.free_fmu_state, |f, raw| unsafe { f(raw, state) })
+    }
+
+    /// fmi3SerializedFMUStateSize then fmi3SerializeFMUState: the bytes of `state`, or the
+    /// failing call and what went wrong.
+    pub(crate) fn serialize(&self, state: c::FmuState) -> Result<Vec<u8>, (&'static str, String)> {
+        let mut n = 0usize;
+        // SAFETY: a valid out pointer.
+        let code = self.call("fmi3SerializedFMUStateSize", self.api.serialized_fmu_state_size, |f, raw| unsafe { f(raw, state, &mut n) });
+        if !code.ok() {
+            return Err(("fmi3SerializedFMUStateSize", format!("returned {}", code.name())));
+        }
+        if n > MAX_SERIALIZED {
+            return Err(("fmi3SerializedFMUStateSize", format!("reported {n} bytes, more than the validator's limit of {MAX_SERIALIZED}")));
+        }
+        let mut bytes = vec![0u8; n];
+        // SAFETY: a buffer of the size the FMU asked for.
+        let code = self.call("fmi3SerializeFMUState", self.api.serialize_fmu_state, |f, raw| unsafe {
+            f(raw, state, bytes.as_mut_ptr(), bytes.len())
+        });
+        if code.ok() {
+            Ok(bytes)
+        } else {
+            Err((
+                "fmi3SerializeFMUState",
+                format!("returned {} for a buffer of the {n} bytes fmi3SerializedFMUStateSize asked for", code.name()),
+            ))
+        }
+    }
+
+    /// fmi3DeserializeFMUState of `bytes`: the status and the new state.
+    pub(crate) fn deserialize(&self, bytes: &[u8]) -> (Code, c::FmuState) {
+        let mut state: c::FmuState = std::ptr::null_mut();
+        // SAFETY: the bytes the FMU serialized, and a valid out pointer.
+        let code = self.call("fmi3DeserializeFMUState", self.api.deserialize_fmu_state, |f, raw| unsafe {
+            f(raw, bytes.as_ptr(), bytes.len(), &mut state)
+        });
+        (code, state)
+    }
+
+    /// fmi3GetString of `vrs`: the status and the texts (`None` for a NULL pointer), copied
+    /// at once (the FMU's pointers are valid only until its next call).
+    pub(crate) fn get_string(&self, vrs: &[u32]) -> (Code, Vec<Option<String>>) {
+        let mut values: Vec<c::FmiString> = vec![std::ptr::null(); vrs.len()];
+        // SAFETY: vrs.len() references and as many values.
+        let code = self.call("fmi3GetString", self.api.get_string, |f, raw| unsafe {
+            f(raw, vrs.as_ptr(), vrs.len(), values.as_mut_ptr(), values.len())
+        });
+        let texts = values
+            .iter()
+            // SAFETY: a non-NULL pointer the FMU returned points at a NUL-terminated text.
+            .map(|p| (!p.is_null()).then(|| unsafe { CStr::from_ptr(*p) }.to_string_lossy().into_owned()))
+            .collect();
+        (code, texts)
+    }
+
+    /// fmi3SetString of one scalar.
+    pub(crate) fn set_string(&self, vr: u32, text: &CStr) -> Code {
+        let value = text.as_ptr();
+        // SAFETY: one reference and one valid text.
+        self.call("fmi3SetString", self.api.set_string, |f, raw| unsafe { f(raw, &vr, 1, &value, 1) })
+    }
+
     /// fmi3FreeInstance (once).
     pub(crate) fn free(&mut self) {
         if !self.freed {
@@ -367,10 +475,10 @@ impl<'a> Instance<'a> {
             let raw = self.raw;
             if let Some(f) = self.api.free_instance {
                 let record = CallRecord { call: "fmi3FreeInstance".into(), state: self.state.into(), variable: None, value: None };
-                self.progress.begin(0, &record, self.timeout);
+                self.progress.begin(self.slot, &record, self.timeout);
                 // SAFETY: a live instance, freed once.
                 unsafe { f(raw) };
-                self.progress.end(0);
+                self.progress.end(self.slot);
             }
         }
     }

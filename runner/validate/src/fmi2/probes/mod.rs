@@ -491,19 +491,16 @@ fn threads(ctx: &mut Ctx) -> Result<(), String> {
     }
     let reference = ctx.reference()?;
     let fmu = ctx.fmu;
-    let results: Vec<Result<Trajectory, Failure>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (1..=INSTANCES)
-            .map(|slot| {
-                scope.spawn(move || -> Result<Trajectory, Failure> {
-                    let mut run = Run::start(fmu, NAME, slot)?;
-                    run.run_to_end()?;
-                    run.terminate()?;
-                    Ok(run.trajectory.clone())
-                })
-            })
-            .collect();
-        handles.into_iter().map(|h| h.join().unwrap_or_else(|_| Err(Failure::new("the validator's thread panicked")))).collect()
-    });
+    let results = crate::concurrent::concurrently(
+        INSTANCES,
+        |i| -> Result<Trajectory, Failure> {
+            let mut run = Run::start(fmu, NAME, i + 1)?;
+            run.run_to_end()?;
+            run.terminate()?;
+            Ok(run.trajectory.clone())
+        },
+        || Failure::new("the validator's thread panicked"),
+    );
     for (i, result) in results.into_iter().enumerate() {
         let what = format!("instance {} of {INSTANCES} running at once on threads", i + 1);
         match result {

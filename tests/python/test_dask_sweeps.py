@@ -20,13 +20,24 @@ from fmurunner_helpers import EX4_METRICS, EX4_SPEEDS, assert_same_as_cli, runne
 
 
 @pytest.fixture(scope="module")
-def client():
+def client(tmp_path_factory):
     """A LocalCluster of 2 worker processes x 1 thread, as CI's 2 cores allow (no conftest.py
-    here: tests/fmpy imports its own as `conftest`)."""
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        with distributed.Client(cluster) as c:
-            c.wait_for_workers(2)
-            yield c
+    here: tests/fmpy imports its own as `conftest`). Its workers unpack FMUs in a directory of
+    the test run's (TMPDIR, which they inherit): the workers the tests SIGKILL cannot remove
+    their copies, which would otherwise stay in /tmp or /dev/shm."""
+    scratch = tmp_path_factory.mktemp("dask-workers")
+    before = os.environ.get("TMPDIR")
+    os.environ["TMPDIR"] = str(scratch)
+    try:
+        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+            with distributed.Client(cluster) as c:
+                c.wait_for_workers(2)
+                yield c
+    finally:
+        if before is None:
+            del os.environ["TMPDIR"]
+        else:
+            os.environ["TMPDIR"] = before
 
 
 def test_the_ex4_sweep_on_the_cluster_is_the_clis_bit_for_bit(client, tmp_path):

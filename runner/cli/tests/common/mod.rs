@@ -144,8 +144,13 @@ pub fn faulty_fmu(dir: &Path, file: &str, once_per_process: bool, extra_flags: &
 
 /// Runs the runner with `args` in `dir` as a child process, for tests that signal it.
 pub fn spawn_runner(dir: &Path, args: &[&str]) -> std::process::Child {
+    // A runner the test kills cannot remove its unpacked FMU: with TMPDIR inside the test's own
+    // directory the copy goes when the test's directory does (else /tmp or /dev/shm keeps it).
+    let scratch = dir.join("scratch");
+    std::fs::create_dir_all(&scratch).expect("scratch directory");
     Command::new(env!("CARGO_BIN_EXE_runner"))
         .current_dir(dir)
+        .env("TMPDIR", scratch)
         .args(args)
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::piped())

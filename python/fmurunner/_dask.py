@@ -3,13 +3,13 @@ with the Rust engine, the results gathered as chunks finish into one table in po
 
 Dask schedules, retries and reports; nothing here is a scheduler. What this module decides:
 
-- the FMU's bytes are the result of one task of their own (``_fmu_bytes``), which every chunk
-  depends on: Dask copies them to each worker that runs a chunk with its ordinary transfers,
-  and recomputes them from the task if every worker holding them is lost (scattered data
-  cannot be recomputed, and ``scatter(broadcast=True)`` replicates through a path Dask's
-  maintainers call fragile: under load it once failed a sweep with "Key lost during
-  replication"). Each worker process unpacks and loads them once (``_loaded``), whatever the
-  number of its tasks;
+- the FMU's bytes are scattered once to every worker (``broadcast``), under a key of this
+  sweep's own (``hash=False``: with the content's hash as key, sweeps of one FMU in a row
+  scattered the very key the previous one was releasing, the likely cause of a CI sweep that
+  failed with "Key lost during replication"), and each worker process unpacks and loads them
+  once (``_loaded``), whatever the number of its tasks. Scattered data cannot be recomputed:
+  should every worker holding it be lost, the chunks that needed it come back cancelled, and
+  the bytes are scattered again and those chunks run again (a few times at most);
 - chunk sizes: a first chunk per worker thread of a few points measures a point's cost on the
   cluster itself, and the following chunks are sized so a task takes about a second (never
   more than half of a thread's fair share of what is left, so the end of a sweep stays
@@ -50,6 +50,9 @@ TASK_SECONDS = 1.0
 #: At most this many tasks are queued or running per worker thread.
 TASKS_PER_THREAD = 2
 
+#: How many times a sweep scatters the FMU's bytes again after every copy was lost.
+RESCATTERS = 3
+
 _models: OrderedDict[str, _engine.Model] = OrderedDict()
 _models_lock = threading.Lock()
 
@@ -65,11 +68,6 @@ def _loaded(digest: str, data: bytes, name: str) -> _engine.Model:
                 _models.popitem(last=False)
         _models.move_to_end(digest)
         return model
-
-
-def _fmu_bytes(data: bytes) -> bytes:
-    """A task: the FMU's bytes, held in the graph so that Dask can compute them again."""
-    return data
 
 
 def _run_chunk(data: bytes, digest: str, name: str, spec: str, start: int, stop: int):
@@ -168,28 +166,49 @@ def sweep_on_cluster(
     status = np.full(n, "ok", dtype=object)
     filled = np.zeros(n, dtype=bool)
     sweep_id = uuid.uuid4().hex[:12]
-    fmu = client.submit(_fmu_bytes, data, key=f"fmurunner-fmu-{sweep_id}", pure=False)
+    fmu = client.scatter(data, broadcast=True, hash=False)
+    rescattered = 0
+    # The points of each chunk task by its key (a cancelled task has no result to say them), and
+    # how many times each chunk was sent.
+    bounds: dict[str, tuple[int, int]] = {}
+    sent: dict[int, int] = {}
     next_point = 0
     progress = _Progress(n)
+
+    def run(start: int, stop: int):
+        sent[start] = sent.get(start, 0) + 1
+        # The key's prefix names the task group in Dask's dashboard and progress bars; a chunk
+        # sent again gets a key of its own.
+        key = f"fmurunner-sweep-{sweep_id}-{start}" + (f"-again{sent[start]}" if sent[start] > 1 else "")
+        bounds[key] = (start, stop)
+        return client.submit(_run_chunk, fmu, digest, name, spec, start, stop, key=key, retries=0)
 
     def submit():
         nonlocal next_point
         size = sizer.next(n - next_point)
         start, next_point = next_point, next_point + size
-        # The key's prefix names the task group in Dask's dashboard and progress bars.
-        return client.submit(
-            _run_chunk, fmu, digest, name, spec, start, next_point, key=f"fmurunner-sweep-{sweep_id}-{start}", retries=0
-        )
+        return run(start, next_point)
 
     # Only `pending` refers to a task: once a chunk's result is taken, Dask releases it on the
     # worker, so a worker lost later has nothing of it left to recompute.
     pending = as_completed([submit() for _ in range(min(threads, n))], with_results=True)
     try:
         for future, result in pending:
+            # A cancelled chunk comes as its exception: its input, the FMU's scattered bytes, was
+            # lost with every worker that held it. Scatter them again, once per loss (every
+            # chunk waiting on them comes back so), and run the chunk again.
+            start, stop = bounds.pop(future.key)
             del future
-            # A cancelled task (its inputs lost on the cluster) comes as its exception.
             if isinstance(result, BaseException):
-                raise RunnerError(f"a chunk of the sweep was lost on the cluster: {result!r}") from result
+                lost = fmu.status != "finished"
+                if (lost and rescattered == RESCATTERS) or sent[start] > RESCATTERS:
+                    raise RunnerError(f"points {start}..{stop} of the sweep were lost on the cluster "
+                                      f"{sent[start]} times{' with the FMU' if lost else ''}: {result!r}") from result
+                if lost:
+                    rescattered += 1
+                    fmu = client.scatter(data, broadcast=True, hash=False)
+                pending.add(run(start, stop))
+                continue
             start, stop, chunk, failures, seconds = result
             if filled[start:stop].any():
                 raise RunnerError(f"points {start}..{stop} arrived twice")

@@ -62,13 +62,57 @@ pub fn parent_for(bytes: u64) -> PathBuf {
     }
 }
 
-/// A new, empty directory to unpack an FMU of `bytes` in (deleted on drop).
+/// The prefix of this process's directories: `runner-fmu-<pid namespace>-<pid>-`, so that a
+/// later runner can tell a directory whose process is gone (see [`remove_stale`]).
+fn own_prefix() -> String {
+    format!("{PREFIX}{}-{}-", pid_namespace(), std::process::id())
+}
+
+/// The inode of this process's pid namespace (0 if unknown): pids mean something only within
+/// one namespace, and containers may share a /dev/shm.
+fn pid_namespace() -> u64 {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata("/proc/self/ns/pid").map_or(0, |m| m.ino())
+}
+
+/// True unless no process `pid` exists (in this pid namespace).
+fn alive(pid: i32) -> bool {
+    // SAFETY: signal 0 only checks that the process exists and may be signalled.
+    unsafe { libc::kill(pid, 0) == 0 || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH) }
+}
+
+/// Removes from `parent` the unpacked FMUs that runners of this user and pid namespace left
+/// when they were killed before they could remove them (SIGKILL, a crash): in the in-memory
+/// file system they would hold memory until the next reboot. A directory is only removed when
+/// its process no longer exists; a pid reused since keeps it (harmless, and rare).
+fn remove_stale(parent: &Path) {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(entries) = std::fs::read_dir(parent) else { return };
+    let ours = format!("{PREFIX}{}-", pid_namespace());
+    // SAFETY: getuid cannot fail.
+    let uid = unsafe { libc::getuid() };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(|n| n.strip_prefix(&ours)).and_then(|rest| rest.split_once('-')) else { continue };
+        let Ok(pid) = pid.0.parse::<i32>() else { continue };
+        let owned_dir = entry.path().symlink_metadata().is_ok_and(|m| m.is_dir() && m.uid() == uid);
+        if pid > 0 && owned_dir && !alive(pid) {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
+/// A new, empty directory to unpack an FMU of `bytes` in (deleted on drop). In the in-memory
+/// file system the copies that killed runners left there are removed first.
 pub fn unpack_dir(bytes: u64) -> Result<tempfile::TempDir, String> {
     let parent = parent_for(bytes);
-    let made = tempfile::Builder::new().prefix(PREFIX).tempdir_in(&parent);
+    if parent == Path::new(MEMORY) {
+        remove_stale(&parent);
+    }
+    let made = tempfile::Builder::new().prefix(&own_prefix()).tempdir_in(&parent);
     // Should the memory file system refuse after all, the temporary directory still serves.
     let made = match made {
-        Err(_) if parent != std::env::temp_dir() => tempfile::Builder::new().prefix(PREFIX).tempdir(),
+        Err(_) if parent != std::env::temp_dir() => tempfile::Builder::new().prefix(&own_prefix()).tempdir(),
         other => other,
     };
     made.map_err(|e| format!("cannot create a temporary directory: {e}"))
@@ -77,6 +121,36 @@ pub fn unpack_dir(bytes: u64) -> Result<tempfile::TempDir, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Directories named for a process that has exited are removed; those of a live process
+    /// (this one), of another pid namespace, or not named by a runner are kept. In a directory
+    /// of the test's own, so that no other runner's copies are touched.
+    #[test]
+    fn only_copies_of_processes_that_are_gone_are_removed() {
+        let parent = tempfile::tempdir().unwrap();
+        let exited = {
+            let mut child = std::process::Command::new("true").spawn().unwrap();
+            let pid = child.id();
+            child.wait().unwrap();
+            pid
+        };
+        let ns = pid_namespace();
+        let names = [
+            format!("{PREFIX}{ns}-{exited}-abc"),
+            format!("{PREFIX}{ns}-{}-abc", std::process::id()),
+            format!("{PREFIX}{}-{exited}-abc", ns + 1),
+            format!("{PREFIX}{exited}-abc"),
+            format!("other-{ns}-{exited}-abc"),
+        ];
+        for name in &names {
+            std::fs::create_dir(parent.path().join(name)).unwrap();
+            std::fs::write(parent.path().join(name).join("modelDescription.xml"), "x").unwrap();
+        }
+        remove_stale(parent.path());
+        let left: Vec<bool> = names.iter().map(|n| parent.path().join(n).exists()).collect();
+        assert_eq!(left, [false, true, true, true, true], "{names:?}");
+        assert!(own_prefix().starts_with(&format!("{PREFIX}{ns}-{}-", std::process::id())));
+    }
 
     #[test]
     fn a_chosen_tmpdir_is_kept_and_a_disk_directory_is_never_taken_for_memory() {

@@ -381,7 +381,7 @@ impl<M: Model> Core<M> {
                 Some(Slot::Model(Access::State(j))) => self.state.x[*j],
                 Some(Slot::Time) => self.state.t,
                 Some(Slot::Model(Access::Real { get, .. })) if !self.table.computed[i] => get(&self.state.model),
-                _ => return self.get_real_rest(&vrs[k..], &mut values[k..], phase, all_finite),
+                _ => return self.get_real_rest(vrs, values, k, phase),
             };
             all_finite &= value.is_finite();
         }
@@ -392,16 +392,14 @@ impl<M: Model> Core<M> {
         }
     }
 
-    /// [`Core::get_real`] from the first variable its loop leaves: computed outputs, solver
-    /// controls, derivatives and unknown references. `finite` says whether the values before
-    /// these were all finite.
+    /// [`Core::get_real`] from `vrs[first]`, the first variable its loop leaves (computed
+    /// outputs, solver controls, derivatives, unknown references), to the end.
     #[cold]
     #[inline(never)]
-    fn get_real_rest(&mut self, vrs: &[u32], values: &mut [f64], phase: Phase, finite: bool) -> CallResult {
-        let mut all_finite = finite;
+    fn get_real_rest(&mut self, vrs: &[u32], values: &mut [f64], first: usize, phase: Phase) -> CallResult {
         // The derivatives, computed at the first der(x) read (rare: sweeps read outputs).
         let mut dx: Option<Vec<f64>> = None;
-        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
+        for (vr, value) in vrs.iter().zip(values.iter_mut()).skip(first) {
             let i = *vr as usize;
             *value = match self.table.rows.get(i).map(|r| &r.slot) {
                 Some(Slot::Model(Access::State(k))) => self.state.x[*k],
@@ -423,9 +421,9 @@ impl<M: Model> Core<M> {
                 }
                 _ => return Err(self.unknown(*vr, BaseType::Real, false)),
             };
-            all_finite &= value.is_finite();
         }
-        if all_finite {
+        // Over every value, those the fast loop read too.
+        if values.iter().take(vrs.len()).all(|v| v.is_finite()) {
             Ok(())
         } else {
             Err(self.non_finite(vrs, values, phase))

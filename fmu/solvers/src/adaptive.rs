@@ -86,6 +86,22 @@ pub(super) fn interpolate<M: Scheme>(th: f64, n: usize, dense: &[f64], out: &mut
     M::eval(th, n, dense, out)
 }
 
+/// The error weight of one component, atol + rtol max(|x0|, |x1|), at least MIN_POSITIVE (which
+/// keeps atol = 0 with a zero state from dividing 0 by 0). Compares instead of `f64::max`, whose
+/// NaN rule costs four instructions a call and keeps the loop scalar; the two agree for every
+/// non-NaN value, and with a NaN state (never x0, which is checked) the weight is NaN, so the
+/// error is too and the step is retried smaller as before.
+#[inline(always)]
+pub(super) fn weight(atol: f64, rtol: f64, x0: f64, x1: f64) -> f64 {
+    let (a, b) = (x0.abs(), x1.abs());
+    let w = atol + rtol * if a > b { a } else { b };
+    if w > f64::MIN_POSITIVE {
+        w
+    } else {
+        f64::MIN_POSITIVE
+    }
+}
+
 /// The controller's divisor for the next step (h_next = h / factor) after an accepted step.
 #[inline]
 fn step_factor<M: Scheme>(err: f64) -> f64 {

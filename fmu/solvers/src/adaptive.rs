@@ -89,8 +89,8 @@ pub(super) fn interpolate<M: Scheme>(th: f64, n: usize, dense: &[f64], out: &mut
 /// The error weight of one component, atol + rtol max(|x0|, |x1|), at least MIN_POSITIVE (which
 /// keeps atol = 0 with a zero state from dividing 0 by 0). Compares instead of `f64::max`, whose
 /// NaN rule costs four instructions a call and keeps the loop scalar; the two agree for every
-/// non-NaN value, and with a NaN state (never x0, which is checked) the weight is NaN, so the
-/// error is too and the step is retried smaller as before.
+/// non-NaN value. A NaN in x1 (never in x0, which is checked) gives another weight than
+/// `f64::max` would, but such a trial step is refused by the state check after it either way.
 #[inline(always)]
 pub(super) fn weight(atol: f64, rtol: f64, x0: f64, x1: f64) -> f64 {
     let (a, b) = (x0.abs(), x1.abs());

@@ -99,7 +99,7 @@ fn check(ctx: &Ctx) -> Result<Option<String>, Failure> {
                 .variable(v.name.clone()));
         }
     }
-    let read = format!("fmi2GetString gave a text for each of {} String variables, start values as declared", vars.len());
+    let read = format!("fmi2GetString gave a text for each of the {} String variable(s), start values as declared", vars.len());
     // The set: of a variable settable after initialization (an input, a tunable parameter),
     // to a text of the validator's own; else of one settable in Initialization Mode, to its
     // start value (any other text could make the initialization fail, a file name for one).
@@ -145,5 +145,10 @@ fn check(ctx: &Ctx) -> Result<Option<String>, Failure> {
         .variable(v.name.clone())
         .value(format!("{wanted:?}")));
     }
-    Ok(Some(format!("{read}; fmi2SetString of '{}' in {} was copied and read back", v.name, at.name())))
+    let to = if at == State::InitializationMode { "to its start value " } else { "" };
+    Ok(Some(format!(
+        "{read}; fmi2SetString of '{}' {to}in {} was copied: read back after the caller overwrote its buffer",
+        v.name,
+        at.name()
+    )))
 }

@@ -86,10 +86,48 @@ pub(super) fn interpolate<M: Scheme>(th: f64, n: usize, dense: &[f64], out: &mut
     M::eval(th, n, dense, out)
 }
 
+/// The error weight of one component, atol + rtol max(|x0|, |x1|), at least MIN_POSITIVE (which
+/// keeps atol = 0 with a zero state from dividing 0 by 0). Compares instead of `f64::max`, whose
+/// NaN rule costs four instructions a call and keeps the loop scalar; the two agree for every
+/// non-NaN value, and with a NaN state (never x0, which is checked) the weight is NaN, so the
+/// error is too and the step is retried smaller as before.
+#[inline(always)]
+pub(super) fn weight(atol: f64, rtol: f64, x0: f64, x1: f64) -> f64 {
+    let (a, b) = (x0.abs(), x1.abs());
+    let w = atol + rtol * if a > b { a } else { b };
+    if w > f64::MIN_POSITIVE {
+        w
+    } else {
+        f64::MIN_POSITIVE
+    }
+}
+
+/// The smaller and the larger of two times or step sizes of the loop below, by one compare
+/// each: f64::min and max spend four instructions a call on their NaN rule, and no NaN gets
+/// here (a non-finite trial step never reaches the controller; the stop time and `t_end` are
+/// checked by `advance`). For every other value they give the same result.
+#[inline(always)]
+fn smaller(a: f64, b: f64) -> f64 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+#[inline(always)]
+fn larger(a: f64, b: f64) -> f64 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
 /// The controller's divisor for the next step (h_next = h / factor) after an accepted step.
 #[inline]
 fn step_factor<M: Scheme>(err: f64) -> f64 {
-    (M::power(err) / SAFE).clamp(1.0 / M::GROWTH, 1.0 / M::SHRINK)
+    larger(smaller(M::power(err) / SAFE, 1.0 / M::SHRINK), 1.0 / M::GROWTH)
 }
 
 impl Integrator {
@@ -100,7 +138,7 @@ impl Integrator {
         let (rtol, atol) = (self.settings.rtol, self.settings.atol);
         let h_max = self.settings.step_limit();
         // Steps end at the stop time, unless the caller asks for a later point.
-        let limit = self.stop_time.max(t_end);
+        let limit = larger(self.stop_time, t_end);
         let n = sys.dim();
         let mut nonfinite = 0u32;
         loop {
@@ -120,11 +158,11 @@ impl Integrator {
                 self.h = initial_step(sys, tc, &self.x_int, &self.k1, (limit - tc).min(h_max), M::ORDER, rtol, atol, &mut w.xs, k2);
                 self.n_rhs += 1;
             }
-            let h_prop = self.h.min(h_max);
+            let h_prop = smaller(self.h, h_max);
             let remaining = limit - tc;
             // Land exactly on the limit; stretching a step by up to 1% (within max_step) avoids
             // a sliver step afterwards.
-            let lands = (1.01 * h_prop).min(h_max) >= remaining;
+            let lands = smaller(1.01 * h_prop, h_max) >= remaining;
             let hs = if lands { remaining } else { h_prop };
             if !lands && h_prop < 16.0 * f64::EPSILON * tc.abs() {
                 return Err(SolverError::StepSizeTooSmall { t: tc, h: h_prop });
@@ -154,11 +192,11 @@ impl Integrator {
             }
             let mut h_new = hs / step_factor::<M>(err);
             if self.last_rejected {
-                h_new = h_new.min(hs);
+                h_new = smaller(h_new, hs);
             }
             // A step clipped to land on the stop time says nothing about the step the solution
             // allows: it does not shrink the proposal.
-            self.h = if hs < h_prop { self.h.max(h_new) } else { h_new };
+            self.h = if hs < h_prop { larger(self.h, h_new) } else { h_new };
             self.last_rejected = false;
             self.n_steps += 1;
             // The crossing search runs from `ta`, where the indicators are `w.za`.

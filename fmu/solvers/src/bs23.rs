@@ -3,7 +3,8 @@
 //! the cubic Hermite interpolant on the step's end values and slopes as its dense output, which
 //! is 3rd order because both slopes come with the solution (Bogacki & Shampine 1989).
 
-use super::adaptive::{Scheme, Stages};
+use super::adaptive::{self, Scheme, Stages};
+use super::lanes;
 use super::OdeSystem;
 
 // Butcher tableau (Bogacki & Shampine 1989). The 3rd-order weights are the last row, which
@@ -54,26 +55,18 @@ impl Scheme for Bs23 {
         let [k2, k3, k4, ..] = k;
         let (x0, k1, xs, x1) = (&x0[..n], &k1[..n], &mut xs[..n], &mut x1[..n]);
         let (k2, k3, k4) = (&mut k2[..n], &mut k3[..n], &mut k4[..n]);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A21 * k1[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A21 * k1[i]));
         sys.rhs(t + C2 * h, xs, k2);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A32 * k2[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A32 * k2[i]));
         sys.rhs(t + C3 * h, xs, k3);
-        for i in 0..n {
-            x1[i] = x0[i] + h * (A41 * k1[i] + A42 * k2[i] + A43 * k3[i]);
-        }
+        lanes::fill!(x1, |i| x0[i] + h * (A41 * k1[i] + A42 * k2[i] + A43 * k3[i]));
         sys.rhs(t1, x1, k4);
-        let mut sum = 0.0;
-        for i in 0..n {
+        let sum = lanes::sum!(n, |i| {
             let e = h * (E1 * k1[i] + E2 * k2[i] + E3 * k3[i] + E4 * k4[i]);
-            // MIN_POSITIVE keeps atol = 0 with a zero state from dividing 0 by 0.
-            let sk = (atol + rtol * x0[i].abs().max(x1[i].abs())).max(f64::MIN_POSITIVE);
+            let sk = adaptive::weight(atol, rtol, x0[i], x1[i]);
             let r = e / sk;
-            sum += r * r;
-        }
+            r * r
+        });
         if n == 0 {
             0.0
         } else {
@@ -101,14 +94,13 @@ impl Scheme for Bs23 {
         let (r1, rest) = rest.split_at_mut(n);
         let (r2, rest) = rest.split_at_mut(n);
         let r3 = &mut rest[..n];
-        for i in 0..n {
+        lanes::fill!(r0, |i| x0[i]);
+        lanes::fill!(r1, |i| x1[i] - x0[i]);
+        lanes::fill!(r2, |i| h * k1[i] - (x1[i] - x0[i]));
+        lanes::fill!(r3, |i| {
             let ydiff = x1[i] - x0[i];
-            let bspl = h * k1[i] - ydiff;
-            r0[i] = x0[i];
-            r1[i] = ydiff;
-            r2[i] = bspl;
-            r3[i] = ydiff - h * k4[i] - bspl;
-        }
+            ydiff - h * k4[i] - (h * k1[i] - ydiff)
+        });
     }
 
     // Inlined where `n` is the model's constant: unrolled, no bounds checks (one per communication point).
@@ -116,8 +108,6 @@ impl Scheme for Bs23 {
     fn eval(th: f64, n: usize, dense: &[f64], out: &mut [f64]) {
         let th1 = 1.0 - th;
         let (r0, r1, r2, r3) = (&dense[..n], &dense[n..2 * n], &dense[2 * n..3 * n], &dense[3 * n..4 * n]);
-        for i in 0..n {
-            out[i] = r0[i] + th * (r1[i] + th1 * (r2[i] + th * r3[i]));
-        }
+        lanes::fill!(&mut out[..n], |i| r0[i] + th * (r1[i] + th1 * (r2[i] + th * r3[i])));
     }
 }

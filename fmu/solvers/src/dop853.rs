@@ -8,7 +8,8 @@
 // The published digits are kept as printed; Rust rounds each to the nearest double.
 #![allow(clippy::excessive_precision)]
 
-use super::adaptive::{Scheme, Stages};
+use super::adaptive::{self, Scheme, Stages};
+use super::lanes;
 use super::OdeSystem;
 
 // Nodes c_i of the stages (c12 = c13 = 1).
@@ -205,72 +206,48 @@ impl Scheme for Dop853 {
         let (x0, k1, xs, x1) = (&x0[..n], &k1[..n], &mut xs[..n], &mut x1[..n]);
         let (k2, k3, k4, k5, k6, k7) = (&mut k2[..n], &mut k3[..n], &mut k4[..n], &mut k5[..n], &mut k6[..n], &mut k7[..n]);
         let (k8, k9, k10, k11, k12, k13) = (&mut k8[..n], &mut k9[..n], &mut k10[..n], &mut k11[..n], &mut k12[..n], &mut k13[..n]);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A2_1 * k1[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A2_1 * k1[i]));
         sys.rhs(t + C2 * h, xs, k2);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A3_1 * k1[i] + A3_2 * k2[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A3_1 * k1[i] + A3_2 * k2[i]));
         sys.rhs(t + C3 * h, xs, k3);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A4_1 * k1[i] + A4_3 * k3[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A4_1 * k1[i] + A4_3 * k3[i]));
         sys.rhs(t + C4 * h, xs, k4);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A5_1 * k1[i] + A5_3 * k3[i] + A5_4 * k4[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A5_1 * k1[i] + A5_3 * k3[i] + A5_4 * k4[i]));
         sys.rhs(t + C5 * h, xs, k5);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A6_1 * k1[i] + A6_4 * k4[i] + A6_5 * k5[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A6_1 * k1[i] + A6_4 * k4[i] + A6_5 * k5[i]));
         sys.rhs(t + C6 * h, xs, k6);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A7_1 * k1[i] + A7_4 * k4[i] + A7_5 * k5[i] + A7_6 * k6[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A7_1 * k1[i] + A7_4 * k4[i] + A7_5 * k5[i] + A7_6 * k6[i]));
         sys.rhs(t + C7 * h, xs, k7);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A8_1 * k1[i] + A8_4 * k4[i] + A8_5 * k5[i] + A8_6 * k6[i] + A8_7 * k7[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A8_1 * k1[i] + A8_4 * k4[i] + A8_5 * k5[i] + A8_6 * k6[i] + A8_7 * k7[i]));
         sys.rhs(t + C8 * h, xs, k8);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A9_1 * k1[i] + A9_4 * k4[i] + A9_5 * k5[i] + A9_6 * k6[i] + A9_7 * k7[i] + A9_8 * k8[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A9_1 * k1[i] + A9_4 * k4[i] + A9_5 * k5[i] + A9_6 * k6[i] + A9_7 * k7[i] + A9_8 * k8[i]));
         sys.rhs(t + C9 * h, xs, k9);
-        for i in 0..n {
-            xs[i] =
-                x0[i] + h * (A10_1 * k1[i] + A10_4 * k4[i] + A10_5 * k5[i] + A10_6 * k6[i] + A10_7 * k7[i] + A10_8 * k8[i] + A10_9 * k9[i]);
-        }
+        lanes::fill!(xs, |i| x0[i]
+            + h * (A10_1 * k1[i] + A10_4 * k4[i] + A10_5 * k5[i] + A10_6 * k6[i] + A10_7 * k7[i] + A10_8 * k8[i] + A10_9 * k9[i]));
         sys.rhs(t + C10 * h, xs, k10);
-        for i in 0..n {
-            xs[i] = x0[i]
-                + h * (A11_1 * k1[i]
-                    + A11_4 * k4[i]
-                    + A11_5 * k5[i]
-                    + A11_6 * k6[i]
-                    + A11_7 * k7[i]
-                    + A11_8 * k8[i]
-                    + A11_9 * k9[i]
-                    + A11_10 * k10[i]);
-        }
+        lanes::fill!(xs, |i| x0[i]
+            + h * (A11_1 * k1[i]
+                + A11_4 * k4[i]
+                + A11_5 * k5[i]
+                + A11_6 * k6[i]
+                + A11_7 * k7[i]
+                + A11_8 * k8[i]
+                + A11_9 * k9[i]
+                + A11_10 * k10[i]));
         sys.rhs(t + C11 * h, xs, k11);
-        for i in 0..n {
-            xs[i] = x0[i]
-                + h * (A12_1 * k1[i]
-                    + A12_4 * k4[i]
-                    + A12_5 * k5[i]
-                    + A12_6 * k6[i]
-                    + A12_7 * k7[i]
-                    + A12_8 * k8[i]
-                    + A12_9 * k9[i]
-                    + A12_10 * k10[i]
-                    + A12_11 * k11[i]);
-        }
+        lanes::fill!(xs, |i| x0[i]
+            + h * (A12_1 * k1[i]
+                + A12_4 * k4[i]
+                + A12_5 * k5[i]
+                + A12_6 * k6[i]
+                + A12_7 * k7[i]
+                + A12_8 * k8[i]
+                + A12_9 * k9[i]
+                + A12_10 * k10[i]
+                + A12_11 * k11[i]));
         sys.rhs(t1, xs, k12);
-        for i in 0..n {
-            x1[i] =
-                x0[i] + h * (B1 * k1[i] + B6 * k6[i] + B7 * k7[i] + B8 * k8[i] + B9 * k9[i] + B10 * k10[i] + B11 * k11[i] + B12 * k12[i]);
-        }
+        lanes::fill!(x1, |i| x0[i]
+            + h * (B1 * k1[i] + B6 * k6[i] + B7 * k7[i] + B8 * k8[i] + B9 * k9[i] + B10 * k10[i] + B11 * k11[i] + B12 * k12[i]));
         sys.rhs(t1, x1, k13);
         // Hairer's estimate: the 5th-order error, scaled down where the 3rd-order one is much
         // larger (err5^2 / sqrt(err5^2 + 0.01 err3^2)), so it is of the 8th order's size.
@@ -279,8 +256,7 @@ impl Scheme for Dop853 {
             let e5 = ER1 * k1[i] + ER6 * k6[i] + ER7 * k7[i] + ER8 * k8[i] + ER9 * k9[i] + ER10 * k10[i] + ER11 * k11[i] + ER12 * k12[i];
             let high = B1 * k1[i] + B6 * k6[i] + B7 * k7[i] + B8 * k8[i] + B9 * k9[i] + B10 * k10[i] + B11 * k11[i] + B12 * k12[i];
             let e3 = high - BHH1 * k1[i] - BHH2 * k9[i] - BHH3 * k12[i];
-            // MIN_POSITIVE keeps atol = 0 with a zero state from dividing 0 by 0.
-            let sk = (atol + rtol * x0[i].abs().max(x1[i].abs())).max(f64::MIN_POSITIVE);
+            let sk = adaptive::weight(atol, rtol, x0[i], x1[i]);
             err5 += (e5 / sk) * (e5 / sk);
             err3 += (e3 / sk) * (e3 / sk);
         }
@@ -312,41 +288,35 @@ impl Scheme for Dop853 {
         let (k6, k7, k8, k9, k10) = (&k6[..n], &k7[..n], &k8[..n], &k9[..n], &k10[..n]);
         let (k11, k12, k13) = (&k11[..n], &k12[..n], &k13[..n]);
         let (k14, k15, k16) = (&mut k14[..n], &mut k15[..n], &mut k16[..n]);
-        for i in 0..n {
-            xs[i] = x0[i]
-                + h * (A14_1 * k1[i]
-                    + A14_7 * k7[i]
-                    + A14_8 * k8[i]
-                    + A14_9 * k9[i]
-                    + A14_10 * k10[i]
-                    + A14_11 * k11[i]
-                    + A14_12 * k12[i]
-                    + A14_13 * k13[i]);
-        }
+        lanes::fill!(xs, |i| x0[i]
+            + h * (A14_1 * k1[i]
+                + A14_7 * k7[i]
+                + A14_8 * k8[i]
+                + A14_9 * k9[i]
+                + A14_10 * k10[i]
+                + A14_11 * k11[i]
+                + A14_12 * k12[i]
+                + A14_13 * k13[i]));
         sys.rhs(t + C14 * h, xs, k14);
-        for i in 0..n {
-            xs[i] = x0[i]
-                + h * (A15_1 * k1[i]
-                    + A15_6 * k6[i]
-                    + A15_7 * k7[i]
-                    + A15_8 * k8[i]
-                    + A15_11 * k11[i]
-                    + A15_12 * k12[i]
-                    + A15_13 * k13[i]
-                    + A15_14 * k14[i]);
-        }
+        lanes::fill!(xs, |i| x0[i]
+            + h * (A15_1 * k1[i]
+                + A15_6 * k6[i]
+                + A15_7 * k7[i]
+                + A15_8 * k8[i]
+                + A15_11 * k11[i]
+                + A15_12 * k12[i]
+                + A15_13 * k13[i]
+                + A15_14 * k14[i]));
         sys.rhs(t + C15 * h, xs, k15);
-        for i in 0..n {
-            xs[i] = x0[i]
-                + h * (A16_1 * k1[i]
-                    + A16_6 * k6[i]
-                    + A16_7 * k7[i]
-                    + A16_8 * k8[i]
-                    + A16_9 * k9[i]
-                    + A16_13 * k13[i]
-                    + A16_14 * k14[i]
-                    + A16_15 * k15[i]);
-        }
+        lanes::fill!(xs, |i| x0[i]
+            + h * (A16_1 * k1[i]
+                + A16_6 * k6[i]
+                + A16_7 * k7[i]
+                + A16_8 * k8[i]
+                + A16_9 * k9[i]
+                + A16_13 * k13[i]
+                + A16_14 * k14[i]
+                + A16_15 * k15[i]));
         sys.rhs(t + C16 * h, xs, k16);
         let (r, rest) = dense.split_at_mut(4 * n);
         let (r4, rest) = rest.split_at_mut(n);
@@ -356,66 +326,65 @@ impl Scheme for Dop853 {
         let (r0, rest) = r.split_at_mut(n);
         let (r1, rest) = rest.split_at_mut(n);
         let (r2, r3) = rest.split_at_mut(n);
-        for i in 0..n {
+        lanes::fill!(r0, |i| x0[i]);
+        lanes::fill!(r1, |i| x1[i] - x0[i]);
+        lanes::fill!(r2, |i| h * k1[i] - (x1[i] - x0[i]));
+        lanes::fill!(r3, |i| {
             let ydiff = x1[i] - x0[i];
-            let bspl = h * k1[i] - ydiff;
-            r0[i] = x0[i];
-            r1[i] = ydiff;
-            r2[i] = bspl;
-            r3[i] = ydiff - h * k13[i] - bspl;
-            r4[i] = h
-                * (D4_1 * k1[i]
-                    + D4_6 * k6[i]
-                    + D4_7 * k7[i]
-                    + D4_8 * k8[i]
-                    + D4_9 * k9[i]
-                    + D4_10 * k10[i]
-                    + D4_11 * k11[i]
-                    + D4_12 * k12[i]
-                    + D4_13 * k13[i]
-                    + D4_14 * k14[i]
-                    + D4_15 * k15[i]
-                    + D4_16 * k16[i]);
-            r5[i] = h
-                * (D5_1 * k1[i]
-                    + D5_6 * k6[i]
-                    + D5_7 * k7[i]
-                    + D5_8 * k8[i]
-                    + D5_9 * k9[i]
-                    + D5_10 * k10[i]
-                    + D5_11 * k11[i]
-                    + D5_12 * k12[i]
-                    + D5_13 * k13[i]
-                    + D5_14 * k14[i]
-                    + D5_15 * k15[i]
-                    + D5_16 * k16[i]);
-            r6[i] = h
-                * (D6_1 * k1[i]
-                    + D6_6 * k6[i]
-                    + D6_7 * k7[i]
-                    + D6_8 * k8[i]
-                    + D6_9 * k9[i]
-                    + D6_10 * k10[i]
-                    + D6_11 * k11[i]
-                    + D6_12 * k12[i]
-                    + D6_13 * k13[i]
-                    + D6_14 * k14[i]
-                    + D6_15 * k15[i]
-                    + D6_16 * k16[i]);
-            r7[i] = h
-                * (D7_1 * k1[i]
-                    + D7_6 * k6[i]
-                    + D7_7 * k7[i]
-                    + D7_8 * k8[i]
-                    + D7_9 * k9[i]
-                    + D7_10 * k10[i]
-                    + D7_11 * k11[i]
-                    + D7_12 * k12[i]
-                    + D7_13 * k13[i]
-                    + D7_14 * k14[i]
-                    + D7_15 * k15[i]
-                    + D7_16 * k16[i]);
-        }
+            ydiff - h * k13[i] - (h * k1[i] - ydiff)
+        });
+        lanes::fill!(r4, |i| h
+            * (D4_1 * k1[i]
+                + D4_6 * k6[i]
+                + D4_7 * k7[i]
+                + D4_8 * k8[i]
+                + D4_9 * k9[i]
+                + D4_10 * k10[i]
+                + D4_11 * k11[i]
+                + D4_12 * k12[i]
+                + D4_13 * k13[i]
+                + D4_14 * k14[i]
+                + D4_15 * k15[i]
+                + D4_16 * k16[i]));
+        lanes::fill!(r5, |i| h
+            * (D5_1 * k1[i]
+                + D5_6 * k6[i]
+                + D5_7 * k7[i]
+                + D5_8 * k8[i]
+                + D5_9 * k9[i]
+                + D5_10 * k10[i]
+                + D5_11 * k11[i]
+                + D5_12 * k12[i]
+                + D5_13 * k13[i]
+                + D5_14 * k14[i]
+                + D5_15 * k15[i]
+                + D5_16 * k16[i]));
+        lanes::fill!(r6, |i| h
+            * (D6_1 * k1[i]
+                + D6_6 * k6[i]
+                + D6_7 * k7[i]
+                + D6_8 * k8[i]
+                + D6_9 * k9[i]
+                + D6_10 * k10[i]
+                + D6_11 * k11[i]
+                + D6_12 * k12[i]
+                + D6_13 * k13[i]
+                + D6_14 * k14[i]
+                + D6_15 * k15[i]
+                + D6_16 * k16[i]));
+        lanes::fill!(r7, |i| h
+            * (D7_1 * k1[i]
+                + D7_6 * k6[i]
+                + D7_7 * k7[i]
+                + D7_8 * k8[i]
+                + D7_9 * k9[i]
+                + D7_10 * k10[i]
+                + D7_11 * k11[i]
+                + D7_12 * k12[i]
+                + D7_13 * k13[i]
+                + D7_14 * k14[i]
+                + D7_15 * k15[i]
+                + D7_16 * k16[i]));
     }
 
     // Inlined where `n` is the model's constant: unrolled, no bounds checks (one per communication point).
@@ -424,9 +393,9 @@ impl Scheme for Dop853 {
         let th1 = 1.0 - th;
         let r = |c: usize| &dense[c * n..(c + 1) * n];
         let (r0, r1, r2, r3, r4, r5, r6, r7) = (r(0), r(1), r(2), r(3), r(4), r(5), r(6), r(7));
-        for i in 0..n {
+        lanes::fill!(&mut out[..n], |i| {
             let high = r4[i] + th * (r5[i] + th1 * (r6[i] + th * r7[i]));
-            out[i] = r0[i] + th * (r1[i] + th1 * (r2[i] + th * (r3[i] + th1 * high)));
-        }
+            r0[i] + th * (r1[i] + th1 * (r2[i] + th * (r3[i] + th1 * high)))
+        });
     }
 }

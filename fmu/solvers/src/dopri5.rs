@@ -1,7 +1,8 @@
 //! Dormand–Prince 5(4) (MATLAB's ode45, Hairer's DOPRI5, scipy's RK45): FSAL, the classical
 //! step-size controller, and the 4th-order continuous extension of Dormand & Prince / Shampine.
 
-use super::adaptive::{Scheme, Stages};
+use super::adaptive::{self, Scheme, Stages};
+use super::lanes;
 use super::OdeSystem;
 
 // Butcher tableau (Dormand & Prince 1980).
@@ -88,38 +89,24 @@ impl Scheme for Dopri5 {
         let [k2, k3, k4, k5, k6, k7, ..] = k;
         let (x0, k1, xs, x1) = (&x0[..n], &k1[..n], &mut xs[..n], &mut x1[..n]);
         let (k2, k3, k4, k5, k6, k7) = (&mut k2[..n], &mut k3[..n], &mut k4[..n], &mut k5[..n], &mut k6[..n], &mut k7[..n]);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A21 * k1[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A21 * k1[i]));
         sys.rhs(t + C2 * h, xs, k2);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A31 * k1[i] + A32 * k2[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A31 * k1[i] + A32 * k2[i]));
         sys.rhs(t + C3 * h, xs, k3);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A41 * k1[i] + A42 * k2[i] + A43 * k3[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A41 * k1[i] + A42 * k2[i] + A43 * k3[i]));
         sys.rhs(t + C4 * h, xs, k4);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A51 * k1[i] + A52 * k2[i] + A53 * k3[i] + A54 * k4[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A51 * k1[i] + A52 * k2[i] + A53 * k3[i] + A54 * k4[i]));
         sys.rhs(t + C5 * h, xs, k5);
-        for i in 0..n {
-            xs[i] = x0[i] + h * (A61 * k1[i] + A62 * k2[i] + A63 * k3[i] + A64 * k4[i] + A65 * k5[i]);
-        }
+        lanes::fill!(xs, |i| x0[i] + h * (A61 * k1[i] + A62 * k2[i] + A63 * k3[i] + A64 * k4[i] + A65 * k5[i]));
         sys.rhs(t1, xs, k6);
-        for i in 0..n {
-            x1[i] = x0[i] + h * (A71 * k1[i] + A73 * k3[i] + A74 * k4[i] + A75 * k5[i] + A76 * k6[i]);
-        }
+        lanes::fill!(x1, |i| x0[i] + h * (A71 * k1[i] + A73 * k3[i] + A74 * k4[i] + A75 * k5[i] + A76 * k6[i]));
         sys.rhs(t1, x1, k7);
-        let mut sum = 0.0;
-        for i in 0..n {
+        let sum = lanes::sum!(n, |i| {
             let e = h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);
-            // MIN_POSITIVE keeps atol = 0 with a zero state from dividing 0 by 0.
-            let sk = (atol + rtol * x0[i].abs().max(x1[i].abs())).max(f64::MIN_POSITIVE);
+            let sk = adaptive::weight(atol, rtol, x0[i], x1[i]);
             let r = e / sk;
-            sum += r * r;
-        }
+            r * r
+        });
         if n == 0 {
             0.0
         } else {
@@ -150,15 +137,14 @@ impl Scheme for Dopri5 {
         let (r2, rest) = rest.split_at_mut(n);
         let (r3, rest) = rest.split_at_mut(n);
         let r4 = &mut rest[..n];
-        for i in 0..n {
+        lanes::fill!(r0, |i| x0[i]);
+        lanes::fill!(r1, |i| x1[i] - x0[i]);
+        lanes::fill!(r2, |i| h * k1[i] - (x1[i] - x0[i]));
+        lanes::fill!(r3, |i| {
             let ydiff = x1[i] - x0[i];
-            let bspl = h * k1[i] - ydiff;
-            r0[i] = x0[i];
-            r1[i] = ydiff;
-            r2[i] = bspl;
-            r3[i] = ydiff - h * k7[i] - bspl;
-            r4[i] = h * (D1 * k1[i] + D3 * k3[i] + D4 * k4[i] + D5 * k5[i] + D6 * k6[i] + D7 * k7[i]);
-        }
+            ydiff - h * k7[i] - (h * k1[i] - ydiff)
+        });
+        lanes::fill!(r4, |i| h * (D1 * k1[i] + D3 * k3[i] + D4 * k4[i] + D5 * k5[i] + D6 * k6[i] + D7 * k7[i]));
     }
 
     // Inlined where `n` is the model's constant: unrolled, no bounds checks (one per communication point).
@@ -166,8 +152,6 @@ impl Scheme for Dopri5 {
     fn eval(th: f64, n: usize, dense: &[f64], out: &mut [f64]) {
         let th1 = 1.0 - th;
         let (r0, r1, r2, r3, r4) = (&dense[..n], &dense[n..2 * n], &dense[2 * n..3 * n], &dense[3 * n..4 * n], &dense[4 * n..5 * n]);
-        for i in 0..n {
-            out[i] = r0[i] + th * (r1[i] + th1 * (r2[i] + th * (r3[i] + th1 * r4[i])));
-        }
+        lanes::fill!(&mut out[..n], |i| r0[i] + th * (r1[i] + th1 * (r2[i] + th * (r3[i] + th1 * r4[i]))));
     }
 }

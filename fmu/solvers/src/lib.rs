@@ -26,6 +26,7 @@ mod dop853;
 mod dopri5;
 mod events;
 mod fixed;
+mod lanes;
 mod root;
 #[cfg(test)]
 mod tests;

@@ -25,10 +25,11 @@ fn unit<T>(o: Outcome<T>) -> Outcome<()> {
 }
 
 /// The functions the NULL-component cells call: every one of the interface that takes an
-/// fmi2Component, fmi2FreeInstance included (the FMI 3.0 probes call fmi3FreeInstance(NULL)
-/// too: both standards have the call ignored). The FMU state functions that take a state or
-/// its bytes only where the FMU declares it can make them, so that the other arguments are
-/// valid ones.
+/// fmi2Component, fmi2FreeInstance included, as the FMI 3.0 probes call fmi3FreeInstance(NULL):
+/// both standards say the call is ignored (FMI 2.0 section 2.1.5: "If a null pointer is
+/// provided for "c", the function call is ignored (does not have an effect)"), so its only
+/// possible fault is a crash. The FMU state functions that take a state or its bytes only
+/// where the FMU declares it can make them, so that the other arguments are valid ones.
 fn null_component_functions(ctx: &Ctx) -> Vec<Function> {
     let (get_set, serialize, _) = capabilities(ctx.fmu);
     Function::of(ctx.fmu.interface)

@@ -1,9 +1,10 @@
 //! The String variables (the FMI 3.0 set's `variables.string`, fmi3/capabilities.rs): after
 //! initialization fmi2GetString gives a text for every one, the start value where nothing can
-//! have changed it; and fmi2SetString copies the text it is given. The standard passes strings
-//! into the FMU only for the call (FMI 2.0.4 section 2.1.7: the FMU must copy a string it
-//! keeps), so after the set the caller overwrites its buffer and the text read back must be
-//! the one set.
+//! have changed it; and fmi2SetString copies the text it is given (section 2.1.7: "All strings
+//! passed as arguments to fmi2SetString must be copied inside this function, because there is
+//! no guarantee of the lifetime of strings when this function returns"), so after the set the
+//! caller overwrites its buffer and the text read back must be the one set; not copied is an
+//! error.
 //!
 //! Gets come after initialization only: in Initialization Mode condition 2 of the standard's
 //! table guarantees them for outputs and InitialUnknowns alone, not for the parameters and

@@ -87,12 +87,19 @@ fn ok(r: CallResult) -> CallResult<Status> {
 
 /// Refuses a value array whose length is not the number of value references (every variable
 /// of these FMUs is a scalar).
+#[inline(always)]
 fn check_values(call: Call, n_vr: usize, n_values: usize) -> CallResult {
     if n_vr == n_values {
         Ok(())
     } else {
-        Err(Failure::error(format!("{}: nValues = {n_values} but the {n_vr} value references are scalars with {n_vr} values", call.name())))
+        Err(wrong_length(call, n_vr, n_values))
     }
+}
+
+#[cold]
+#[inline(never)]
+fn wrong_length(call: Call, n_vr: usize, n_values: usize) -> Failure {
+    Failure::error(format!("{}: nValues = {n_values} but the {n_vr} value references are scalars with {n_vr} values", call.name()))
 }
 
 /// `fmi3GetVersion`.

@@ -122,12 +122,23 @@ impl<'a> CoSimulation<'a> {
     /// One `fmi3DoStep` from `t` over `h`: [`Step::Done`] at `t + h`; [`Step::Event`] when the
     /// FMU needs event handling (at `t + h`, or earlier when it returned early), which
     /// [`CoSimulation::handle_event`] then does; [`Step::Ended`] when the FMU terminates.
+    /// Inlined into the run loop, with everything but a plain completed step out of line.
+    #[inline(always)]
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
-        let t_end = t + h;
         let (mut event, mut terminate, mut early, mut last) = (false, false, false, t);
         trace::enter(Call::Fmi3DoStep, t);
         let status = unsafe { (self.cs.do_step)(self.component.instance, t, h, true, &mut event, &mut terminate, &mut early, &mut last) };
         self.component.check("fmi3DoStep", status)?;
+        if event || terminate || early {
+            return self.stopped_step(t, t + h, event, terminate, early, last);
+        }
+        Ok(Step::Done)
+    }
+
+    /// What a step that asked for event handling, termination or returned early means.
+    #[cold]
+    #[inline(never)]
+    fn stopped_step(&mut self, t: f64, t_end: f64, event: bool, terminate: bool, early: bool, last: f64) -> Result<Step, String> {
         let reached = if early && self.early_return { last } else { t_end };
         if terminate {
             let reason = self.component.env.log.take_problem().unwrap_or_else(|| "the FMU asked to terminate the simulation".to_owned());

@@ -21,6 +21,14 @@
  *   FAULT_NO_EVENTS    fmi2EnterEventMode refuses to leave Continuous-Time Mode (a state event
  *                      cannot be handled)
  *   FAULT_EXIT         fmi2Terminate ends the process with exit(3)
+ *   FAULT_NULL_COMPONENT  fmi2EnterInitializationMode reads through its component before
+ *                      checking it for NULL
+ *   FAULT_NULL_VR      fmi2GetReal reads its first value reference before checking the array
+ *   FAULT_NULL_STATE   fmi2GetFMUstate writes through its FMUstate pointer unchecked
+ *   FAULT_NULL_OUTPUT  fmi2GetDerivatives writes into its output array unchecked
+ *   FAULT_STRING_COPY  fmi2SetString keeps the caller's pointer instead of a copy, and
+ *                      fmi2GetString hands that pointer back
+ *   FAULT_STRING_NULL_ELEMENT  fmi2SetString takes the length of its values unchecked (NULL)
  * and two variants that are not faults: NOISY, every fmi2DoStep prints to stdout and stderr, as
  * some FMUs do; FORKS, the first fmi2Instantiate of a process starts a helper process that
  * outlives it (holding every descriptor it inherited), as FMUs that talk to a tool server do. */
@@ -101,6 +109,9 @@ typedef struct {
     char *name;
     int type;
     Values v;
+#ifdef FAULT_STRING_COPY
+    const char *label_pointer;
+#endif
 } Instance;
 
 static const char *state_name(int s) {
@@ -268,6 +279,9 @@ EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tol_defined, 
 }
 
 EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+#ifdef FAULT_NULL_COMPONENT
+    if (((Instance *)c)->v.state == ERROR) return fmi2Error;
+#endif
     ENTER(INSTANTIATED, INSTANTIATED);
     inst->v.state = INIT;
     return fmi2OK;
@@ -316,6 +330,9 @@ static fmi2Status check_access(Instance *inst, const char *fn, const fmi2ValueRe
 
 EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {
     ENTER(READABLE_CS, READABLE_ME);
+#ifdef FAULT_NULL_VR
+    if (n > 0 && vr[0] >= N_REALS) return fail(inst, "fmi2GetReal: no such variable: value reference %u", vr[0]);
+#endif
     if (check_access(inst, __func__, vr, n, value, N_REALS) != fmi2OK) return fmi2Error;
     for (size_t i = 0; i < n; i++) value[i] = real_value(&inst->v, vr[i]);
     return fmi2OK;
@@ -338,7 +355,11 @@ EXPORT fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[],
 EXPORT fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String value[]) {
     ENTER(READABLE_CS, READABLE_ME);
     if (check_access(inst, __func__, vr, n, value, 1) != fmi2OK) return fmi2Error;
+#ifdef FAULT_STRING_COPY
+    for (size_t i = 0; i < n; i++) value[i] = inst->label_pointer ? inst->label_pointer : inst->v.label;
+#else
     for (size_t i = 0; i < n; i++) value[i] = inst->v.label;
+#endif
     return fmi2OK;
 }
 
@@ -380,16 +401,25 @@ EXPORT fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], 
     if (n == 0) return fmi2OK;
     if (!(inst->v.state & (INSTANTIATED | INIT))) return fail(inst, "fmi2SetString: label is fixed after initialization");
     for (size_t i = 0; i < n; i++) {
+#ifdef FAULT_STRING_NULL_ELEMENT
+        if (strlen(value[i]) >= sizeof inst->v.label) return fail(inst, "fmi2SetString: label must be a string of at most 63 bytes");
+#else
         if (!value[i] || strlen(value[i]) >= sizeof inst->v.label) return fail(inst, "fmi2SetString: label must be a string of at most 63 bytes");
+#endif
     }
     strcpy(inst->v.label, value[n - 1]);
+#ifdef FAULT_STRING_COPY
+    inst->label_pointer = value[n - 1];
+#endif
     return fmi2OK;
 }
 
 /* FMU states: a copy of the values. */
 EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *s) {
     ENTER(LIVE, LIVE);
+#ifndef FAULT_NULL_STATE
     if (!s) return fail(inst, "fmi2GetFMUstate: FMUstate is NULL");
+#endif
     if (!*s) *s = allocate(inst, sizeof(Values));
     if (!*s) return fail(inst, "fmi2GetFMUstate: out of memory");
     memcpy(*s, &inst->v, sizeof(Values));
@@ -617,7 +647,9 @@ EXPORT fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], s
 
 EXPORT fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real d[], size_t nx) {
     ENTER(0, READABLE_ME);
+#ifndef FAULT_NULL_OUTPUT
     if (check_vector(inst, __func__, d, nx) != fmi2OK) return fmi2Error;
+#endif
     Values now = inst->v;
     now.x = state_now(&inst->v);
     d[0] = derivative(&now);

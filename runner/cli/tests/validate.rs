@@ -128,6 +128,8 @@ fn a_correct_third_party_fmu_is_clean() {
             "arguments.zero-length",
             "arguments.null-arrays",
             "arguments.unknown-vr",
+            "arguments.null-instance",
+            "variables.string",
             "capability.fmu-state",
             "capability.serialize",
             "capability.threads",
@@ -366,6 +368,83 @@ fn exit_code_2_when_it_could_not_run() {
     assert!(v.stderr.contains("the timeout must be a number of seconds above 0"), "{}", v.stderr);
 }
 
+/// The FMI 2.0 probes the FMI 3.0 set had first (NULL instance, NULL FMUstate pointer, NULL
+/// String element, String copies) and the NULL value references: each fault injected into the
+/// correct C FMU is reported by the probe meant for it, naming the function and the problem,
+/// and by no other probe. A crash on a NULL argument is a warning (the importer's error, which
+/// a robust FMU survives), and the arguments probe goes on after it; a String not copied is an
+/// error.
+#[test]
+fn fmi2_the_null_argument_and_string_probes_name_each_fault() {
+    let dir = tempfile::tempdir().unwrap();
+    // (severity, check, call, state of Co-Simulation, of Model Exchange, variable, words).
+    type Expected<'a> = (&'a str, &'a str, &'a str, &'a str, &'a str, &'a str, &'a str);
+    let cases: [(&str, Expected); 6] = [
+        (
+            "NULL_COMPONENT",
+            ("warning", "arguments.null-instance", "fmi2EnterInitializationMode", "StepComplete", "EventMode", "", "a NULL fmi2Component"),
+        ),
+        ("NULL_VR", ("warning", "arguments.null-arrays", "fmi2GetReal", "StepComplete", "EventMode", "", "vr NULL, nvr 1")),
+        ("NULL_STATE", ("warning", "arguments.null-arrays", "fmi2GetFMUstate", "StepComplete", "EventMode", "", "a NULL FMUstate pointer")),
+        // A Model Exchange getter: Co-Simulation is unaffected (state "" marks no trouble there).
+        (
+            "NULL_OUTPUT",
+            ("warning", "arguments.null-arrays", "fmi2GetDerivatives", "", "ContinuousTimeMode", "", "a NULL array of 1 values"),
+        ),
+        (
+            "STRING_NULL_ELEMENT",
+            (
+                "warning",
+                "arguments.null-arrays",
+                "fmi2SetString",
+                "InitializationMode",
+                "InitializationMode",
+                "label",
+                "a NULL element in the values array",
+            ),
+        ),
+        (
+            "STRING_COPY",
+            (
+                "error",
+                "variables.string",
+                "fmi2SetString",
+                "InitializationMode",
+                "InitializationMode",
+                "label",
+                "fmi2GetString returned the caller's own buffer",
+            ),
+        ),
+    ];
+    for (fault, (severity, check, call, cs_state, me_state, variable, words)) in cases {
+        let fmu = faults_fmu(dir.path(), fault, &[&format!("-DFAULT_{fault}")], &[]);
+        let v = validate(dir.path(), &[fmu.to_str().unwrap()]);
+        assert_eq!(v.code, if severity == "error" { 1 } else { 0 }, "{fault}: {}", v.stdout);
+        let troubled: Vec<(&str, &str)> =
+            [("Co-Simulation", cs_state), ("Model Exchange", me_state)].into_iter().filter(|(_, state)| !state.is_empty()).collect();
+        let want: BTreeSet<_> = troubled
+            .iter()
+            .map(|(i, state)| {
+                (severity.to_owned(), i.to_string(), check.to_owned(), call.to_owned(), state.to_string(), variable.to_owned())
+            })
+            .collect();
+        assert_eq!(v.troubles(), want, "{fault}: {}", v.stdout);
+        for (interface, _) in &troubled {
+            let f = v.find(severity, check, Some(interface));
+            let message = f["message"].as_str().unwrap();
+            assert!(message.contains(call) && message.contains(words), "{fault}: {check} names {call} and says {words:?}: {f}");
+            if severity == "warning" {
+                assert!(message.contains("crashed with SIGSEGV"), "{fault}: {f}");
+                // The arguments probe resumed after the crash: its other checks passed.
+                assert!(v.has_passed("arguments.unknown-vr", interface), "{fault} {interface}: {}", v.stdout);
+            }
+        }
+    }
+    // --strict, as tests/run validates the project's own FMUs: a crash on a NULL argument fails.
+    let v = validate(dir.path(), &[dir.path().join("NULL_COMPONENT.fmu").to_str().unwrap(), "--strict"]);
+    assert_eq!(v.code, 1, "{}", v.stdout);
+}
+
 /// The Reference FMUs (FMI 2.0) are validated to the end, and their only errors and warnings
 /// are the deviations from the standard the README lists and explains, one by one: each is
 /// confirmed in their source code (sources/ in each FMU).
@@ -385,12 +464,16 @@ fn the_reference_fmus_show_exactly_their_known_deviations() {
     // Every Reference FMU: fmi2GetDerivatives and fmi2GetNominalsOfContinuousStates refused in
     // Initialization Mode (their state masks omit it); NULL arrays crash the Boolean getter and
     // setter (GET_BOOLEAN_VARIABLES and SET_BOOLEAN_VARIABLES lack the NULL checks the others
-    // have).
+    // have); fmi2GetFMUstate(c, NULL) crashes (getFMUState in cosimulation.c reallocates
+    // *FMUstate unchecked, as its FMI 3.0 counterpart does). A NULL is the importer's error, so
+    // these crashes are warnings, as on the FMI 3.0 side. Every NULL fmi2Component is refused
+    // (BEGIN_FUNCTION returns fmi2Error for it).
     let common = |booleans: &[&str]| {
         let mut all = BTreeSet::new();
         for (i, state) in [(cs, "StepComplete"), (me, "EventMode")] {
             all.insert(w(i, "arguments.null-arrays", "fmi2GetBoolean", state, ""));
             all.insert(w(i, "arguments.null-arrays", "fmi2SetBoolean", state, ""));
+            all.insert(w(i, "arguments.null-arrays", "fmi2GetFMUstate", state, ""));
             for b in booleans {
                 all.insert(w(i, "arguments.null-arrays", "fmi2GetBoolean", state, b));
                 all.insert(w(i, "arguments.null-arrays", "fmi2SetBoolean", state, b));
@@ -422,6 +505,10 @@ fn the_reference_fmus_show_exactly_their_known_deviations() {
         }),
         ("Feedthrough", {
             let mut s = common(&["Boolean_input"]);
+            // setString in model.c takes strlen of each value unchecked: a NULL element crashes.
+            for i in [cs, me] {
+                s.insert(w(i, "arguments.null-arrays", "fmi2SetString", "InitializationMode", "String_input"));
+            }
             for (i, states) in
                 [(cs, ["Instantiated", "InitializationMode", "StepComplete"]), (me, ["Instantiated", "InitializationMode", "EventMode"])]
             {
@@ -459,6 +546,11 @@ fn the_reference_fmus_show_exactly_their_known_deviations() {
         // Validated to the end: both interfaces' last probe ran.
         for interface in [cs, me] {
             assert!(v.has_passed("capability.threads", interface), "{name} {interface}: {}", v.stdout);
+            assert!(v.has_passed("arguments.null-instance", interface), "{name} {interface}: {}", v.stdout);
+            // Feedthrough alone has String variables: String_input (start "Set me!") read, set
+            // after initialization to a text of the validator's, which it copied.
+            let strings = v.has_passed("variables.string", interface);
+            assert_eq!(strings, name == "Feedthrough", "{name} {interface} variables.string: {}", v.stdout);
         }
     }
 }

@@ -3,8 +3,9 @@
 //! Static: the archive (layout, path escapes, a binary for this platform, documentation
 //! links), the description (the schema's `check()` and more), the binary's exports. Dynamic:
 //! probes that call the FMU (lifecycle, the state machine cell by cell, NULL and unknown
-//! arguments, FMU state, variable steps, threads, reproducibility, Model Exchange events),
-//! each in a child process ([`isolation`]) so that a crash or a hang is a finding.
+//! arguments, FMU state, variable steps, threads, String variables, reproducibility, Model
+//! Exchange events), each in a child process ([`isolation`]) so that a crash or a hang is a
+//! finding.
 //!
 //! The FMI 2.0 set lives in `fmi2/`, the FMI 3.0 set in `fmi3/`, chosen by the description's
 //! `fmiVersion`.

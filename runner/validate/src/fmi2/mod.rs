@@ -142,7 +142,7 @@ impl Prober<'_> {
         let reference = self.runs.join(format!("{arg}-reference.bin"));
         let mut probes: Vec<String> = vec!["reproducible".into()];
         probes.extend(State::reachable(interface).iter().map(|s| format!("state-machine:{}", s.name())));
-        probes.extend(["arguments", "fmu-state", "serialize"].map(String::from));
+        probes.extend(["arguments", "strings", "fmu-state", "serialize"].map(String::from));
         if interface == Interface::CoSimulation {
             probes.push("variable-step".into());
         }
@@ -249,7 +249,12 @@ pub(crate) fn death(
     };
     let message = match end {
         End::Crashed(signal) => match (in_call, last_call) {
-            (Some(r), _) => format!("the FMU crashed with {signal} in {}", r.call),
+            // The arguments it was given, where the record has them: they may be the problem (a
+            // NULL the probe passed).
+            (Some(r), _) => match &r.value {
+                Some(value) => format!("the FMU crashed with {signal} in {} ({value})", r.call),
+                None => format!("the FMU crashed with {signal} in {}", r.call),
+            },
             (None, Some(r)) => format!("the probe process crashed with {signal} after {} returned", r.call),
             (None, None) => format!("the probe process crashed with {signal} before its first FMI call"),
         },

@@ -265,7 +265,16 @@ impl Fmu {
         if component.is_null() {
             return Err((Code::ERROR, callbacks.log.take()));
         }
-        Ok(Instance { fmu: self, c: component, state: State::Instantiated, callbacks, slot, fatal: false, interface })
+        Ok(Instance {
+            fmu: self,
+            c: component,
+            state: State::Instantiated,
+            callbacks,
+            slot,
+            fatal: false,
+            interface,
+            null_component: false,
+        })
     }
 
     /// fmi2Instantiate for this FMU's interface with its own GUID.
@@ -291,7 +300,13 @@ pub(crate) struct Instance<'f> {
     slot: usize,
     fatal: bool,
     interface: Interface,
+    /// While set, every call passes a NULL fmi2Component instead of `c` (the NULL-instance
+    /// probes): the instance itself is not addressed, so its believed state does not move.
+    pub null_component: bool,
 }
+
+/// The value a record shows for a call made with a NULL fmi2Component.
+pub(crate) const NULL_COMPONENT: &str = "a NULL fmi2Component";
 
 // An instance is used by one thread at a time (the threads probe moves each to its own).
 unsafe impl Send for Instance<'_> {}
@@ -323,16 +338,25 @@ impl<'f> Instance<'f> {
         body: impl FnOnce(&Api, c::Component) -> Option<(Code, T)>,
         missing: T,
     ) -> Outcome<T> {
+        let value = match (self.null_component, value) {
+            (false, value) => value,
+            (true, None) => Some(NULL_COMPONENT.to_owned()),
+            (true, Some(v)) => Some(format!("{NULL_COMPONENT}; {v}")),
+        };
         let record = CallRecord {
             call: function.name().to_owned(),
             state: self.state.name().to_owned(),
             variable: variable.map(|v| shown(v.to_owned())),
             value: value.map(shown),
         };
-        let (api, component) = (&self.fmu.api, self.c);
+        let component = if self.null_component { std::ptr::null_mut() } else { self.c };
+        let api = &self.fmu.api;
         let result = self.fmu.traced(self.slot, &record, || body(api, component));
         let log = self.take_log();
         let (code, value) = result.unwrap_or((Code::MISSING, missing));
+        if self.null_component {
+            return Outcome { code, value, log };
+        }
         if code == Code::ERROR && self.state != State::Gone {
             self.state = State::Error;
         }
@@ -673,6 +697,7 @@ impl<'f> Instance<'f> {
         if self.state == State::Gone {
             return;
         }
+        self.null_component = false;
         let _ = self.status(Function::FreeInstance, None, None, |api, c| {
             // SAFETY: the live component, freed once.
             api.free_instance.map(|f| unsafe { f(c) }).map(|()| Code::OK.0)

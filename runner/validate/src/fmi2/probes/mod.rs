@@ -2,7 +2,9 @@
 //! cells (one check each), reported to the parent as they start, so that after a crash the
 //! parent knows what crashed and can resume after it.
 
+mod null_arguments;
 mod state_machine;
+mod strings;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -22,7 +24,7 @@ const OTHER_NAME: &str = "second instance, another name";
 
 /// The probes there are, by name (`state-machine:<State>` takes the state's name).
 pub(crate) fn known(probe: &str) -> bool {
-    matches!(probe, "lifecycle" | "reproducible" | "arguments" | "fmu-state" | "serialize" | "variable-step" | "threads")
+    matches!(probe, "lifecycle" | "reproducible" | "arguments" | "strings" | "fmu-state" | "serialize" | "variable-step" | "threads")
         || probe.strip_prefix("state-machine:").and_then(State::from_name).is_some()
 }
 
@@ -37,6 +39,7 @@ pub(crate) fn first_check(probe: &str) -> &'static str {
         "lifecycle" => "lifecycle.guid",
         "reproducible" => "health.reproducible",
         "arguments" => "arguments.unknown-vr",
+        "strings" => "variables.string",
         "fmu-state" => "capability.fmu-state",
         "serialize" => "capability.serialize",
         "variable-step" => "capability.variable-step",
@@ -140,6 +143,7 @@ pub(crate) fn run(probe: &str, ctx: &mut Ctx) -> Result<(), String> {
         "lifecycle" => lifecycle(ctx),
         "reproducible" => reproducible(ctx)?,
         "arguments" => state_machine::arguments(ctx),
+        "strings" => strings::strings(ctx),
         "fmu-state" => fmu_state(ctx, false),
         "serialize" => fmu_state(ctx, true),
         "variable-step" => variable_step(ctx),

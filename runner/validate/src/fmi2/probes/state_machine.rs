@@ -42,7 +42,7 @@ impl Val {
 /// A fresh instance in `state`: the calls an importer makes to get there, the event iteration
 /// included for Model Exchange; Error by an fmi2SetReal of an unknown value reference, which
 /// the standard answers with fmi2Error.
-fn reach<'f>(fmu: &'f Fmu, state: State) -> Result<Instance<'f>, Failure> {
+pub(super) fn reach<'f>(fmu: &'f Fmu, state: State) -> Result<Instance<'f>, Failure> {
     let mut inst = instantiate(fmu, NAME, 0)?;
     if state == State::Instantiated {
         return Ok(inst);
@@ -656,7 +656,7 @@ fn refused(f: Function, state: State, code: Code, log: Option<String>, why: &str
 }
 
 /// One fmi2Get*Status call, with the status kind that fits its type.
-fn status_query(inst: &mut Instance, f: Function) -> Outcome<()> {
+pub(super) fn status_query(inst: &mut Instance, f: Function) -> Outcome<()> {
     let (kind, name) = match f {
         Function::GetRealStatus => (c::LAST_SUCCESSFUL_TIME, "fmi2LastSuccessfulTime"),
         Function::GetBooleanStatus => (c::TERMINATED, "fmi2Terminated"),
@@ -1029,9 +1029,18 @@ pub(super) fn arguments(ctx: &mut Ctx) {
             }
         }
     }
+    let null_instance = super::null_arguments::null_instance(ctx, state);
+    let null = null + super::null_arguments::null_pointers(ctx, state);
     ctx.pass("arguments.zero-length", format!("{zero} calls with zero values and NULL arrays succeeded"));
+    ctx.pass(
+        "arguments.null-instance",
+        format!("{null_instance} calls with a NULL fmi2Component refused with fmi2Error (fmi2FreeInstance ignored it)"),
+    );
     if null > 0 {
-        ctx.pass("arguments.null-arrays", format!("{null} calls with a NULL array and a nonzero length refused with fmi2Error"));
+        ctx.pass(
+            "arguments.null-arrays",
+            format!("{null} calls with a NULL array and a nonzero length, or another NULL pointer, refused with fmi2Error"),
+        );
     }
     ctx.pass(
         "arguments.unknown-vr",

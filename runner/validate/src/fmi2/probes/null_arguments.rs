@@ -11,7 +11,7 @@
 
 use fmi_c::fmi2 as c;
 
-use super::state_machine::{reach, status_query};
+use super::state_machine::{base_of, reach, status_query};
 use super::{capabilities, Ctx};
 use crate::fmi2::model::{Base, Grid};
 use crate::fmi2::raw::{Code, Instance, Outcome, NULL_COMPONENT};
@@ -63,11 +63,7 @@ fn null_component_call(inst: &mut Instance, f: Function, saved: &Saved) -> Outco
         Function::SetupExperiment => inst.setup_experiment(grid.tolerance, grid.start, grid.stop),
         Function::DoStep => inst.do_step(grid.start, grid.h),
         Function::GetReal | Function::GetInteger | Function::GetBoolean => {
-            let base = match f {
-                Function::GetReal => Base::Real,
-                Function::GetInteger => Base::Integer,
-                _ => Base::Boolean,
-            };
+            let base = base_of(f).expect("a numeric get");
             let (vrs, name) = first(base);
             unit(inst.get_numbers(base, &vrs, &name))
         }
@@ -76,11 +72,7 @@ fn null_component_call(inst: &mut Instance, f: Function, saved: &Saved) -> Outco
             unit(inst.get_strings(&vrs, &name))
         }
         Function::SetReal | Function::SetInteger | Function::SetBoolean => {
-            let base = match f {
-                Function::SetReal => Base::Real,
-                Function::SetInteger => Base::Integer,
-                _ => Base::Boolean,
-            };
+            let base = base_of(f).expect("a numeric set");
             let (vrs, name) = first(base);
             let values = vec![1.0; vrs.len()];
             inst.set_numbers(base, &vrs, &values, &name)

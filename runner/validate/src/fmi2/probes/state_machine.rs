@@ -325,7 +325,8 @@ fn cells<'m>(model: &'m Model, interface: Interface, state: State) -> Vec<Cell<'
     cells
 }
 
-fn base_of(f: Function) -> Option<Base> {
+/// The variable type a get or set function reads or writes.
+pub(super) fn base_of(f: Function) -> Option<Base> {
     match f {
         Function::GetReal | Function::SetReal => Some(Base::Real),
         Function::GetInteger | Function::SetInteger => Some(Base::Integer),

@@ -158,11 +158,10 @@ fn fmu_states_carry_the_pending_step_and_continue_bit_for_bit() {
     }
 }
 
-/// One GetReal of every kind of Real variable, in an order that leaves the fast loop of
-/// `Core::get_real` at its third value (a derivative) and comes back to states and inputs
-/// after: the values are those of one read per variable, which go through either path alone.
-/// An unknown value reference after a state is refused by its number, and the values before it
-/// are not handed out as a success.
+/// One GetReal of every kind of Real variable, states and time mixed with a derivative, an
+/// input and solver controls: the values are those of one read per variable. An unknown value
+/// reference after a state is refused by its number, and the values before it are not handed
+/// out as a success.
 #[test]
 fn a_read_of_mixed_kinds_equals_one_read_per_variable() {
     let mut h = lag(1e-8, 2.0);
@@ -180,4 +179,38 @@ fn a_read_of_mixed_kinds_equals_one_read_per_variable() {
     let unknown = 9_999;
     let err = h.instance.get_real(&[vrs[0], unknown], &mut [0.0; 2]).unwrap_err();
     assert!(err.message.contains("value reference 9999"), "{}", err.message);
+}
+
+/// The front ends' unguarded read (`read_states`, what fmi2GetReal and fmi3GetFloat64 try
+/// first) serves states and time only, and only where the checked path would give the same:
+/// its values are the checked read's bit for bit; a derivative, an input or an unknown
+/// reference in the list, a state machine that refuses GetReal, and an initial state not yet
+/// computed all send the call to the checked path (false), which then answers as before.
+#[test]
+fn the_unguarded_read_serves_states_and_time_and_nothing_else() {
+    let mut h = Harness::<Lag>::new();
+    let table = h.instance.table();
+    let vr = |n: &str| table.value_reference(n).unwrap_or_else(|| panic!("no {n}"));
+    let (x, time, der, u) = (vr("x"), vr("time"), vr("der(x)"), vr("u"));
+    let mut out = [f64::NAN; 2];
+    // Instantiated: FMI 2.0 allows no GetReal yet, and the checked path says so.
+    assert!(!h.instance.read_states(&[x, time], &mut out));
+    assert!(h.instance.get_real(&[x, time], &mut out).is_err());
+    h.instance.setup_experiment(Some(1e-8), 0.0, Some(2.0)).unwrap();
+    h.instance.enter_initialization_mode().unwrap();
+    // Initialization Mode before the initial state is computed: the checked path computes it.
+    assert!(!h.instance.read_states(&[x], &mut out[..1]));
+    h.instance.get_real(&[x], &mut out[..1]).unwrap();
+    assert_eq!(out[0], 0.0);
+    h.instance.exit_initialization_mode().unwrap();
+    h.set("u", 0.5).unwrap();
+    run(&mut h, 0.3, |_, _| {});
+    let (mut fast, mut checked) = ([f64::NAN; 3], [f64::NAN; 3]);
+    assert!(h.instance.read_states(&[time, x, x], &mut fast));
+    h.instance.get_real(&[time, x, x], &mut checked).unwrap();
+    assert_eq!(fast.map(f64::to_bits), checked.map(f64::to_bits));
+    assert_eq!(fast[0], h.instance.time());
+    for other in [der, u, 9_999] {
+        assert!(!h.instance.read_states(&[x, other], &mut out), "vr {other} was served");
+    }
 }

@@ -181,6 +181,13 @@ impl<M: Model> Instance<M> {
         Ok(())
     }
 
+    /// `fmi2GetReal` of states and time, when the state machine allows it (see
+    /// [`Core::read_states`]): false sends the call down the checked path.
+    #[inline(always)]
+    pub fn read_states(&self, vrs: &[u32], values: &mut [f64]) -> bool {
+        self.permits(Call::GetReal) && self.core.read_states(vrs, values)
+    }
+
     /// `fmi2GetReal`, in one pass.
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> CallResult {
         self.check(Call::GetReal)?;

@@ -264,8 +264,25 @@ pub unsafe fn reset<M: Model>(c: *mut c_void) -> c_int {
     with_instance::<M>(c, Call::Reset, |inst| ok(inst.reset()))
 }
 
-/// `fmi3GetFloat64`.
+/// `fmi3GetFloat64`. A read of states and time only, the sweep's at every communication
+/// point, is served before the unwinding guard (nothing on that path can panic); any other
+/// read, and any problem, takes the checked path.
+#[inline(always)]
 pub unsafe fn get_float64<M: Model>(c: *mut c_void, vr: *const u32, n: usize, values: *mut f64, n_values: usize) -> c_int {
+    let component = c as *mut Component<M>;
+    if n > 0 && n_values == n && !vr.is_null() && !values.is_null() && !component.is_null() && (*component).magic == COMPONENT_MAGIC {
+        // SAFETY: FMI's contract: vr points at n value references, values at n_values (= n)
+        // writable values (states and time are scalars).
+        let (vrs, out) = (std::slice::from_raw_parts(vr, n), std::slice::from_raw_parts_mut(values, n));
+        if (*component).instance.read_states(vrs, out) {
+            return Status::Ok as c_int;
+        }
+    }
+    checked_get_float64::<M>(c, vr, n, values, n_values)
+}
+
+#[inline(never)]
+unsafe fn checked_get_float64<M: Model>(c: *mut c_void, vr: *const u32, n: usize, values: *mut f64, n_values: usize) -> c_int {
     let call = Call::GetFloat64;
     with_instance::<M>(c, call, |inst| {
         inst.check(call)?;

@@ -374,6 +374,13 @@ impl<M: Model> Instance<M> {
         self.core.table().rows.len()
     }
 
+    /// `fmi3GetFloat64` of states and time, when the state machine allows it (see
+    /// [`crate::core::Core::read_states`]): false sends the call down the checked path.
+    #[inline(always)]
+    pub fn read_states(&self, vrs: &[u32], values: &mut [f64]) -> bool {
+        self.permits(Call::GetFloat64) && self.core.read_states(vrs, values)
+    }
+
     /// `fmi3GetFloat64`: the table's Real variables and the event indicators.
     pub fn get_float64(&mut self, vrs: &[u32], values: &mut [f64]) -> CallResult {
         self.check(Call::GetFloat64)?;

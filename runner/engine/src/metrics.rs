@@ -161,9 +161,14 @@ impl Metrics {
         Ok(m)
     }
 
-    /// Fresh accumulators, one per source.
+    /// Fresh accumulators, one per source; those of sources whose mean or rms some metric asks
+    /// for keep the sums too.
     pub fn accumulators(&self) -> Vec<Accumulator> {
-        self.sources.iter().map(|s| Accumulator::new(s.from)).collect()
+        let mut sums = vec![false; self.sources.len()];
+        for (_, e) in &self.metrics {
+            mark_sums(e, &mut sums);
+        }
+        self.sources.iter().zip(sums).map(|(s, sums)| Accumulator::new(s.from, sums)).collect()
     }
 
     /// Evaluates every metric over finished accumulators.
@@ -199,6 +204,20 @@ impl Formula {
     }
 }
 
+/// Sets `sums[i]` for every source `i` of which `e` takes a mean or an rms.
+fn mark_sums(e: &Expr, sums: &mut [bool]) {
+    match e {
+        Expr::Summary(Stat::Mean | Stat::Rms, i) => sums[*i] = true,
+        Expr::Number(_) | Expr::Summary(..) | Expr::Name(_) => {}
+        Expr::Call(_, args) => args.iter().for_each(|a| mark_sums(a, sums)),
+        Expr::Negate(a) => mark_sums(a, sums),
+        Expr::Binary(_, a, b) => {
+            mark_sums(a, sums);
+            mark_sums(b, sums);
+        }
+    }
+}
+
 /// Evaluates `e`; `leaf` gives the value of summaries and names.
 fn eval(e: &Expr, leaf: &dyn Fn(&Expr) -> f64) -> f64 {
     match e {
@@ -228,6 +247,9 @@ pub struct Accumulator {
     /// Samples before this time are skipped: `from` less a rounding allowance, so `from = 5`
     /// includes the grid point 4.999999999999999.
     threshold: f64,
+    /// Whether the sums (for mean and rms) are kept: a sweep's usual metrics (max, min,
+    /// peak_to_peak, final) need none, and the two sums were a third of every sample's cost.
+    sums: bool,
     count: usize,
     min: f64,
     max: f64,
@@ -237,9 +259,10 @@ pub struct Accumulator {
 }
 
 impl Accumulator {
-    fn new(from: f64) -> Accumulator {
+    fn new(from: f64, sums: bool) -> Accumulator {
         Accumulator {
             threshold: from - 1e-9 * from.abs().max(1.0),
+            sums,
             count: 0,
             min: f64::INFINITY,
             max: f64::NEG_INFINITY,
@@ -263,8 +286,10 @@ impl Accumulator {
         if x > self.max {
             self.max = x;
         }
-        self.sum += x;
-        self.sum_squares += x * x;
+        if self.sums {
+            self.sum += x;
+            self.sum_squares += x * x;
+        }
         self.last = x;
     }
 
@@ -278,6 +303,7 @@ impl Accumulator {
             Stat::Max => self.max,
             Stat::Min => self.min,
             Stat::Final => self.last,
+            Stat::Mean | Stat::Rms if !self.sums => unreachable!("Metrics::accumulators keeps the sums of every mean and rms"),
             Stat::Mean => self.sum / n,
             Stat::PeakToPeak => self.max - self.min,
             Stat::Rms => (self.sum_squares / n).sqrt(),
@@ -551,6 +577,29 @@ mod tests {
             }
         }
         Ok(m.evaluate(&acc)[0])
+    }
+
+    /// Only sources of a mean or an rms keep the sums, wherever in an expression (a function's
+    /// argument, under a minus, in a second metric) that summary is; and with or without
+    /// them the statistics are those of the samples.
+    #[test]
+    fn sums_are_kept_for_the_sources_of_means_and_rms_only() {
+        let definitions = ["a=max(x)/min(y) + peak_to_peak(z) + final(w)", "b=sqrt(rms(y, 1))", "c=-mean(z) * max(w, 1)"];
+        let m = Metrics::parse(&definitions.map(str::to_owned)).unwrap();
+        let names: Vec<(&str, f64)> = m.sources.iter().map(|s| (s.variable.as_str(), s.from)).collect();
+        let sums: Vec<bool> = m.accumulators().iter().map(|a| a.sums).collect();
+        let all = f64::NEG_INFINITY;
+        let expected = [("x", all, false), ("y", all, false), ("z", all, true), ("w", all, false), ("y", 1.0, true), ("w", 1.0, false)];
+        assert_eq!(names, expected.map(|(v, from, _)| (v, from)));
+        assert_eq!(sums, expected.map(|(.., sums)| sums));
+        let mut acc = m.accumulators();
+        for (t, x) in [(0.0, 1.0), (1.0, 3.0), (2.0, 2.0)] {
+            for a in acc.iter_mut() {
+                a.add(t, x);
+            }
+        }
+        // Every source sees 1, 3, 2 (from t = 1 on: 3, 2).
+        assert_eq!(m.evaluate(&acc), [3.0 + 2.0 + 2.0, (13.0f64 / 2.0).sqrt().sqrt(), -2.0 * 3.0]);
     }
 
     #[test]

@@ -16,6 +16,9 @@ use crate::metrics::Metrics;
 use crate::run::{self, Grid};
 use crate::variables;
 
+/// Samples between two checks of a run's `stop` (about 0.2 ms of the Ex. 4 sweep's run).
+const STOP_CHECK_SAMPLES: u32 = 128;
+
 /// Values of one `--param`: `START:STOP:STEP` (inclusive, STEP > 0) or a comma list.
 pub fn parse_range(text: &str) -> Result<(String, Vec<f64>), String> {
     let (name, spec) = variables::split_assignment(text, "--param")?;
@@ -201,10 +204,17 @@ impl<'a> Plan<'a> {
         }
         let name = self.instance_name(point);
         let mut acc = self.metrics.accumulators();
+        // `stop` is asked at the first sample and then every STOP_CHECK_SAMPLES: a call through
+        // a `dyn Fn` per sample was a tenth of the runner's own work per sample.
+        let mut until_check = 0u32;
         let result = run::run_driven(fmu, &name, &self.grid, &assignments, self.inputs.as_ref(), &self.sources, false, |t, values| {
-            if stop() {
-                return Err("interrupted".to_owned());
+            if until_check == 0 {
+                if stop() {
+                    return Err("interrupted".to_owned());
+                }
+                until_check = STOP_CHECK_SAMPLES;
             }
+            until_check -= 1;
             for (a, &x) in acc.iter_mut().zip(values) {
                 a.add(t, x);
             }

@@ -123,6 +123,14 @@ pub struct Recording<'a> {
 }
 
 impl<'a> Recording<'a> {
+    /// The columns of scalar variables, one each (an array is refused: name its elements).
+    pub fn scalars(variables: &[&'a Variable]) -> Result<Recording<'a>, String> {
+        if let Some(array) = variables.iter().find(|v| v.is_array()) {
+            return Err(format!("{} is an array; name one of its elements", array.name));
+        }
+        Ok(Recording { variables: variables.to_vec(), sizes: vec![1; variables.len()], names: Vec::new(), events: false })
+    }
+
     /// The columns of `variables`, arrays sized with `assignments` applied.
     pub fn new(description: &Description, variables: &[&'a Variable], assignments: &[(&Variable, Value)]) -> Result<Recording<'a>, String> {
         let size_of = |vr: u32| {
@@ -225,10 +233,7 @@ pub fn run_driven(
     debug_logging: bool,
     mut sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
 ) -> Result<Outcome, String> {
-    if let Some(array) = recorded.iter().find(|v| v.is_array()) {
-        return Err(format!("{} is an array; name one of its elements", array.name));
-    }
-    let recording = Recording { variables: recorded.to_vec(), sizes: vec![1; recorded.len()], names: Vec::new(), events: false };
+    let recording = Recording::scalars(recorded)?;
     run_with_inputs(fmu, name, grid, assignments, inputs, &recording, debug_logging, |t, values, _| sample(t, values))
 }
 
@@ -244,10 +249,43 @@ pub fn run_with_inputs(
     debug_logging: bool,
     sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
 ) -> Result<Outcome, String> {
+    run_sampled(fmu, name, grid, assignments, inputs, recording, debug_logging, Closure(sample))
+}
+
+/// What a run does with each sample. A closure `sample(t, values, texts)` is one (see
+/// [`run_with_inputs`]); a type of its own can have its method always inlined into the run's
+/// loop, which a closure called at the loop's several places is not (a call of its own cost
+/// a sweep about 20 instructions per sample).
+pub trait Sampler {
+    /// The values of the recorded columns at time `t`, and their exact texts.
+    fn sample(&mut self, t: f64, values: &[f64], texts: &dyn Texts) -> Result<(), String>;
+}
+
+struct Closure<F>(F);
+
+impl<F: FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>> Sampler for Closure<F> {
+    #[inline]
+    fn sample(&mut self, t: f64, values: &[f64], texts: &dyn Texts) -> Result<(), String> {
+        (self.0)(t, values, texts)
+    }
+}
+
+/// [`run_with_inputs`] with a [`Sampler`].
+#[allow(clippy::too_many_arguments)]
+pub fn run_sampled(
+    fmu: &Fmu,
+    name: &str,
+    grid: &Grid,
+    assignments: &[(&Variable, Value)],
+    inputs: Option<&Inputs>,
+    recording: &Recording,
+    debug_logging: bool,
+    sampler: impl Sampler,
+) -> Result<Outcome, String> {
     // Two copies of the loop: the one without inputs is the sweep's hot path, unchanged.
     match inputs {
-        None => drive(fmu, name, grid, assignments, &Constant, recording, debug_logging, sample),
-        Some(inputs) => drive(fmu, name, grid, assignments, inputs, recording, debug_logging, sample),
+        None => drive(fmu, name, grid, assignments, &Constant, recording, debug_logging, sampler),
+        Some(inputs) => drive(fmu, name, grid, assignments, inputs, recording, debug_logging, sampler),
     }
 }
 
@@ -296,7 +334,7 @@ fn drive(
     inputs: &impl Stimulus,
     recording: &Recording,
     debug_logging: bool,
-    mut sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
+    mut sampler: impl Sampler,
 ) -> Result<Outcome, String> {
     let mut reader = Reader::with_sizes(fmu.description.fmi_version, &recording.variables, &recording.sizes)?;
     let mut values = vec![0.0; reader.len()];
@@ -310,7 +348,7 @@ fn drive(
     inputs.apply(&mut instance, grid.start)?;
     instance.exit_initialization_mode()?;
     instance.read(&mut reader, &mut values)?;
-    sample(grid.start, &values, &reader)?;
+    sampler.sample(grid.start, &values, &reader)?;
     let n = grid.steps();
     let mut t = grid.time_of(0, n);
     for i in 0..n {
@@ -331,11 +369,11 @@ fn drive(
                 Step::Event { time } => {
                     if recording.events {
                         instance.read(&mut reader, &mut values)?;
-                        sample(time, &values, &reader)?;
+                        sampler.sample(time, &values, &reader)?;
                     }
                     if let Some(reason) = instance.handle_event(time)? {
                         instance.read(&mut reader, &mut values)?;
-                        sample(time, &values, &reader)?;
+                        sampler.sample(time, &values, &reader)?;
                         return Ok(Outcome { ended_early: Some(reason), counters: instance.counters() });
                     }
                     if time >= t_next {
@@ -347,14 +385,14 @@ fn drive(
                     // Like fmpy: keep the state the model reached as a last row, when it is new.
                     if let Some(last) = last_time.filter(|&last| last > t) {
                         instance.read(&mut reader, &mut values)?;
-                        sample(last, &values, &reader)?;
+                        sampler.sample(last, &values, &reader)?;
                     }
                     return Ok(Outcome { ended_early: Some(reason), counters: instance.counters() });
                 }
             }
         }
         instance.read(&mut reader, &mut values)?;
-        sample(t_next, &values, &reader)?;
+        sampler.sample(t_next, &values, &reader)?;
         t = t_next;
     }
     Ok(Outcome { ended_early: None, counters: instance.counters() })

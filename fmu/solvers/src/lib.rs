@@ -485,6 +485,9 @@ impl Integrator {
     /// On error, `*t` and `x` are the last time and state that were reached with finite values.
     /// The adaptive methods may evaluate the right-hand side past `t_end` (up to the stop time),
     /// inside the step that covers it.
+    // Always inlined: into the FMUs' DoStep (one frame fewer per communication step: 14
+    // instructions of the Ex. 4 sweep's 1,520 per point); the bare loop inlined it already.
+    #[inline(always)]
     pub fn advance<S: OdeSystem>(&mut self, sys: &S, t: &mut f64, x: &mut [f64], t_end: f64) -> Result<Advance, SolverError> {
         // The usual call when steps are longer than communication intervals: the caller comes
         // back with the point handed out and asks for one inside the pending step, which only

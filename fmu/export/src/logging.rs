@@ -91,8 +91,9 @@ impl Logger {
     /// usual answer (debug logging off) is two tests.
     #[inline(always)]
     pub fn wants(&self, category: Category) -> bool {
-        // Asked before every call is traced: the cheap tests come first.
-        if self.sink.is_none() || (category.debug && !self.debug_on) {
+        // Asked before every call is traced: the cheap tests come first, the one that usually
+        // decides (debug logging off) before the others.
+        if (category.debug && !self.debug_on) || self.sink.is_none() {
             return false;
         }
         CATEGORIES.iter().position(|c| c.name == category.name).is_some_and(|i| self.enabled[i])

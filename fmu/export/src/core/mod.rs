@@ -813,7 +813,8 @@ impl<M: Model> Core<M> {
         let t0 = self.state.t;
         let t_end = current + h;
         if let Some(stop) = self.state.stop_time {
-            if t_end > stop + 1e-9 * stop.abs().max(1.0) {
+            // The plain test first: a step that ends by the stop time needs no allowance.
+            if t_end > stop && t_end > stop + 1e-9 * stop.abs().max(1.0) {
                 return Err(self.past_stop(t_end, stop));
             }
         }
@@ -880,7 +881,7 @@ impl<M: Model> Core<M> {
         let t0 = self.state.t;
         let t_end = current + h;
         if let Some(stop) = self.state.stop_time {
-            if t_end > stop + 1e-9 * stop.abs().max(1.0) {
+            if t_end > stop && t_end > stop + 1e-9 * stop.abs().max(1.0) {
                 return Err(self.past_stop(t_end, stop));
             }
         }

@@ -273,10 +273,23 @@ impl Accumulator {
     }
 
     /// Adds the sample `x` taken at time `t`.
+    #[inline]
     pub fn add(&mut self, t: f64, x: f64) {
         if t < self.threshold {
             return;
         }
+        self.add_counted(x);
+    }
+
+    /// Whether every sample counts (no `from` time): then [`Accumulator::add_counted`] does
+    /// what [`Accumulator::add`] does, without the time test.
+    pub fn counts_all(&self) -> bool {
+        self.threshold == f64::NEG_INFINITY
+    }
+
+    /// Adds the sample `x`, which counts whatever its time.
+    #[inline]
+    pub fn add_counted(&mut self, x: f64) {
         self.count += 1;
         // Plain comparisons, not f64::min/max: samples are finite (fmi2GetReal refuses others,
         // and a NaN would be skipped here too), and this is one instruction each per sample.
@@ -600,6 +613,22 @@ mod tests {
         }
         // Every source sees 1, 3, 2 (from t = 1 on: 3, 2).
         assert_eq!(m.evaluate(&acc), [3.0 + 2.0 + 2.0, (13.0f64 / 2.0).sqrt().sqrt(), -2.0 * 3.0]);
+    }
+
+    /// The sweep leaves out the time test when no summary has a `from` time: `add_counted`
+    /// then gives what `add` gives, and only `from`-less sources say they count all samples.
+    #[test]
+    fn counting_every_sample_without_the_time_test_changes_nothing() {
+        let m = Metrics::parse(&["a=rms(x) + peak_to_peak(x) + final(x) + max(x, 1)".to_owned()]).unwrap();
+        assert_eq!(m.accumulators().iter().map(Accumulator::counts_all).collect::<Vec<_>>(), [true, false]);
+        let (mut timed, mut counted) = (m.accumulators(), m.accumulators());
+        for (t, x) in [(0.0, 1.0), (1.0, -3.0), (2.0, 2.5)] {
+            timed[0].add(t, x);
+            counted[0].add_counted(x);
+        }
+        for stat in [Stat::Max, Stat::Min, Stat::Final, Stat::Mean, Stat::PeakToPeak, Stat::Rms] {
+            assert_eq!(timed[0].value(stat).to_bits(), counted[0].value(stat).to_bits(), "{stat:?}");
+        }
     }
 
     #[test]

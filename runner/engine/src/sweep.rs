@@ -24,6 +24,8 @@ struct Summaries<'a> {
     /// STOP_CHECK_SAMPLES (a call through a `dyn Fn` per sample was a tenth of the runner's
     /// own work per sample).
     until_check: u32,
+    /// No summary has a `from` time: the time test per accumulator and sample is left out.
+    counts_all: bool,
 }
 
 impl run::Sampler for Summaries<'_> {
@@ -36,8 +38,14 @@ impl run::Sampler for Summaries<'_> {
             self.until_check = STOP_CHECK_SAMPLES;
         }
         self.until_check -= 1;
-        for (a, &x) in self.acc.iter_mut().zip(values) {
-            a.add(t, x);
+        if self.counts_all {
+            for (a, &x) in self.acc.iter_mut().zip(values) {
+                a.add_counted(x);
+            }
+        } else {
+            for (a, &x) in self.acc.iter_mut().zip(values) {
+                a.add(t, x);
+            }
         }
         Ok(())
     }
@@ -239,7 +247,8 @@ impl<'a> Plan<'a> {
         }
         let name = self.instance_name(point);
         let mut acc = self.metrics.accumulators();
-        let summaries = Summaries { acc: &mut acc, stop, until_check: 0 };
+        let counts_all = acc.iter().all(Accumulator::counts_all);
+        let summaries = Summaries { acc: &mut acc, stop, until_check: 0, counts_all };
         let result = run::Recording::scalars(&self.sources).and_then(|recording| {
             run::run_sampled(fmu, &name, &self.grid, &assignments, self.inputs.as_ref(), &recording, false, summaries)
         });

@@ -110,9 +110,9 @@ fn anchor_sin_cos(anchor: f64) -> (f64, f64) {
 /// magnitude, so its rounding errors shrink by that much. The Taylor series of cos b - 1 to
 /// b^10 and of sin b to b^9 leave out less than 3e-18 at |b| = 1/8.
 ///
-/// The two series are evaluated by Horner's rule side by side, as one pair per step, which the
-/// compiler packs into one SSE2 multiply and add: the sine's series, a term shorter, starts a
-/// step later from 0 (0 z + c is c exactly), so each lane rounds as its own Horner sum does.
+/// The two series are evaluated by Horner's rule side by side ([`horner_pair`]): the sine's
+/// series, a term shorter, starts a step later from 0 (0 z + c is c exactly), so each lane
+/// rounds as its own Horner sum does.
 #[inline(always)]
 fn near_anchor(cos_a: f64, sin_a: f64, b: f64) -> f64 {
     const COS: [f64; 5] = [-1.0 / 3_628_800.0, 1.0 / 40_320.0, -1.0 / 720.0, 1.0 / 24.0, -1.0 / 2.0];

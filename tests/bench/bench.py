@@ -408,6 +408,12 @@ def main():
               f"fastest of {max(args.repeats, 5)}); CPU time {wc:.3f} s and {ic:.3f} s ({wc / ic:.3f}x)")
     print(f"peak RSS sampled while running: supervisor {peaks[100][0] / 1024:.1f} / {peaks[10_000][0] / 1024:.1f} MiB, "
           f"largest worker {peaks[100][1] / 1024:.1f} / {peaks[10_000][1] / 1024:.1f} MiB (100 / 10,000 points)")
+    # The per-run targets against the peers measure the runner; the same ratios against the bare
+    # loop (no FMI layer: the most any FMI path can reach on this machine) tell whether a miss is
+    # the FMI layer's or the integrator's.
+    bare = per["bare loop (the limit)"]
+    print(f"the peers against the bare loop, per run: scipy RK45 {per['scipy solve_ivp RK45 (Python port)'] / bare:.0f}x, "
+          f"fmpy {per['fmpy simulate_fmu, 1 process'] / bare:.1f}x (the runner's targets: 500x and 40x)")
     print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}\n")
     missed = 0
     for what, value, op, target in checks:

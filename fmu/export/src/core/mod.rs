@@ -892,16 +892,26 @@ impl<M: Model> Core<M> {
             let integrator = integrator.as_mut().expect("the integrator exists once started");
             match integrator.advance(Equations::of(&*model), t, x, t_end) {
                 Ok(Advance::Reached) => {}
-                Ok(Advance::Event { fired }) => {
-                    self.state.outputs_dirty = true;
-                    self.state.last_successful_time = self.state.t;
-                    self.state.last_step_status = Status::Ok;
-                    return Ok(StepStop::Event { fired });
-                }
-                Err(e) => return Err(self.fail_step(t0, format!("the solver failed between t = {t0} and t = {t_end}: {e}"))),
+                // Out of line, as in `do_step`: most steps reach t_end.
+                other => return self.stopped_short(other, t0, t_end),
             }
         }
         self.finish_step(t0, t_end).map(StepStop::Ended)
+    }
+
+    /// [`Core::step_to_event`] when the solver stopped at an event, or failed.
+    #[inline(never)]
+    fn stopped_short(&mut self, outcome: Result<Advance, SolverError>, t0: f64, t_end: f64) -> CallResult<StepStop> {
+        match outcome {
+            Ok(Advance::Reached) => self.finish_step(t0, t_end).map(StepStop::Ended),
+            Ok(Advance::Event { fired }) => {
+                self.state.outputs_dirty = true;
+                self.state.last_successful_time = self.state.t;
+                self.state.last_step_status = Status::Ok;
+                Ok(StepStop::Event { fired })
+            }
+            Err(e) => Err(self.fail_step(t0, format!("the solver failed between t = {t0} and t = {t_end}: {e}"))),
+        }
     }
 
     /// The model's response to the event [`Core::step_to_event`] stopped at (`fired`: the

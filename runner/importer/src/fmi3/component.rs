@@ -248,7 +248,8 @@ impl<'a> Component<'a> {
     }
 
     /// Reads the variables of `reader` into `out` (one f64 per element, Booleans as 0/1).
-    #[inline]
+    /// Always inlined, as FMI 2.0's: a sweep reads at every sample.
+    #[inline(always)]
     pub(crate) fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         if reader.direct {
             if let Some(group) = reader.groups.first() {

@@ -363,19 +363,26 @@ def main():
             step = 49 / (points - 1)
             cmd = [RUNNER, "sweep", FMU, "--param", f"speed=1:50:{step!r}", *EX4[:2], "--stop-time", "1", *EX4[4:],
                    "--threads", "2", "--out", Path(work) / f"peaks_{points}.csv", *extra]
-            proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-            supervisor = workers = 0
-            while proc.poll() is None:
-                supervisor = max(supervisor, vm_hwm_kib(proc.pid))
-                for child in children(proc.pid):
-                    workers = max(workers, vm_hwm_kib(child))
-                time.sleep(0.02)
-            while True:  # reap the released workers
-                try:
-                    os.wait4(-1, 0)
-                except ChildProcessError:
-                    break
-            return supervisor, workers
+            # The 100-point sweep takes tens of milliseconds on a fast machine: poll every
+            # millisecond, and run it again (at most 5 times) when too few samples caught it
+            # running, rather than report the peak of a process that had barely started.
+            for _ in range(5):
+                proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                supervisor = workers = samples = 0
+                while proc.poll() is None:
+                    supervisor = max(supervisor, vm_hwm_kib(proc.pid))
+                    for child in children(proc.pid):
+                        workers = max(workers, vm_hwm_kib(child))
+                    samples += 1
+                    time.sleep(0.001)
+                while True:  # reap the released workers
+                    try:
+                        os.wait4(-1, 0)
+                    except ChildProcessError:
+                        break
+                if samples >= 10 and workers > 0:
+                    return supervisor, workers
+            sys.exit(f"the {points}-point sweep ended too fast to sample its memory ({samples} samples)")
         peaks = {points: sampled_peaks(points) for points in (100, 10_000)}
 
     per = {label: per_run for label, _, per_run, _ in rows}

@@ -343,6 +343,7 @@ impl<M: Model> Instance<M> {
         let t = self.core.time();
         let mut r = self.step_result(end, t_end, true);
         if end == StepEnd::Completed {
+            // Handled, and back to the importer at the event's time.
             r.early_return = t < t_end;
             r.last_successful_time = t;
         }

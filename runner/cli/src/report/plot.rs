@@ -5,7 +5,7 @@ use std::path::Path;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use crate::report::output;
+use crate::report::{figure, output};
 
 /// One named line of a plot.
 pub struct Series {
@@ -59,7 +59,7 @@ fn draw(svg: &mut String, title: &str, x_label: &str, y_label: &str, series: &[S
         .map_err(|e| err(&e))?;
     chart.configure_mesh().x_desc(x_label).y_desc(y_label).label_style(("sans-serif", 14)).draw().map_err(|e| err(&e))?;
     for (i, s) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
+        let color = figure::color(i).to_rgba();
         let style = ShapeStyle::from(&color).stroke_width(2);
         chart
             .draw_series(LineSeries::new(s.points.iter().copied().filter(|p| p.1.is_finite()), style))
@@ -72,15 +72,38 @@ fn draw(svg: &mut String, title: &str, x_label: &str, y_label: &str, series: &[S
                 .map_err(|e| err(&e))?;
         }
     }
-    for m in marks {
+    // Each mark's label goes beside its point, on the first side (above or below, right or
+    // left) where it overlaps no other label or marked point and stays inside the plot: marks
+    // of nearby points (two methods reaching a target error at similar cost) would otherwise
+    // print over each other. When no side is free it goes below the labels in the way, with a
+    // thin line back to its point.
+    let style = ("sans-serif", 15).into_font().color(&RED).pos(Pos::new(HPos::Left, VPos::Top));
+    let (area_x, area_y) = chart.plotting_area().get_pixel_range();
+    let points: Vec<(i32, i32)> = marks.iter().map(|m| chart.backend_coord(&m.at)).collect();
+    let mut obstacles: Vec<(i32, i32, i32, i32)> = points.iter().map(|&(x, y)| (x - 8, y - 8, x + 8, y + 8)).collect();
+    let free = |obstacles: &[(i32, i32, i32, i32)], (x0, y0, x1, y1): (i32, i32, i32, i32)| {
+        !obstacles.iter().any(|&(l, t, r, b)| x0 < r && l < x1 && y0 < b && t < y1)
+    };
+    for (m, &(px, py)) in marks.iter().zip(&points) {
         chart.draw_series(std::iter::once(Circle::new(m.at, 6, RED.stroke_width(2)))).map_err(|e| err(&e))?;
-        chart
-            .draw_series(std::iter::once(Text::new(
-                m.text.clone(),
-                m.at,
-                ("sans-serif", 15).into_font().color(&RED).pos(Pos::new(HPos::Left, VPos::Bottom)),
-            )))
-            .map_err(|e| err(&e))?;
+        let (w, h) = root.estimate_text_size(&m.text, &style).map_err(|e| err(&e))?;
+        let (w, h) = (w as i32, h as i32);
+        let sides = [(px + 9, py - 9 - h), (px + 9, py + 9), (px - 9 - w, py - 9 - h), (px - 9 - w, py + 9)];
+        let inside =
+            |&(x, y): &(i32, i32)| area_x.contains(&x) && area_x.contains(&(x + w)) && area_y.contains(&y) && area_y.contains(&(y + h));
+        let (x0, y0) = match sides.iter().copied().find(|&(x, y)| inside(&(x, y)) && free(&obstacles, (x, y, x + w, y + h))) {
+            Some(side) => side,
+            None => {
+                let (x0, mut y0) = sides[1];
+                while let Some(&(_, _, _, bottom)) = obstacles.iter().find(|&&(l, t, r, b)| x0 < r && l < x0 + w && y0 < b && t < y0 + h) {
+                    y0 = bottom + 2;
+                }
+                root.draw(&PathElement::new(vec![(px, py + 7), (x0, y0 + h / 2)], RED.mix(0.6).stroke_width(1))).map_err(|e| err(&e))?;
+                (x0, y0)
+            }
+        };
+        obstacles.push((x0, y0, x0 + w, y0 + h));
+        root.draw(&Text::new(m.text.clone(), (x0, y0), style.clone())).map_err(|e| err(&e))?;
     }
     chart
         .configure_series_labels()
@@ -90,4 +113,40 @@ fn draw(svg: &mut String, title: &str, x_label: &str, y_label: &str, series: &[S
         .draw()
         .map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{draw, Mark, Series};
+
+    /// The (x, y) of each `<text>` element whose content is `text`.
+    fn positions(svg: &str, text: &str) -> Vec<(f64, f64)> {
+        let attr = |tag: &str, name: &str| -> f64 {
+            let at = tag.find(&format!(" {name}=\"")).expect("the attribute") + name.len() + 3;
+            tag[at..tag[at..].find('"').unwrap() + at].parse().unwrap()
+        };
+        svg.split("<text")
+            .skip(1)
+            .filter(|t| t.split_once(">").is_some_and(|(_, body)| body.trim_start().starts_with(text)))
+            .map(|t| (attr(t, "x"), attr(t, "y")))
+            .collect()
+    }
+
+    /// Two marks a few pixels apart (two methods reaching a target error at about the same
+    /// cost) get labels that do not overlap: drawn where the first one is, the second would
+    /// cover it (both 15 px high, over 100 px wide).
+    #[test]
+    fn labels_of_nearby_marks_do_not_overlap() {
+        crate::report::fonts::register();
+        let series = vec![Series { label: "a".into(), points: vec![(0.0, 0.0), (10.0, 10.0)] }];
+        let marks =
+            vec![Mark { at: (5.0, 5.0), text: "first reaches 1e-6".into() }, Mark { at: (5.1, 5.05), text: "second reaches 1e-6".into() }];
+        let mut svg = String::new();
+        draw(&mut svg, "t", "x", "y", &series, &marks).unwrap();
+        let (a, b) = (positions(&svg, "first reaches 1e-6"), positions(&svg, "second reaches 1e-6"));
+        assert_eq!((a.len(), b.len()), (1, 1), "each label drawn once");
+        let ((ax, ay), (bx, by)) = (a[0], b[0]);
+        // Apart by a line's height vertically, or by a label's width horizontally.
+        assert!((ay - by).abs() >= 15.0 || (ax - bx).abs() >= 100.0, "labels at ({ax}, {ay}) and ({bx}, {by}) overlap");
+    }
 }

@@ -486,7 +486,7 @@ pub fn run(options: &Options) -> Result<Summary, String> {
             }
             for (label, points) in lines {
                 if let Some(&(x, y)) = points.iter().filter(|p| p.1.is_finite()).max_by(|a, b| a.1.total_cmp(&b.1)) {
-                    marks.push(Mark { at: (x, y), text: format!(" peak {y:.4} at {x_name} = {x}{x_unit}") });
+                    marks.push((label.clone(), Mark { at: (x, y), text: format!("peak {y:.4} at {x_name} = {x}{x_unit}") }));
                 }
                 series.push(Series { label, points });
             }
@@ -501,6 +501,10 @@ pub fn run(options: &Options) -> Result<Summary, String> {
             d.model_name,
             metrics.metrics.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
         );
+        // With several lines, each peak says whose it is.
+        let several = series.len() > 1;
+        let marks: Vec<Mark> =
+            marks.into_iter().map(|(label, m)| if several { Mark { text: format!("{label}: {}", m.text), ..m } } else { m }).collect();
         plot::lines(&path, &title, &x_label, &y_label, &series, &marks)?;
         eprintln!("wrote {}", path.display());
     }

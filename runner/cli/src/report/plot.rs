@@ -42,6 +42,14 @@ pub fn lines(path: &Path, title: &str, x_label: &str, y_label: &str, series: &[S
     output::write_file(path, svg.as_bytes())
 }
 
+/// A box in pixels: left, top, right, bottom.
+type Rect = (i32, i32, i32, i32);
+
+/// The first of `obstacles` that overlaps `rect`.
+fn in_the_way(obstacles: &[Rect], (x0, y0, x1, y1): Rect) -> Option<Rect> {
+    obstacles.iter().copied().find(|&(l, t, r, b)| x0 < r && l < x1 && y0 < b && t < y1)
+}
+
 fn draw(svg: &mut String, title: &str, x_label: &str, y_label: &str, series: &[Series], marks: &[Mark]) -> Result<(), String> {
     let err = |e: &dyn std::fmt::Display| e.to_string();
     // x spans the data exactly (time from start to stop); only a single point gets padding.
@@ -80,22 +88,20 @@ fn draw(svg: &mut String, title: &str, x_label: &str, y_label: &str, series: &[S
     let style = ("sans-serif", 15).into_font().color(&RED).pos(Pos::new(HPos::Left, VPos::Top));
     let (area_x, area_y) = chart.plotting_area().get_pixel_range();
     let points: Vec<(i32, i32)> = marks.iter().map(|m| chart.backend_coord(&m.at)).collect();
-    let mut obstacles: Vec<(i32, i32, i32, i32)> = points.iter().map(|&(x, y)| (x - 8, y - 8, x + 8, y + 8)).collect();
-    let free = |obstacles: &[(i32, i32, i32, i32)], (x0, y0, x1, y1): (i32, i32, i32, i32)| {
-        !obstacles.iter().any(|&(l, t, r, b)| x0 < r && l < x1 && y0 < b && t < y1)
-    };
+    let mut obstacles: Vec<Rect> = points.iter().map(|&(x, y)| (x - 8, y - 8, x + 8, y + 8)).collect();
     for (m, &(px, py)) in marks.iter().zip(&points) {
         chart.draw_series(std::iter::once(Circle::new(m.at, 6, RED.stroke_width(2)))).map_err(|e| err(&e))?;
         let (w, h) = root.estimate_text_size(&m.text, &style).map_err(|e| err(&e))?;
         let (w, h) = (w as i32, h as i32);
         let sides = [(px + 9, py - 9 - h), (px + 9, py + 9), (px - 9 - w, py - 9 - h), (px - 9 - w, py + 9)];
         let inside =
-            |&(x, y): &(i32, i32)| area_x.contains(&x) && area_x.contains(&(x + w)) && area_y.contains(&y) && area_y.contains(&(y + h));
-        let (x0, y0) = match sides.iter().copied().find(|&(x, y)| inside(&(x, y)) && free(&obstacles, (x, y, x + w, y + h))) {
+            |(x, y): (i32, i32)| area_x.contains(&x) && area_x.contains(&(x + w)) && area_y.contains(&y) && area_y.contains(&(y + h));
+        let (x0, y0) = match sides.iter().copied().find(|&(x, y)| inside((x, y)) && in_the_way(&obstacles, (x, y, x + w, y + h)).is_none())
+        {
             Some(side) => side,
             None => {
                 let (x0, mut y0) = sides[1];
-                while let Some(&(_, _, _, bottom)) = obstacles.iter().find(|&&(l, t, r, b)| x0 < r && l < x0 + w && y0 < b && t < y0 + h) {
+                while let Some((_, _, _, bottom)) = in_the_way(&obstacles, (x0, y0, x0 + w, y0 + h)) {
                     y0 = bottom + 2;
                 }
                 root.draw(&PathElement::new(vec![(px, py + 7), (x0, y0 + h / 2)], RED.mix(0.6).stroke_width(1))).map_err(|e| err(&e))?;

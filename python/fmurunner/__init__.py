@@ -1,10 +1,13 @@
-"""The runner's engine from Python: inspect, simulate and sweep FMUs.
+"""The runner's engine from Python: inspect, simulate, sweep and step FMUs.
 
 ``info``, ``simulate`` and ``sweep`` call the Rust engine of the ``runner`` command line
 directly (no subprocess, no CSV in between; the GIL is released while it runs), so their numbers
 are the command line's, bit for bit. ``fmu`` is a path to any ``.fmu`` or, inside this
 repository, one of its model names (``quarter_car``), whose experiment defaults apply as on the
-command line. ``sweep(..., client=client)`` runs the points on a Dask cluster.
+command line. A local ``sweep`` runs its points in worker processes of the runner's sandbox (a
+crashing or hanging FMU is a failed row); ``sweep(..., client=client)`` runs them on a Dask
+cluster. :class:`Simulation` steps one FMU instance from your own loop. :func:`plot` draws a
+result with matplotlib.
 
 Errors (a bad parameter name, a bad metric expression, an unreadable FMU) raise
 :class:`RunnerError` with the runner's message; a point that fails is a row whose ``status``
@@ -21,13 +24,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from . import _engine
-from ._engine import RunnerError
+from . import _engine, _worker
+from ._engine import RunnerError, StepResult
 
 if TYPE_CHECKING:
     from distributed import Client
 
-__all__ = ["info", "simulate", "sweep", "RunnerError"]
+__all__ = ["info", "simulate", "sweep", "plot", "Simulation", "StepResult", "RunnerError"]
 
 StartValues = Mapping[str, "float | int | bool | str | Sequence[float]"]
 
@@ -80,7 +83,14 @@ def _number(what: str, value: float | None) -> float | None:
         raise RunnerError(f"{what} {value!r} is not a number") from None
 
 
-def _resolve(fmu: str | os.PathLike[str], command: str, stop_time, output_interval, tolerance, start_values):
+def _resolve(
+    fmu: str | os.PathLike[str],
+    command: str,
+    stop_time: float | None,
+    output_interval: float | None,
+    tolerance: float | None,
+    start_values: StartValues | None,
+) -> tuple[str, list[tuple[float | None, float | None, float | None]], list[str]]:
     """The FMU's file, the grid sources (the call's, then the model's experiment) and the sets."""
     path, defaults_sets, defaults_grid = _engine.locate(os.fspath(fmu), command)
     grid = (_number("stop_time", stop_time), _number("output_interval", output_interval), _number("tolerance", tolerance))
@@ -129,9 +139,11 @@ def simulate(
     other values held, and a repeated time is a discontinuity.
 
     Returns a DataFrame whose first column is ``time``, then one column per output (array
-    elements as ``name[i]``); Reals are float64, Integers int64, Booleans bool, FMI 3.0 Strings
-    and Binaries (hexadecimal) str. ``df.attrs["ended_early"]`` holds why a run stopped before
-    its stop time (else ``None``).
+    elements as ``name[i]``); Reals are float64, Integers int64, Booleans bool, Strings (FMI 2.0
+    and 3.0) and Binaries (hexadecimal) str, as ``runner simulate`` writes them. ``df.attrs["ended_early"]`` holds why a run stopped before
+    its stop time (else ``None``); ``df.attrs["units"]`` each column's unit (values are in SI),
+    ``df.attrs["display_units"]`` the unit :func:`plot` shows a column in, as ``(name, factor,
+    offset)`` with ``display = factor * value + offset``, and ``df.attrs["model_name"]`` the model.
     """
     path, grid_sources, sets = _resolve(fmu, "simulate", stop_time, output_interval, tolerance, start_values)
     table = _input_columns(input) if input is not None else None
@@ -151,7 +163,17 @@ def simulate(
             columns[name] = matrix[:, c].copy()
     frame = pd.DataFrame(columns)
     frame.attrs["ended_early"] = ended_early
+    _attach_units(frame, model.model_name, model.units(names))
     return frame
+
+
+def _attach_units(frame: pd.DataFrame, model_name: str, units: dict[str, Any]) -> None:
+    """Records each column's unit (SI) and display unit in ``frame.attrs``."""
+    frame.attrs["model_name"] = model_name
+    frame.attrs["units"] = {name: unit for name, (unit, _) in units.items() if unit is not None}
+    frame.attrs["display_units"] = {name: tuple(display) for name, (_, display) in units.items() if display is not None}
+    if "time" in frame.columns:
+        frame.attrs["units"]["time"] = "s"
 
 
 def _metric_texts(metrics: Mapping[str, str] | Sequence[str]) -> list[str]:
@@ -167,10 +189,9 @@ def _ranges(params: Mapping[str, Sequence[float]]) -> list[tuple[str, list[float
         raise RunnerError("params must be a dict of parameter name to a sequence of values")
     ranges = []
     for name, values in params.items():
-        if isinstance(values, (str, bytes)) or not hasattr(values, "__iter__"):
-            values = [values]
+        given: Any = [values] if isinstance(values, (str, bytes)) or not hasattr(values, "__iter__") else values
         try:
-            numbers = [float(v) for v in np.asarray(values).ravel()]
+            numbers = [float(v) for v in np.asarray(given).ravel()]
         except (TypeError, ValueError):
             raise RunnerError(f"params['{name}']: every value must be a number") from None
         bad = [v for v in numbers if not math.isfinite(v)]
@@ -194,7 +215,9 @@ def _points(ranges: list[tuple[str, list[float]]], start: int = 0, stop: int | N
     return columns
 
 
-def _frame(ranges, metric_names: list[str], metrics: np.ndarray, status: np.ndarray) -> pd.DataFrame:
+def _frame(
+    ranges: list[tuple[str, list[float]]], metric_names: list[str], metrics: np.ndarray, status: np.ndarray
+) -> pd.DataFrame:
     columns: dict[str, Any] = _points(ranges)
     for k, name in enumerate(metric_names):
         columns[name] = metrics[:, k]
@@ -213,6 +236,12 @@ def sweep(
     threads: int | None = None,
     client: Client | None = None,
     chunk_size: int | None = None,
+    *,
+    in_process: bool = False,
+    point_timeout: float | None = None,
+    worker_memory: int | None = None,
+    out: str | os.PathLike[str] | None = None,
+    resume: bool = False,
 ) -> pd.DataFrame:
     """Runs the FMU at every point of a parameter space, as ``runner sweep`` does.
 
@@ -223,35 +252,86 @@ def sweep(
     ``output_interval``, ``tolerance`` and ``start_values`` are as in :func:`simulate` (for a
     model name, its experiment's ``[sweep]`` section gives the defaults).
 
-    Locally the points run on ``threads`` threads (default: every core). With ``client`` (a
-    ``dask.distributed.Client``) they run on its cluster in chunks of ``chunk_size`` points
-    (default: sized from the measured cost of a point so that a task takes about a second); the
-    FMU's bytes go to each worker once, a lost worker's chunks are recomputed elsewhere, and the
-    tasks show in Dask's dashboard.
+    Locally the points run in ``threads`` worker processes (default: one per core) of the
+    runner's sandbox, as on the command line: a point whose FMU crashes, runs longer than
+    ``point_timeout`` seconds, or grows its worker past ``worker_memory`` MiB (default: three
+    quarters of the machine's memory, shared) is a row whose ``status`` says so (``crashed:
+    SIGSEGV in fmi2DoStep at t = 0.31``), and the sweep goes on. ``in_process=True`` runs them on
+    threads of this process instead, for FMUs you trust: a crash then takes the interpreter down.
+
+    With ``out`` (a CSV path) the rows are written as points finish to ``<out>.partial``, beside a
+    record of the sweep (``<out>.sweep``), and the file is renamed to ``out`` when complete; a
+    sweep that was interrupted (Ctrl-C, a killed process) continues with ``resume=True``, running
+    only the points not in the file (the record must match: same FMU, same sweep).
+
+    With ``client`` (a ``dask.distributed.Client``) the points run on its cluster in chunks of
+    ``chunk_size`` points (default: sized from the measured cost of a point so that a task takes
+    about a second), each chunk in worker processes of the sandbox on its Dask worker (a
+    crashing point is a failed row, not a lost Dask worker; ``in_process=True``: on the Dask
+    worker's thread); the FMU's bytes go to each worker once, a lost worker's chunks are
+    recomputed elsewhere, and the tasks show in Dask's dashboard.
 
     Returns one row per point, in point order: the parameters, the metrics (NaN where a point
-    did not run) and ``status`` (``ok``, or the point's error).
+    did not run) and ``status`` (``ok``, or the point's error). ``df.attrs["units"]`` holds the
+    parameters' units.
     """
     ranges = _ranges(params)
     metric_texts = _metric_texts(metrics)
     path, grid_sources, sets = _resolve(fmu, "sweep", stop_time, output_interval, tolerance, start_values)
+    if in_process and (point_timeout is not None or worker_memory is not None):
+        raise RunnerError("point_timeout and worker_memory limit worker processes: drop in_process=True")
+    if worker_memory is not None and (not isinstance(worker_memory, int) or worker_memory < 1):
+        raise RunnerError(f"worker_memory must be a whole number of MiB, not {worker_memory!r}")
+    timeout = _number("point_timeout", point_timeout)
     if client is not None:
         if threads is not None:
             raise RunnerError("threads is for a local sweep; on a cluster each Dask worker thread runs one chunk at a time")
+        if out is not None or resume:
+            raise RunnerError("out and resume are for a local sweep: a sweep on a cluster returns its DataFrame")
         from ._dask import sweep_on_cluster
 
-        return sweep_on_cluster(client, path, grid_sources, sets, ranges, metric_texts, chunk_size)
-    if chunk_size is not None:
-        raise RunnerError("chunk_size is for a sweep on a Dask cluster: give client too")
-    if threads is None:
-        threads = os.cpu_count() or 1
-    if not isinstance(threads, int) or threads < 1:
-        raise RunnerError(f"threads must be a whole number of at least 1, not {threads!r}")
-    model = _engine.Model(path)
-    spec, n, metric_names = model.plan_sweep(grid_sources, sets, ranges, metric_texts)
-    data, failures, _ = model.run_points(spec, 0, n, threads)
-    values = np.frombuffer(data, dtype="<f8").reshape(n, len(metric_names))
-    status = np.full(n, "ok", dtype=object)
-    for i, message in failures:
-        status[i] = message
-    return _frame(ranges, metric_names, values, status)
+        frame = sweep_on_cluster(
+            client, path, grid_sources, sets, ranges, metric_texts, chunk_size, in_process, timeout, worker_memory
+        )
+    else:
+        if chunk_size is not None:
+            raise RunnerError("chunk_size is for a sweep on a Dask cluster: give client too")
+        if threads is None:
+            threads = os.cpu_count() or 1
+        if not isinstance(threads, int) or threads < 1:
+            raise RunnerError(f"threads must be a whole number of at least 1, not {threads!r}")
+        spec, n, metric_names = _engine.plan_sweep(path, grid_sources, sets, ranges, metric_texts)
+        if in_process:
+            model = _engine.Model(path)
+
+            def run(start: int, on_rows: Any) -> tuple[bytes, list[tuple[int, str]], float]:
+                return model.run_points(spec, start, n, threads, on_rows)
+
+        else:
+            worker = _worker.command("sweep")
+
+            def run(start: int, on_rows: Any) -> tuple[bytes, list[tuple[int, str]], float]:
+                return _engine.run_points_isolated(
+                    path, spec, start, n, threads, worker, point_timeout=timeout, worker_memory=worker_memory, on_rows=on_rows
+                )
+
+        if out is None:
+            if resume:
+                raise RunnerError("resume needs out=FILE.csv: a sweep that only returns its DataFrame keeps no partial file")
+            data, failures, _ = run(0, None)
+            values = np.frombuffer(data, dtype="<f8").reshape(n, len(metric_names))
+            status = np.full(n, "ok", dtype=object)
+            for i, message in failures:
+                status[i] = message
+            frame = _frame(ranges, metric_names, values, status)
+        else:
+            from ._files import sweep_to_file
+
+            frame = sweep_to_file(os.fspath(out), resume, path, spec, n, ranges, metric_names, run)
+    units = _engine.column_units(path, [name for name, _ in ranges])
+    _attach_units(frame, info(path)["model_name"], units)
+    return frame
+
+
+from ._plot import plot  # noqa: E402
+from ._simulation import Simulation  # noqa: E402

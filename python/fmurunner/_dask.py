@@ -19,7 +19,11 @@ Dask schedules, retries and reports; nothing here is a scheduler. What this modu
   then dropped, so the client holds the result and a bounded number of tasks, whatever the
   number of points;
 - a chunk is deterministic and writes its own rows: one that Dask recomputes (its worker was
-  lost) gives the same rows, and each row is filled exactly once.
+  lost) gives the same rows, and each row is filled exactly once;
+- a chunk runs its points in a worker process of the runner's sandbox on its Dask worker (one
+  per chunk), so a point that crashes or hangs is a failed row of the chunk, and the Dask worker
+  lives on: Dask never sees the crash, so there is no KilledWorker after its retries
+  (``in_process=True`` runs them on the Dask worker's own thread, for trusted FMUs).
 """
 
 from __future__ import annotations
@@ -28,20 +32,21 @@ import hashlib
 import math
 import os
 import sys
+import tempfile
 import threading
 import time
 import uuid
 from collections import OrderedDict
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
-from . import _engine, _frame
+from . import _engine, _frame, _worker
 from ._engine import RunnerError
 
 if TYPE_CHECKING:
     import pandas as pd
-    from distributed import Client
+    from distributed import Client, Future
 
 #: A task should take about this long (s): long against Dask's per-task cost (about a
 #: millisecond), short enough to balance the load and to lose little when a worker dies.
@@ -52,6 +57,9 @@ TASKS_PER_THREAD = 2
 
 #: How many times a sweep scatters the FMU's bytes again after every copy was lost.
 RESCATTERS = 3
+
+#: How many times one scatter of the FMU is tried while the scheduler catches up with lost workers.
+SCATTER_ATTEMPTS = 5
 
 _models: OrderedDict[str, _engine.Model] = OrderedDict()
 _models_lock = threading.Lock()
@@ -70,10 +78,49 @@ def _loaded(digest: str, data: bytes, name: str) -> _engine.Model:
         return model
 
 
-def _run_chunk(data: bytes, digest: str, name: str, spec: str, start: int, stop: int):
-    """A task: the points ``start..stop`` on this worker thread, the GIL released while they run."""
-    model = _loaded(digest, data, name)
-    values, failures, seconds = model.run_points(spec, start, stop, 1)
+_files: dict[str, str] = {}
+_files_dir: tempfile.TemporaryDirectory[str] | None = None
+
+
+def _written(digest: str, data: bytes, name: str) -> str:
+    """The FMU whose sha256 is ``digest`` as a file of this worker process (written once), for
+    the sandbox's workers to load."""
+    global _files_dir
+    with _models_lock:
+        path = _files.get(digest)
+        if path is None:
+            if _files_dir is None:
+                _files_dir = tempfile.TemporaryDirectory(prefix="fmurunner-")
+            folder = os.path.join(_files_dir.name, digest[:16])
+            os.makedirs(folder, exist_ok=True)
+            path = os.path.join(folder, os.path.basename(name) or "model.fmu")
+            with open(path, "wb") as f:
+                f.write(data)
+            _files[digest] = path
+        return path
+
+
+def _run_chunk(
+    data: bytes,
+    digest: str,
+    name: str,
+    spec: str,
+    start: int,
+    stop: int,
+    in_process: bool = False,
+    timeout: float | None = None,
+    worker_memory: int | None = None,
+) -> tuple[int, int, bytes, list[tuple[int, str]], float]:
+    """A task: the points ``start..stop``, in a sandbox worker process (or on this worker thread
+    with ``in_process``), the GIL released while they run."""
+    if in_process:
+        model = _loaded(digest, data, name)
+        values, failures, seconds = model.run_points(spec, start, stop, 1)
+    else:
+        path = _written(digest, data, name)
+        values, failures, seconds = _engine.run_points_isolated(
+            path, spec, start, stop, 1, _worker.command("sweep"), point_timeout=timeout, worker_memory=worker_memory
+        )
     return start, stop, values, failures, seconds
 
 
@@ -108,7 +155,7 @@ class _Progress:
     own ``progress()`` needs every future at once, which the bounded window of tasks never
     holds; its dashboard shows the tasks under the ``fmurunner-sweep`` prefix."""
 
-    def __init__(self, points: int, stream=None, force: bool = False):
+    def __init__(self, points: int, stream: TextIO | None = None, force: bool = False) -> None:
         self.points, self.done = points, 0
         self.stream = sys.stderr if stream is None else stream
         self.shown = force or (hasattr(self.stream, "isatty") and self.stream.isatty())
@@ -135,11 +182,14 @@ class _Progress:
 def sweep_on_cluster(
     client: Client,
     path: str,
-    grid_sources,
+    grid_sources: Any,
     sets: list[str],
     ranges: list[tuple[str, list[float]]],
     metric_texts: list[str],
     chunk_size: int | None,
+    in_process: bool = False,
+    timeout: float | None = None,
+    worker_memory: int | None = None,
 ) -> pd.DataFrame:
     """``sweep(..., client=client)``: see :func:`fmurunner.sweep`."""
     from distributed import as_completed
@@ -166,7 +216,21 @@ def sweep_on_cluster(
     status = np.full(n, "ok", dtype=object)
     filled = np.zeros(n, dtype=bool)
     sweep_id = uuid.uuid4().hex[:12]
-    fmu = client.scatter(data, broadcast=True, hash=False)
+    def scatter() -> Future[Any]:
+        """The FMU's bytes on every worker. Right after workers were lost, the scheduler may not
+        know yet that they are gone, and sending to them fails: wait for it, and try again."""
+        for attempt in range(SCATTER_ATTEMPTS):
+            try:
+                scattered: Future[Any] = client.scatter(data, broadcast=True, hash=False)
+                return scattered
+            except OSError as e:  # distributed's CommClosedError: a worker that just died
+                if attempt == SCATTER_ATTEMPTS - 1:
+                    raise RunnerError(f"the FMU could not be sent to the cluster's workers: {e!r}") from e
+                time.sleep(0.5 * (attempt + 1))
+                client.wait_for_workers(1, timeout=60)
+        raise AssertionError("unreachable")
+
+    fmu = scatter()
     rescattered = 0
     # The points of each chunk task by its key (a cancelled task has no result to say them), and
     # how many times each chunk was sent.
@@ -175,15 +239,17 @@ def sweep_on_cluster(
     next_point = 0
     progress = _Progress(n)
 
-    def run(start: int, stop: int):
+    def run(start: int, stop: int) -> Future[Any]:
         sent[start] = sent.get(start, 0) + 1
         # The key's prefix names the task group in Dask's dashboard and progress bars; a chunk
         # sent again gets a key of its own.
         key = f"fmurunner-sweep-{sweep_id}-{start}" + (f"-again{sent[start]}" if sent[start] > 1 else "")
         bounds[key] = (start, stop)
-        return client.submit(_run_chunk, fmu, digest, name, spec, start, stop, key=key, retries=0)
+        return client.submit(
+            _run_chunk, fmu, digest, name, spec, start, stop, in_process, timeout, worker_memory, key=key, retries=0
+        )
 
-    def submit():
+    def submit() -> Future[Any]:
         nonlocal next_point
         size = sizer.next(n - next_point)
         start, next_point = next_point, next_point + size
@@ -206,7 +272,7 @@ def sweep_on_cluster(
                                       f"{sent[start]} times{' with the FMU' if lost else ''}: {result!r}") from result
                 if lost:
                     rescattered += 1
-                    fmu = client.scatter(data, broadcast=True, hash=False)
+                    fmu = scatter()
                 pending.add(run(start, stop))
                 continue
             start, stop, chunk, failures, seconds = result

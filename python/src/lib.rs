@@ -1,28 +1,36 @@
 //! `fmurunner._engine`: the runner's engine for Python. The Python side (`fmurunner/`) shapes
 //! arguments and builds DataFrames; everything that runs an FMU is here and calls the engine
-//! directly (`SweepSpec::plan`, `Plan::execute_range`, `run::run_with_inputs`), with the GIL
-//! released while Rust runs. Results cross as compact tables: little-endian `f64` bytes plus the
+//! with its requests (a `SweepRequest` planned and run with `Plan::execute_range`, a
+//! `RunRequest` bound and run), with the GIL released while Rust runs. Results cross as compact tables: little-endian `f64` bytes plus the
 //! few strings (failed points' statuses, text columns) that numbers cannot carry.
 
+mod stepping;
+
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 use fmi_importer::model::Dimension;
-use fmi_importer::{Description, FmiVersion, Fmu, Interface, Kind, Unpacked, Variable};
+use fmi_importer::{Description, Fmu, Interface, Kind, Unpacked, Variable};
+use formulas::References;
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
+use runner_engine::exec::{self, Held, Points as Where};
 use runner_engine::input::InputTable;
-use runner_engine::references::References;
-use runner_engine::run::{self, Grid, GridSettings, Recording};
-use runner_engine::sweep::{PointResult, SweepSpec};
+use runner_engine::isolated;
+use runner_engine::request::{FmuSource, MetricSet, RunRequest, SweepRequest};
+use runner_engine::run::{Grid, GridSettings, Recording, Texts};
+use runner_engine::sweep::PointResult;
 use runner_engine::variables;
-use runner_workspace::{Located, RunSections};
+use runner_sandbox::WorkerCommand;
+use runner_workspace::Located;
 
 create_exception!(fmurunner, RunnerError, PyException, "An error of the runner: its message is the one the command line prints.");
 
 /// The runner's message as a Python exception.
-fn err(message: String) -> PyErr {
+pub(crate) fn err(message: String) -> PyErr {
     RunnerError::new_err(message)
 }
 
@@ -34,7 +42,9 @@ type Points<'py> = (Bound<'py, PyBytes>, Vec<(usize, String)>, f64);
 type GridArgs = (Option<f64>, Option<f64>, Option<f64>);
 
 fn grid_settings(args: &[GridArgs]) -> Vec<GridSettings> {
-    args.iter().map(|&(stop_time, output_interval, tolerance)| GridSettings { stop_time, output_interval, tolerance }).collect()
+    args.iter()
+        .map(|&(stop_time, output_interval, tolerance)| GridSettings { start_time: None, stop_time, output_interval, tolerance })
+        .collect()
 }
 
 /// Resolves `fmu` as the command line does: an `.fmu` path, or a model of this workspace (whose
@@ -51,7 +61,7 @@ fn locate(fmu: &str, command: &str) -> PyResult<(String, Vec<String>, GridArgs)>
                     path.display()
                 )));
             }
-            let sections: RunSections = runner_workspace::read(&experiment).map_err(err)?;
+            let sections = runner_workspace::experiment::read(&experiment).map_err(err)?;
             let defaults = match command {
                 "sweep" => sections.sweep.run(),
                 _ => sections.simulate,
@@ -153,6 +163,27 @@ struct Model {
     _copy: Option<tempfile::TempDir>,
 }
 
+/// Per column name (an array element `x[1]` by its variable `x`): the variable's unit and, when
+/// the FMU declares one for it, its display unit as (name, factor, offset) with
+/// `display = factor * SI + offset`. Columns that are not variables are left out.
+fn units_of<'py>(py: Python<'py>, d: &Description, names: &[String]) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    for name in names {
+        let base = name.split('[').next().unwrap_or(name);
+        let Some(v) = d.variable(base) else { continue };
+        let display = variables::display_unit_of(d, v).map(|c| (c.name, c.factor, c.offset));
+        out.set_item(name, (v.unit.clone(), display))?;
+    }
+    Ok(out)
+}
+
+/// [`units_of`] for the FMU at `path` (its description only).
+#[pyfunction]
+fn column_units<'py>(py: Python<'py>, path: &str, names: Vec<String>) -> PyResult<Bound<'py, PyDict>> {
+    let unpacked = py.detach(|| Unpacked::open(Path::new(path))).map_err(err)?;
+    units_of(py, &unpacked.description, &names)
+}
+
 /// The little-endian bytes of `values`.
 fn f64_bytes(values: &[f64]) -> Vec<u8> {
     let mut out = Vec::with_capacity(values.len() * 8);
@@ -167,14 +198,14 @@ impl Model {
         Grid::choose(&self.fmu.description, &grid_settings(sources))
     }
 
-    fn spec(&self, spec_json: &str) -> PyResult<SweepSpec> {
+    fn spec(&self, spec_json: &str) -> PyResult<SweepRequest> {
         serde_json::from_str(spec_json).map_err(|e| err(format!("not a sweep of this version of fmurunner: {e}")))
     }
 }
 
 /// Refuses a sweep of more than one point in one process for an FMU that allows only one instance.
 fn check_once_per_process(d: &Description, interface: Interface, points: usize) -> Result<(), String> {
-    if points > 1 && runner_engine::isolation::once_per_process(d, interface) {
+    if points > 1 && runner_engine::isolated::once_per_process(d, interface) {
         return Err(format!(
             "{} declares canBeInstantiatedOnlyOncePerProcess, so its points cannot share a process: sweep it with `runner sweep`, which gives each point a worker process of its own",
             d.model_name
@@ -206,7 +237,9 @@ fn plan(
     if let Some((name, _)) = ranges.iter().find(|(_, values)| values.is_empty()) {
         return Err(err(format!("params['{name}'] has no values")));
     }
-    let spec = SweepSpec { grid, sets, ranges, metrics, inputs: None };
+    let fixed = variables::parse_sets(d, &sets).map_err(err)?;
+    let metrics = MetricSet::parse(&metrics).map_err(err)?;
+    let spec = SweepRequest::new(grid, &fixed, ranges, metrics, None);
     let plan = spec.plan(d, identifier, interface).map_err(err)?;
     check_once_per_process(d, interface, plan.space.len).map_err(err)?;
     let names = plan.metrics.metrics.iter().map(|(n, _)| n.clone()).collect();
@@ -282,17 +315,17 @@ impl Model {
                 let grid = self.grid(&grid_sources)?;
                 let assignments = variables::parse_sets(md, &sets)?;
                 let inputs = match input {
-                    Some((names, time, values)) => Some(InputTable::from_columns(names, time, values)?.bind(md, self.fmu.interface)?),
+                    Some((names, time, values)) => Some(InputTable::from_columns(names, time, values)?),
                     None => None,
                 };
-                // As `runner simulate` writes them: FMI 2.0 Strings are left out (fmpy leaves them
-                // out too), FMI 3.0 Strings and Binaries kept; clocks have no value.
-                let recordable = |v: &&Variable| match md.fmi_version {
-                    FmiVersion::Fmi2 => v.kind.is_numeric(),
-                    FmiVersion::Fmi3 => v.kind != Kind::Clock,
-                };
+                // As `runner simulate` records them: Strings of either version as text, Binaries
+                // in hexadecimal; clocks have no value.
+                let recordable = |v: &&Variable| v.kind != Kind::Clock;
                 let outputs: Vec<&Variable> = md.outputs().filter(recordable).collect();
                 let recording = Recording::new(md, &outputs, &assignments)?;
+                let request = RunRequest::new(&self.fmu.identifier, grid, &assignments, &recording, false).with_inputs(inputs);
+                let bound = request.bind(md, self.fmu.interface, true)?;
+                let recording = &bound.recording;
                 let mut kinds = vec!["float"];
                 for (v, &size) in recording.variables.iter().zip(&recording.sizes) {
                     kinds.extend(std::iter::repeat_n(column_kind(v.kind), size));
@@ -301,28 +334,19 @@ impl Model {
                 let mut data: Vec<f64> = Vec::new();
                 let mut texts: Vec<Option<Vec<String>>> = vec![None; columns];
                 let mut rows = 0usize;
-                let outcome = run::run_with_inputs(
-                    &self.fmu,
-                    &self.fmu.identifier,
-                    &grid,
-                    &assignments,
-                    inputs.as_ref(),
-                    &recording,
-                    false,
-                    |t, values, text| {
-                        data.push(t);
-                        data.extend_from_slice(&values[..columns]);
-                        for (c, slot) in texts.iter_mut().enumerate() {
-                            if text.needs_text(c) || kinds[c + 1] == "text" {
-                                slot.get_or_insert_with(Vec::new).push(text.text(c, values));
-                            }
+                let outcome = bound.run().execute(&self.fmu, |t: f64, values: &[f64], text: &dyn Texts| {
+                    data.push(t);
+                    data.extend_from_slice(&values[..columns]);
+                    for (c, slot) in texts.iter_mut().enumerate() {
+                        if text.needs_text(c) || kinds[c + 1] == "text" {
+                            slot.get_or_insert_with(Vec::new).push(text.text(c, values));
                         }
-                        rows += 1;
-                        Ok(())
-                    },
-                )?;
+                    }
+                    rows += 1;
+                    Ok(())
+                })?;
                 let mut names = vec!["time".to_owned()];
-                names.extend(recording.names);
+                names.extend(recording.names.iter().cloned());
                 Ok((names, kinds, data, rows, texts, outcome.ended_early))
             })
             .map_err(err)?;
@@ -333,6 +357,17 @@ impl Model {
             }
         }
         Ok((names, kinds, PyBytes::new(py, &f64_bytes(&data)), rows, text_columns, ended_early))
+    }
+
+    /// [`units_of`] for this FMU.
+    fn units<'py>(&self, py: Python<'py>, names: Vec<String>) -> PyResult<Bound<'py, PyDict>> {
+        units_of(py, &self.fmu.description, &names)
+    }
+
+    /// The model's name.
+    #[getter]
+    fn model_name(&self) -> &str {
+        &self.fmu.description.model_name
     }
 
     /// [`plan_sweep`] for this FMU.
@@ -351,34 +386,201 @@ impl Model {
     /// `threads` threads. Returns the row-major f64 bytes of their metrics (NaN where a point
     /// did not run), the (point, status) of every point whose status is not `ok`, and the
     /// seconds it took.
-    fn run_points<'py>(&self, py: Python<'py>, spec_json: &str, start: usize, stop: usize, threads: usize) -> PyResult<Points<'py>> {
+    #[pyo3(signature = (spec_json, start, stop, threads, on_rows=None))]
+    fn run_points<'py>(
+        &self,
+        py: Python<'py>,
+        spec_json: &str,
+        start: usize,
+        stop: usize,
+        threads: usize,
+        on_rows: Option<Py<PyAny>>,
+    ) -> PyResult<Points<'py>> {
         let spec = self.spec(spec_json)?;
-        let (values, failures, seconds) = py
-            .detach(|| -> Result<_, String> {
-                let clock = std::time::Instant::now();
-                let plan = spec.plan(&self.fmu.description, &self.fmu.identifier, self.fmu.interface)?;
-                if start > stop || stop > plan.space.len {
-                    return Err(format!("points {start}..{stop} are not within the sweep's {} points", plan.space.len));
-                }
-                check_once_per_process(&self.fmu.description, self.fmu.interface, plan.space.len)?;
-                let m = plan.metrics.metrics.len();
-                let mut values: Vec<f64> = Vec::with_capacity((stop - start) * m);
-                let mut failures = Vec::new();
-                plan.execute_range(&self.fmu, start..stop, threads, &|| false, |i, r: PointResult| {
-                    match r.metrics {
-                        Some(v) => values.extend_from_slice(&v),
-                        None => values.extend(std::iter::repeat_n(f64::NAN, m)),
-                    }
-                    if r.status != "ok" {
-                        failures.push((i, r.status));
-                    }
-                    Ok(())
-                })?;
-                Ok((values, failures, clock.elapsed().as_secs_f64()))
-            })
-            .map_err(err)?;
-        Ok((PyBytes::new(py, &f64_bytes(&values)), failures, seconds))
+        let interrupt = Interrupt::new();
+        let outcome = py.detach(|| -> Result<_, String> {
+            let clock = Instant::now();
+            let plan = spec.plan(&self.fmu.description, &self.fmu.identifier, self.fmu.interface)?;
+            if start > stop || stop > plan.space.len {
+                return Err(format!("points {start}..{stop} are not within the sweep's {} points", plan.space.len));
+            }
+            check_once_per_process(&self.fmu.description, self.fmu.interface, plan.space.len)?;
+            let m = plan.metrics.metrics.len();
+            let mut collected = Collected::new(start, stop, m, on_rows);
+            let stopper = || interrupt.requested();
+            let outcome = plan.execute_range(&self.fmu, start..stop, threads, &stopper, |i, r: PointResult| collected.take(i, r));
+            collected.finish(outcome, clock)
+        });
+        points_for_python(py, interrupt, outcome)
     }
+}
+
+/// A stop test for a long call with the GIL released: true once Python has a signal to raise
+/// (Ctrl-C), looked at every 100 ms at most; the error is kept for the caller to raise.
+struct Interrupt {
+    last: Mutex<(Instant, Option<PyErr>)>,
+}
+
+impl Interrupt {
+    fn new() -> Interrupt {
+        Interrupt { last: Mutex::new((Instant::now(), None)) }
+    }
+
+    fn requested(&self) -> bool {
+        let Ok(mut last) = self.last.try_lock() else { return false };
+        if last.1.is_some() {
+            return true;
+        }
+        if last.0.elapsed() < Duration::from_millis(100) {
+            return false;
+        }
+        last.0 = Instant::now();
+        if let Err(e) = Python::attach(|py| py.check_signals()) {
+            last.1 = Some(e);
+            return true;
+        }
+        false
+    }
+
+    /// The signal's exception, if one stopped the call.
+    fn raised(self) -> Option<PyErr> {
+        self.last.into_inner().ok().and_then(|(_, e)| e)
+    }
+}
+
+/// Metrics of points as they arrive, in point order from `start`; with `on_rows`, handed to
+/// Python as they come (every 100 ms at most, and at the end): `on_rows(first, metric bytes,
+/// failures)` of the points since the last call, so a sweep to a file keeps its finished rows.
+struct Collected {
+    start: usize,
+    m: usize,
+    values: Vec<f64>,
+    failures: Vec<(usize, String)>,
+    delivered: usize,
+    on_rows: Option<Py<PyAny>>,
+    /// The first point not yet handed to `on_rows`, and when they last were.
+    handed: usize,
+    last_handed: Instant,
+}
+
+impl Collected {
+    fn new(start: usize, stop: usize, m: usize, on_rows: Option<Py<PyAny>>) -> Collected {
+        Collected {
+            start,
+            m,
+            values: Vec::with_capacity((stop - start) * m),
+            failures: Vec::new(),
+            delivered: 0,
+            on_rows,
+            handed: start,
+            last_handed: Instant::now(),
+        }
+    }
+
+    fn take(&mut self, i: usize, r: PointResult) -> Result<(), String> {
+        match r.metrics {
+            Some(v) => self.values.extend_from_slice(&v),
+            None => self.values.extend(std::iter::repeat_n(f64::NAN, self.m)),
+        }
+        if r.status != "ok" {
+            self.failures.push((i, r.status));
+        }
+        self.delivered += 1;
+        if self.last_handed.elapsed() >= Duration::from_millis(100) {
+            self.hand()?;
+        }
+        Ok(())
+    }
+
+    /// After the points ran (`outcome`), the last rows handed over; itself and the seconds since
+    /// `clock`, or the error that stopped the points.
+    fn finish(mut self, outcome: Result<(), String>, clock: Instant) -> Result<(Collected, f64), String> {
+        self.hand()?;
+        outcome?;
+        Ok((self, clock.elapsed().as_secs_f64()))
+    }
+
+    /// Hands the points not handed yet to `on_rows`. When it fails (Ctrl-C while it writes,
+    /// a full disk) it is not called again: it may have written some of those rows already, and
+    /// handing them again would write them twice, each later row in the place of another.
+    fn hand(&mut self) -> Result<(), String> {
+        let Some(on_rows) = &self.on_rows else { return Ok(()) };
+        let end = self.start + self.delivered;
+        if end == self.handed {
+            return Ok(());
+        }
+        let rows = &self.values[(self.handed - self.start) * self.m..(end - self.start) * self.m];
+        let failures: Vec<(usize, String)> = self.failures.iter().filter(|(i, _)| *i >= self.handed).cloned().collect();
+        let first = self.handed;
+        if let Err(e) = Python::attach(|py| on_rows.call1(py, (first, PyBytes::new(py, &f64_bytes(rows)), failures)).map(|_| ())) {
+            // Let go of it while attached.
+            Python::attach(|_| drop(self.on_rows.take()));
+            return Err(format!("writing the finished rows failed: {e}"));
+        }
+        self.handed = end;
+        self.last_handed = Instant::now();
+        Ok(())
+    }
+}
+
+/// Runs the points `start..stop` of the sweep `spec_json` (from [`plan_sweep`]) of the FMU at
+/// `path` in `workers` worker processes of the sandbox, started by `worker` (program,
+/// arguments): a point that crashes its worker, hangs past `point_timeout` seconds or grows past
+/// `worker_memory` MiB is a row whose status says so, and the other points go on. The FMU's
+/// binary is never loaded in this process. Returns what [`Model::run_points`] returns, and how
+/// many points were delivered (fewer when Ctrl-C stopped the sweep: its exception is raised).
+#[pyfunction]
+#[pyo3(signature = (path, spec_json, start, stop, workers, worker, point_timeout=None, worker_memory=None, on_rows=None))]
+#[allow(clippy::too_many_arguments)]
+fn run_points_isolated<'py>(
+    py: Python<'py>,
+    path: &str,
+    spec_json: &str,
+    start: usize,
+    stop: usize,
+    workers: usize,
+    worker: (String, Vec<String>),
+    point_timeout: Option<f64>,
+    worker_memory: Option<u64>,
+    on_rows: Option<Py<PyAny>>,
+) -> PyResult<Points<'py>> {
+    let spec: SweepRequest = serde_json::from_str(spec_json).map_err(|e| err(format!("not a sweep of this version of fmurunner: {e}")))?;
+    if workers == 0 {
+        return Err(err("workers must be at least 1".to_owned()));
+    }
+    let timeout = runner_sandbox::timeout("point_timeout", point_timeout).map_err(err)?;
+    let memory = worker_memory.unwrap_or_else(|| runner_sandbox::default_memory_mib(workers));
+    let command = WorkerCommand { program: worker.0.into(), args: worker.1.into_iter().map(Into::into).collect(), env: Vec::new() };
+    let config = isolated::config(command, timeout, memory).map_err(err)?;
+    let interrupt = Interrupt::new();
+    let outcome = py.detach(|| -> Result<_, String> {
+        let clock = Instant::now();
+        let count = workers.min(stop.saturating_sub(start)).max(1);
+        // Workers start while the FMU is unpacked here, then load this copy.
+        let mut pool = exec::start_workers(config, count)?;
+        let (held, source) = Held::open(&FmuSource::new(Path::new(path), None), false)?;
+        exec::load(&mut pool, &source, held.once_per_process());
+        let plan = spec.plan(held.description(), held.identifier(), held.interface())?;
+        if start > stop || stop > plan.space.len {
+            return Err(format!("points {start}..{stop} are not within the sweep's {} points", plan.space.len));
+        }
+        let m = plan.metrics.metrics.len();
+        let mut collected = Collected::new(start, stop, m, on_rows);
+        let stopper = || interrupt.requested();
+        let outcome = exec::sweep(&held, &plan, &spec, Where::Workers(pool), start..stop, &stopper, |i, r| collected.take(i, r));
+        collected.finish(outcome, clock)
+    });
+    points_for_python(py, interrupt, outcome)
+}
+
+/// The points' metrics and statuses for Python; or the signal (Ctrl-C) that stopped them, or
+/// the runner's error.
+fn points_for_python<'py>(py: Python<'py>, interrupt: Interrupt, outcome: Result<(Collected, f64), String>) -> PyResult<Points<'py>> {
+    if let Some(e) = interrupt.raised() {
+        return Err(e);
+    }
+    let (collected, seconds) = outcome.map_err(err)?;
+    Ok((PyBytes::new(py, &f64_bytes(&collected.values)), collected.failures, seconds))
 }
 
 /// Every entry of the references.toml at `path` (with the files it includes) as the engine
@@ -406,7 +608,12 @@ fn _engine(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(describe, m)?)?;
     m.add_function(wrap_pyfunction!(plan_sweep, m)?)?;
     m.add_function(wrap_pyfunction!(reference_values, m)?)?;
+    m.add_function(wrap_pyfunction!(run_points_isolated, m)?)?;
+    m.add_function(wrap_pyfunction!(column_units, m)?)?;
+    m.add_function(wrap_pyfunction!(stepping::serve_worker, m)?)?;
     m.add_class::<Model>()?;
+    m.add_class::<stepping::Stepper>()?;
+    m.add_class::<stepping::StepResult>()?;
     // The points a sweep may have, as the command line allows.
     m.add("MAX_POINTS", runner_engine::sweep::MAX_POINTS)?;
     Ok(())

@@ -2,12 +2,16 @@
  * x' = -k x stepped with its exact solution (as dahlquist.c), plus a parameter `fault` that makes
  * fmi2DoStep, at the first step from t >= fault_time, crash with SIGSEGV (1), abort() (2), hang
  * in a busy loop (3), exit the process with code 3 (4), leak leak_mb MB per step for good (5),
- * or return fmi2Error with a logged reason (7);
+ * return fmi2Error with a logged reason (7) or fmi2Fatal with one (8), or fmi2Error with its
+ * reason logged as information (9), as FMUs with one info logger do, or fmi2Error with its
+ * reason logged only when debug logging is on (10), as many FMUs do;
  * fault 6 leaks leak_mb MB once per instance, at fmi2Instantiate. The output `pid` is the process
  * the instance runs in, so tests can count the processes a sweep used. Compiled with
  * -DONCE_PER_PROCESS, fmi2Instantiate refuses a second instance in one process (its
  * modelDescription then declares canBeInstantiatedOnlyOncePerProcess); with -DSLOW_LOAD, loading
- * the binary takes a second (an initializer that sleeps). It also has the solver
+ * the binary takes a second (an initializer that sleeps); with -DEXIT_HANDLER, the first
+ * fmi2Instantiate registers code of the binary to run at process exit; with -DNEEDS_PYTHON, it
+ * leaves a libpython symbol undefined. It also has the solver
  * controls `runner compare` sets (solver, fixed_step, abs_tol; n_steps and n_rhs count steps),
  * and fault_solver >= 0 confines the fault to runs with that `solver`. Exports every fmi2
  * function the runner resolves; the FMI types are in fmi2_types.h, so only libc is needed. */
@@ -28,7 +32,7 @@ typedef struct {
     fmi2CallbackFunctions cb;
     char name[256];
     double k, x0, fault_time, leak_mb, x, fixed_step, abs_tol;
-    int fault, solver, fault_solver, steps;
+    int fault, solver, fault_solver, steps, logging_on;
 } Instance;
 
 #define LOG(inst, status, ...) \
@@ -40,6 +44,22 @@ static int instances_made;
 
 #ifdef SLOW_LOAD
 __attribute__((constructor)) static void slow_load(void) { sleep(1); }
+#endif
+
+#ifdef NEEDS_PYTHON
+/* A symbol of libpython left for the host to provide, as FMUs made with PythonFMU leave them. */
+extern char _Py_NoneStruct;
+EXPORT const void *python_none(void) { return &_Py_NoneStruct; }
+#endif
+
+#ifdef EXIT_HANDLER
+/* Code of this binary that runs when the process exits, registered for the whole process (no
+ * DSO handle, so unloading the binary does not run or remove it), as libraries an FMU brings do
+ * (a PythonFMU's libpython with numpy): the exit crashes with SIGSEGV if the binary was unloaded
+ * first. */
+extern int __cxa_atexit(void (*f)(void *), void *arg, void *dso);
+static volatile int exit_handler_ran;
+static void at_process_exit(void *arg) { (void)arg; exit_handler_ran = 1; }
 #endif
 
 /* Memory this FMU allocates and never frees, touched so that it is resident, and chained to a
@@ -56,17 +76,19 @@ static void leak(double mb) {
 EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]) {
-    (void)c; (void)on; (void)n; (void)cats;
+    (void)n; (void)cats;
+    if (c) ((Instance *)c)->logging_on = on;
     return fmi2OK;
 }
 
 EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
                                      const fmi2CallbackFunctions *cb, fmi2Boolean visible, fmi2Boolean logging_on) {
-    (void)resources; (void)visible; (void)logging_on;
+    (void)resources; (void)visible;
     if (!cb || !cb->allocateMemory || !name || type != fmi2CoSimulation || !guid || strcmp(guid, GUID) != 0) return NULL;
     Instance *inst = cb->allocateMemory(1, sizeof(Instance));
     if (!inst) return NULL;
     inst->cb = *cb;
+    inst->logging_on = logging_on;
     strncpy(inst->name, name, sizeof inst->name - 1);
 #ifdef ONCE_PER_PROCESS
     if (instances_made++ > 0) {
@@ -74,6 +96,10 @@ EXPORT fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String 
         cb->freeMemory(inst);
         return NULL;
     }
+#endif
+#ifdef EXIT_HANDLER
+    static int registered;
+    if (!registered++) __cxa_atexit(at_process_exit, NULL, NULL);
 #endif
     inst->k = 1.0;
     inst->x0 = 1.0;
@@ -186,6 +212,9 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
         case 4: exit(3);
         case 5: leak(inst->leak_mb); break;
         case 7: LOG(inst, fmi2Error, "fault 7: this step is refused"); return fmi2Error;
+        case 8: LOG(inst, fmi2Fatal, "fault 8: the model is corrupted"); return fmi2Fatal;
+        case 9: LOG(inst, fmi2OK, "fault 9: the step size is too large for the table"); return fmi2Error;
+        case 10: if (inst->logging_on) LOG(inst, fmi2Error, "fault 10: said with debug logging only"); return fmi2Error;
         default: break;
         }
     }

@@ -6,7 +6,8 @@
  *   2  fmi2GetDerivatives returns NaN with fmi2OK,
  *   3  the time event's iteration never settles (newDiscreteStatesNeeded stays true),
  *   4  fmi2GetEventIndicators returns NaN (the indicator is x - x_low),
- *   5  fmi2NewDiscreteStates ends the run with terminateSimulation and a logged reason.
+ *   5  fmi2NewDiscreteStates ends the run with terminateSimulation and a logged reason,
+ *   6  fmi2GetDerivatives dereferences NULL (a crash, SIGSEGV).
  * It exports the 25 common and the 10 Model Exchange functions of FMI 2.0. The FMI types are
  * declared here so the file needs no headers beyond libc's. */
 
@@ -244,6 +245,7 @@ EXPORT fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real dx[], size_t nx) 
         LOG(inst, fmi2Error, "the derivative cannot be evaluated at t = %g (fault 1)", inst->time);
         return fmi2Error;
     }
+    if (faulty(inst, 6)) *(volatile int *)NULL = 1;
     dx[0] = faulty(inst, 2) ? NAN : -inst->k * inst->x;
     return fmi2OK;
 }

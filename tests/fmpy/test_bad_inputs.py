@@ -326,10 +326,11 @@ def test_branch_other_than_plus_or_minus_one_is_refused(probe, model):
 
 @pytest.mark.parametrize("model", MODELS)
 def test_unknown_solver_is_refused_at_set_integer(probe, model):
-    """`solver` takes 0 to 4; other codes are refused by fmi2SetInteger, naming it and the
-    valid choices (test_fmi_boundary.py checks one model; this checks the table of every FMU)."""
+    """`solver` takes 0 to 6 (6: ESDIRK); other codes are refused by fmi2SetInteger, naming it
+    and the valid choices (test_fmi_boundary.py checks one model; this checks the table of every
+    FMU)."""
     c = probe.new("Instantiated")
-    for value in (-1, 5, 7):
+    for value in (-1, 7, 9):
         assert probe.set(c, "Integer", [probe.vr("solver")], [value]) == ERROR
         assert names_variable(probe.messages(), "solver") and "forward Euler" in probe.messages()
 

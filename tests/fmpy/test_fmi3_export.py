@@ -94,9 +94,13 @@ def test_description_says_what_the_fmi2_description_says(model):
     assert [[(d.name, d.factor) for d in u.displayUnits] for u in md3.unitDefinitions] == \
         [[(d.name, d.factor) for d in u.displayUnits] for u in md2.unitDefinitions]
     types = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
-    same = lambda v, t: (v.name, v.valueReference, t, v.causality, v.variability, v.initial, v.start, v.unit, v.displayUnit)
+    # FMI 3.0 declares units through TypeDefinitions (as the Reference FMUs do), FMI 2.0 on
+    # the variable: the unit and display unit a variable ends up with are the same.
+    unit = lambda v: (v.unit or getattr(v.declaredType, "unit", None), v.displayUnit or getattr(v.declaredType, "displayUnit", None))
+    same = lambda v, t: (v.name, v.valueReference, t, v.causality, v.variability, v.initial, v.start, unit(v))
     n = len(md2.modelVariables)
     assert [same(v, v.type) for v in md3.modelVariables[:n]] == [same(v, types[v.type]) for v in md2.modelVariables]
+    assert all(v.unit is None and v.displayUnit is None for v in md3.modelVariables), "no unit on an FMI 3.0 variable"
     # FMI 3.0 names the event indicators as variables, after the table's.
     indicators = md3.modelVariables[n:]
     assert [v.name for v in indicators] == [f"event_indicator_{k}" for k in range(md2.numberOfEventIndicators)]

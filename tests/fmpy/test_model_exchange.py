@@ -246,14 +246,12 @@ def test_trebuchet_lands_where_its_co_simulation_lands(tmp_path):
 @pytest.mark.usefixtures("fmi_version")
 def test_offset_crank_slider_reaches_its_limit_position():
     p = defaults("offset_crank_slider")
-    # rtol 1e-9: at 1e-10 CVODE exhausts its 500 steps per output interval in the last
-    # milliseconds before the limit, where the accelerations grow like 1/cos(theta3)^3.
     r = me("offset_crank_slider", relative_tolerance=1e-9, output_interval=0.01, output=["theta", "r1", "theta3", "loop_residual"])
     theta = p["theta0"] + p["omega"] * r["time"]
-    # The limit is a state event (|cos theta3| = 1e-3 there, 6.5e-7 rad short of the exact
-    # limit); terminateSimulation ends the run there: the last row is within 1e-5 rad of it
-    # (measured 8.9e-7 rad).
-    assert r["time"][-1] < 2.0 and 0 <= closed("offset_crank_slider", "theta_limit") - theta[-1] < 1e-5
+    # The stop is a state event of the exact crank angle (|cos theta3| = 0.05 on the loop,
+    # references.toml's theta_stop, 0.0925 deg short of the limit); terminateSimulation ends
+    # the run there: the last row is at theta_stop to CVODE's root location (bound 1e-8 rad).
+    assert r["time"][-1] < 2.0 and abs(closed("offset_crank_slider", "theta_stop") - theta[-1]) < 1e-8
     r1, th3 = (closed("offset_crank_slider", name, theta=theta) for name in ("r1", "theta3"))
     ok = np.cos(th3) > 0.2
     # The drift is projected at step events when it exceeds rtol times the links' length, as
@@ -268,12 +266,13 @@ def test_offset_crank_slider_reaches_its_limit_position():
 @pytest.mark.usefixtures("fmi_version")
 def test_double_rocker_reaches_its_limit_position():
     p = defaults("double_rocker")
-    limit = closed("double_rocker", "theta_limit")
+    stop = closed("double_rocker", "theta_stop")
     for branch in (1, -1):
         r = me("double_rocker", relative_tolerance=1e-9, output_interval=0.01, start_values={"branch": branch},
                output=["theta", "theta3", "theta4"])
         theta = p["theta0"] + p["omega"] * r["time"]
-        assert r["time"][-1] < 2.0 and 0 <= limit - theta[-1] < 1e-5
+        # As for the offset crank-slider: |sin(theta4 - theta3)| = 0.05 on the loop.
+        assert r["time"][-1] < 2.0 and abs(stop - theta[-1]) < 1e-8
         th3, th4 = (closed("double_rocker", name, theta=theta, branch=branch) for name in ("theta3", "theta4"))
         ok = np.abs(np.sin(th4 - th3)) > 0.2
         # As for the offset crank-slider (measured 4.6e-7 rad where |sin(theta4 - theta3)| >

@@ -39,7 +39,14 @@ def simulate(fmu, tmp_path, *args, name="run"):
     assert p.returncode == 0, p.stderr
     with open(out) as f:
         rows = list(csv.reader(f))
-    columns = {h: np.array([float(r[j]) for r in rows[1:]]) for j, h in enumerate(rows[0])}
+    def column(j):
+        # String outputs stay text (FMI 2.0 CSVs include them, as FMI 3.0's do).
+        try:
+            return np.array([float(r[j]) for r in rows[1:]])
+        except ValueError:
+            return np.array([r[j] for r in rows[1:]])
+
+    columns = {h: column(j) for j, h in enumerate(rows[0])}
     return columns, p.stderr
 
 

@@ -1,7 +1,8 @@
 """Helpers of the handbook checks: the release runner that tests/run builds, the FMUs `runner
-build` wrote, and a minimal GIF and PNG reader written here from the GIF89a and PNG
+build` wrote, a minimal GIF and PNG reader written here from the GIF89a and PNG
 specifications, so frame counts and delays are checked independently of the encoder the
-runner uses."""
+runner uses, and PNG figures opened as images (by Pillow, a decoder independent of the
+runner's) and checked as a person would look at them."""
 
 import json
 import os
@@ -10,7 +11,9 @@ import struct
 import subprocess
 import sys
 
+import numpy as np
 import pytest
+from PIL import Image
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 # The models' closed forms (references.toml, experiment.toml) are evaluated by tests/fmpy's
@@ -94,3 +97,46 @@ def png_size(path):
     if data[:8] != b"\x89PNG\r\n\x1a\n":
         raise ValueError(f"{path} is not a PNG")
     return struct.unpack(">II", data[16:24])
+
+
+# The first curve's colour in every figure (Tableau 10's blue, the plots crate's PALETTE[0]).
+FIRST_CURVE = (31, 119, 180)
+
+
+def png_pixels(path):
+    """The PNG at `path` opened as an image: its pixels as a (height, width, 3) RGB array."""
+    with Image.open(path) as image:
+        assert image.format == "PNG", f"{path} is a {image.format} file, not a PNG"
+        return np.asarray(image.convert("RGB"))
+
+
+def blend_levels(pixels, color):
+    """The distinct levels (steps of 1/32, strictly between none and full) at which `color` is
+    blended into the white background somewhere in the image. A pixel a line covers by a
+    fraction a is a color + (1 - a) white in every channel (within 4 of 255 per channel, for the
+    rasterizer's 8-bit arithmetic); a line drawn without anti-aliasing is either there or not,
+    and stair-steps, while an anti-aliased one shades its edges through many levels."""
+    ink = 255.0 - pixels.reshape(-1, 3).astype(float)
+    line = 255.0 - np.asarray(color, dtype=float)
+    a = ink @ line / (line @ line)
+    off_the_blend = np.linalg.norm(ink - a[:, None] * line, axis=1)
+    partial = (off_the_blend <= 4.0) & (a > 0.05) & (a < 0.95)
+    return len(np.unique(np.round(a[partial] * 32)))
+
+
+def check_png_figure(path, size=None, smooth=True):
+    """A PNG figure as an image: of `size` (width, height) if given, not blank, with black text,
+    and (`smooth`) its first curve drawn anti-aliased: its colour at 10 or more of the 31
+    partial coverage levels (a line without anti-aliasing shows none)."""
+    pixels = png_pixels(path)
+    height, width, _ = pixels.shape
+    if size is not None:
+        assert (width, height) == size, (path, (width, height), size)
+    assert width >= 480 and height >= 300, (path, width, height)
+    inked = (pixels != 255).any(axis=2).mean()
+    assert inked > 0.01, f"{path}: {inked:.2%} of the pixels drawn, blank"
+    assert (pixels < 60).all(axis=2).any(), f"{path}: no black text or axes"
+    if smooth:
+        levels = blend_levels(pixels, FIRST_CURVE)
+        assert levels >= 10, f"{path}: the first curve's colour at {levels} coverage levels, not anti-aliased"
+    return pixels

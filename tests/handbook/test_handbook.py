@@ -8,6 +8,7 @@ integrals by scipy, the bumper's release, the frequency response, ballistics; cl
 evaluates them) and the trebuchet's potential energy from Table 6.1."""
 
 import html.parser
+import json
 import math
 import re
 import shutil
@@ -18,7 +19,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from handbook_tools import ROOT, handbook, read_gif, runner  # noqa: F401 (handbook is a fixture); first: it finds closed_form
+from handbook_tools import ROOT, check_png_figure, handbook, read_gif, runner  # noqa: F401 (handbook is a fixture); first: it finds closed_form
 from closed_form import reference, references  # noqa: E402
 
 G = 9.81
@@ -82,6 +83,27 @@ def test_every_figure_exists_opens_and_is_on_the_page(handbook):
     for key in KEYS:
         assert isinstance(summary[key], float) and math.isfinite(summary[key]), key
     assert "wrote" in stdout
+
+
+# Figures whose first curve is a clean line (not one overdrawn by thousands of samples per pixel,
+# not bars or joints), on which the PNG checks look for anti-aliasing.
+SMOOTH = ["ex1_input_and_response", "ex4_euler_vs_dopri5_30ms", "ex4_transmissibility", "ex5b_crank_slider_velocities",
+          "ex6_projectile_speed"]
+
+
+def test_png_figures_are_images_of_their_svgs(handbook, tmp_path):
+    # `--format png`: every figure a PNG (opened as an image) of its SVG's size, not blank, the
+    # clean curves anti-aliased; the page shows the PNGs, and the numbers are the same.
+    svg_out, summary, _ = handbook
+    out = tmp_path / "png"
+    runner("handbook", "--format", "png", "--out", out)
+    for name in [n for names in FIGURES.values() for n in names]:
+        root = ET.parse(svg_out / f"{name}.svg").getroot()
+        check_png_figure(out / f"{name}.png", (int(root.get("width")), int(root.get("height"))), smooth=name in SMOOTH)
+        assert f"{name}.png" in page_links(out).images
+    png_summary = json.loads((out / "summary.json").read_text())
+    assert {k: v for k, v in png_summary.items() if k != "build_seconds"} == {
+        k: v for k, v in summary.items() if k != "build_seconds"}
 
 
 def test_every_link_of_the_page_resolves(handbook):

@@ -1,7 +1,8 @@
 """`runner simulate --plot` and `runner animate` on the lab's FMUs, as the README documents them:
 display units on the command line (checked against the handbook's own units: 1 in = 0.0254 m,
 1 lbf = 4.4482216152605 N, 1 rpm = 2 pi / 60 rad/s), events marked where the FMU's discrete
-outputs change, overlays, PNG plots, and GIFs of FMUs given by path with an experiment file."""
+outputs change, overlays, PNG plots (opened as images: their size, ink and anti-aliased curves) in
+every command that takes --plot, and GIFs of FMUs given by path with an experiment file."""
 
 import math
 import re
@@ -9,7 +10,9 @@ import shutil
 
 import numpy as np
 
-from handbook_tools import ROOT, fmu, png_size, read_gif, runner
+import xml.etree.ElementTree as ET
+
+from handbook_tools import ROOT, blend_levels, check_png_figure, fmu, png_size, read_gif, runner
 
 
 def csv(path):
@@ -105,3 +108,39 @@ def test_animate_an_fmu_given_by_path_with_an_experiment_file(tmp_path):
     err = runner("animate", "crank_slider", "--out", tmp_path / "c.gif", "--stop-time", "1e5", check=False).stderr
     assert "more than the 20000 an animation may have" in err, err
     assert not (tmp_path / "c.gif").exists()
+
+
+# What --plot FILE writes in each command that takes it, with a small run of each.
+PLOTTING = {
+    "simulate": ["simulate", "pendulum", "--stop-time", "2"],
+    "sweep": ["sweep", "quarter_car", "--param", "speed=5:25:5", "--metric", "m=max(z_s)", "--stop-time", "2"],
+    "compare": ["compare", "second_order", "--solvers", "euler,rk4,dopri5"],
+}
+
+
+def test_every_plot_option_writes_the_format_its_extension_names(tmp_path):
+    for command, args in PLOTTING.items():
+        # A PNG is a PNG (it once was an SVG in a file named .png): its size, ink, smooth curves.
+        runner(*args, "--out", tmp_path / f"{command}.csv", "--plot", tmp_path / f"{command}.png")
+        size = (900, 3 * 210 + 40) if command == "simulate" else (960, 600)
+        check_png_figure(tmp_path / f"{command}.png", size)
+        runner(*args, "--out", tmp_path / f"{command}.csv", "--plot", tmp_path / f"{command}.SVG")
+        root = ET.parse(tmp_path / f"{command}.SVG").getroot()
+        assert root.tag.endswith("svg") and (int(root.get("width")), int(root.get("height"))) == size
+        # Any other extension is refused before the run, naming it and the ones there are.
+        done = runner(*args, "--out", tmp_path / f"{command}_x.csv", "--plot", tmp_path / "p.pdf", check=False)
+        assert done.returncode == 1, (command, done.stderr)
+        assert "p.pdf" in done.stderr and ".svg or .png" in done.stderr and ".pdf is not one of them" in done.stderr, done.stderr
+        assert not (tmp_path / "p.pdf").exists() and not (tmp_path / f"{command}_x.csv").exists()
+
+
+def test_a_png_is_the_svg_rendered(tmp_path):
+    # The PNG is rendered from the very SVG the .svg file holds: the same size, the curve
+    # anti-aliased, and, on a line without anti-aliasing drawn here, the check fails.
+    runner("simulate", "pendulum", "--plot-vars", "theta", "--out", tmp_path / "a.csv", "--plot", tmp_path / "a.svg")
+    runner("simulate", "pendulum", "--plot-vars", "theta", "--out", tmp_path / "a.csv", "--plot", tmp_path / "a.png")
+    root = ET.parse(tmp_path / "a.svg").getroot()
+    check_png_figure(tmp_path / "a.png", (int(root.get("width")), int(root.get("height"))))
+    stairs = np.full((100, 100, 3), 255, dtype=np.uint8)
+    stairs[np.arange(100), np.arange(100) // 2] = (31, 119, 180)
+    assert blend_levels(stairs, (31, 119, 180)) == 0

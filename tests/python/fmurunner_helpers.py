@@ -53,4 +53,19 @@ def assert_same_as_cli(frame, rows: list[dict]) -> None:
 
 # Handbook Ex. 4, as models/quarter_car/experiment.toml's [sweep] gives it to the CLI.
 EX4_SPEEDS = [1.0 + i * 0.5 for i in range(99)]
-EX4_METRICS = {"transmissibility": "max(z_s)/max(z_r)", "steady_state": "max(z_s, 5)/max(z_r, 5)"}
+EX4_METRICS = {"transmissibility": "max(z_s)/max(z_r)", "steady_state": "amplitude(z_s, 5, 2*pi*speed/road_wavelength)/amplitude(z_r, 5, 2*pi*speed/road_wavelength)"}
+
+
+def faulty_fmu(directory: pathlib.Path, name: str = "faulty.fmu") -> pathlib.Path:
+    """Builds tests/c_fmu/faulty.c (an FMU that crashes, hangs or fails on request: its `fault`
+    parameter) with the system C compiler into `directory/name`, as the runner's tests do."""
+    import zipfile
+
+    source = ROOT / "tests" / "c_fmu" / "faulty.c"
+    so = directory / f"{name}.so"
+    subprocess.run(["cc", "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-o", str(so), str(source), "-lm"], check=True)
+    path = directory / name
+    with zipfile.ZipFile(path, "w") as z:
+        z.write(ROOT / "tests" / "c_fmu" / "faulty.xml", "modelDescription.xml")
+        z.write(so, "binaries/linux64/faulty.so")
+    return path

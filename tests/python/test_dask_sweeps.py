@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 
 import fmurunner
+from fmurunner import _dask
 from fmurunner_helpers import EX4_METRICS, EX4_SPEEDS, assert_same_as_cli, runner_sweep_csv
 
 
@@ -89,7 +90,9 @@ def test_errors_are_raised_before_anything_runs_on_the_cluster(client):
 def test_an_error_on_a_worker_reaches_the_client_as_the_runners_error(client):
     """RunnerError pickles (it is fmurunner.RunnerError), so a chunk whose FMU cannot be loaded
     on a worker raises it on the client with the runner's message."""
-    future = client.submit(fmurunner._dask._run_chunk, b"not a zip archive", "0" * 64, "broken.fmu", "{}", 0, 1)
+    path, grid, sets = fmurunner._resolve("quarter_car", "sweep", None, None, None, None)
+    spec, _, _ = fmurunner._engine.plan_sweep(path, grid, sets, [("speed", [1.0])], ["p=max(z_s)"])
+    future = client.submit(_dask._run_chunk, b"not a zip archive", "0" * 64, "broken.fmu", spec, 0, 1)
     with pytest.raises(fmurunner.RunnerError, match="broken.fmu"):
         future.result()
 
@@ -176,3 +179,21 @@ def test_a_worker_killed_mid_sweep_costs_nothing(client, victims):
     client.wait_for_workers(2, timeout=60)
     restarted = set(client.run(os.getpid).values())
     assert restarted.isdisjoint(pids.values()) if victims == "all" else restarted != set(pids.values())
+
+
+def test_a_crashing_point_is_a_failed_row_not_a_killed_worker(client, tmp_path):
+    """faulty.c's fault 1 segfaults in fmi2DoStep at t = 0.31: on the cluster the chunk runs its
+    points in a sandbox worker process of its Dask worker, so the crash is that point's row, its
+    chunk's other points are computed, and no Dask worker dies (no KilledWorker after retries).
+    With in_process=True the same crash would take the Dask worker down."""
+    from fmurunner_helpers import faulty_fmu
+
+    fmu = faulty_fmu(tmp_path)
+    workers = set(client.scheduler_info()["workers"])
+    frame = fmurunner.sweep(fmu, {"fault": [0, 1, 0, 0, 1, 0]}, {"x_end": "final(x)"}, stop_time=1.0, client=client,
+                            chunk_size=3)
+    status = list(frame["status"])
+    assert [s == "ok" for s in status] == [True, False, True, True, False, True], status
+    assert all("crashed: SIGSEGV in fmi2DoStep at t = 0.31" in status[i] for i in (1, 4)), status
+    assert np.allclose(frame["x_end"][[0, 2, 3, 5]], np.exp(-1.0), rtol=1e-12, atol=0)
+    assert set(client.scheduler_info()["workers"]) == workers, "the same Dask workers, none restarted"

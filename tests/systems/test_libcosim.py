@@ -4,7 +4,8 @@ same .ssp archive with the same step: every Real output of every component at ev
 communication point.
 
 Both masters step every component from t with the outputs at t and pass values once per step,
-so the FMUs receive the same calls and inputs; the one difference is time, which libcosim
+held over the step (the runner's `--coupling hold`: libcosim holds inputs), so the FMUs receive
+the same calls and inputs; the one difference is time, which libcosim
 counts in integer nanoseconds and converts to seconds, against the runner's start + i h: the
 two times may differ by an ulp, which changes a result by about 1e-16 relative (and the stop
 time, see below). The tolerance,
@@ -42,8 +43,8 @@ def compare(header, rows, series, tolerance):
 @pytest.mark.parametrize("name", SYSTEMS)
 def test_runner_and_libcosim_agree_under_jacobi(tmp_path, name):
     ssp = ssp_path(name)
-    steps = len(runner_csv(tmp_path, ssp, "--master", "jacobi")[1]) - 1
-    header, rows = runner_csv(tmp_path, ssp, "--master", "jacobi", "--stop-time", repr(1.5 * stop_time(ssp)))
+    steps = len(runner_csv(tmp_path, ssp, "--master", "jacobi", "--coupling", "hold")[1]) - 1
+    header, rows = runner_csv(tmp_path, ssp, "--master", "jacobi", "--coupling", "hold", "--stop-time", repr(1.5 * stop_time(ssp)))
     series = libcosim_run(ssp, steps)
     assert compare(header, rows[: steps + 1], series, 1e-9) >= 2
 
@@ -62,7 +63,7 @@ def test_the_comparison_sees_a_different_coupling(tmp_path):
     """Gauss-Seidel passes the driver's new force at once instead of one step later: the
     follower's trajectory moves by far more than the tolerance, so the check above is sharp."""
     ssp = ssp_path("msd_chain")
-    header, rows = runner_csv(tmp_path, ssp, "--master", "gauss-seidel")
+    header, rows = runner_csv(tmp_path, ssp, "--master", "gauss-seidel", "--coupling", "hold")
     series = libcosim_run(ssp, len(rows) - 1)
     with pytest.raises(AssertionError, match="follower"):
         compare(header, rows, series, 1e-6)

@@ -1,5 +1,6 @@
 //! FMI 2.0 (`fmi2TypesPlatform.h`, `fmi2FunctionTypes.h`): the C types with the "default"
-//! types platform, status codes and the signature of every one of the 44 functions.
+//! types platform, status codes, the signature of every one of the 44 functions and (feature
+//! `symbols`) the table of them a loaded binary exports ([`Functions`]).
 
 use std::ffi::{c_char, c_int, c_uint, c_void};
 
@@ -27,48 +28,11 @@ pub const TRUE: Boolean = 1;
 /// `fmi2False`.
 pub const FALSE: Boolean = 0;
 
-/// `fmi2Status`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-#[repr(i32)]
-pub enum Status {
-    Ok = 0,
-    Warning = 1,
-    Discard = 2,
-    Error = 3,
-    Fatal = 4,
-    Pending = 5,
-}
+pub use crate::Status;
 
-impl Status {
-    /// The status for a C return value, `None` for a value the standard does not define.
-    pub fn from_c(code: c_int) -> Option<Status> {
-        Some(match code {
-            0 => Status::Ok,
-            1 => Status::Warning,
-            2 => Status::Discard,
-            3 => Status::Error,
-            4 => Status::Fatal,
-            5 => Status::Pending,
-            _ => return None,
-        })
-    }
-
-    /// The standard's name (`fmi2OK`, `fmi2Error`, ...).
-    pub fn name(self) -> &'static str {
-        match self {
-            Status::Ok => "fmi2OK",
-            Status::Warning => "fmi2Warning",
-            Status::Discard => "fmi2Discard",
-            Status::Error => "fmi2Error",
-            Status::Fatal => "fmi2Fatal",
-            Status::Pending => "fmi2Pending",
-        }
-    }
-}
-
-/// The standard's name of a C status value, also for values it does not define.
+/// The standard's name of a C status value (`fmi2OK`, ...), also for values it does not define.
 pub fn status_name(code: c_int) -> &'static str {
-    Status::from_c(code).map_or("an unknown fmi2Status", Status::name)
+    Status::from_c(code, crate::FmiVersion::Fmi2).map_or("an unknown fmi2Status", |s| s.name(crate::FmiVersion::Fmi2))
 }
 
 /// `fmi2Type`: the interface an instance is created for.
@@ -173,61 +137,63 @@ pub type GetIntegerStatus = unsafe extern "C" fn(Component, StatusKind, *mut Int
 pub type GetBooleanStatus = unsafe extern "C" fn(Component, StatusKind, *mut Boolean) -> c_int;
 pub type GetStringStatus = unsafe extern "C" fn(Component, StatusKind, *mut FmiString) -> c_int;
 
-/// The functions every FMI 2.0 FMU exports, whatever its interfaces.
-pub const COMMON_FUNCTIONS: [&str; 25] = [
-    "fmi2GetTypesPlatform",
-    "fmi2GetVersion",
-    "fmi2SetDebugLogging",
-    "fmi2Instantiate",
-    "fmi2FreeInstance",
-    "fmi2SetupExperiment",
-    "fmi2EnterInitializationMode",
-    "fmi2ExitInitializationMode",
-    "fmi2Terminate",
-    "fmi2Reset",
-    "fmi2GetReal",
-    "fmi2GetInteger",
-    "fmi2GetBoolean",
-    "fmi2GetString",
-    "fmi2SetReal",
-    "fmi2SetInteger",
-    "fmi2SetBoolean",
-    "fmi2SetString",
-    "fmi2GetFMUstate",
-    "fmi2SetFMUstate",
-    "fmi2FreeFMUstate",
-    "fmi2SerializedFMUstateSize",
-    "fmi2SerializeFMUstate",
-    "fmi2DeSerializeFMUstate",
-    "fmi2GetDirectionalDerivative",
-];
+crate::functions::functions! {
+    /// The functions every FMI 2.0 FMU exports, whatever its interfaces.
+    COMMON_FUNCTIONS {
+        get_types_platform: GetTypesPlatform = "fmi2GetTypesPlatform",
+        get_version: GetVersion = "fmi2GetVersion",
+        set_debug_logging: SetDebugLogging = "fmi2SetDebugLogging",
+        instantiate: Instantiate = "fmi2Instantiate",
+        free_instance: FreeInstance = "fmi2FreeInstance",
+        setup_experiment: SetupExperiment = "fmi2SetupExperiment",
+        enter_initialization_mode: EnterInitializationMode = "fmi2EnterInitializationMode",
+        exit_initialization_mode: ExitInitializationMode = "fmi2ExitInitializationMode",
+        terminate: Terminate = "fmi2Terminate",
+        reset: Reset = "fmi2Reset",
+        get_real: GetReal = "fmi2GetReal",
+        get_integer: GetInteger = "fmi2GetInteger",
+        get_boolean: GetBoolean = "fmi2GetBoolean",
+        get_string: GetString = "fmi2GetString",
+        set_real: SetReal = "fmi2SetReal",
+        set_integer: SetInteger = "fmi2SetInteger",
+        set_boolean: SetBoolean = "fmi2SetBoolean",
+        set_string: SetString = "fmi2SetString",
+        get_fmu_state: GetFmuState = "fmi2GetFMUstate",
+        set_fmu_state: SetFmuState = "fmi2SetFMUstate",
+        free_fmu_state: FreeFmuState = "fmi2FreeFMUstate",
+        serialized_fmu_state_size: SerializedFmuStateSize = "fmi2SerializedFMUstateSize",
+        serialize_fmu_state: SerializeFmuState = "fmi2SerializeFMUstate",
+        de_serialize_fmu_state: DeSerializeFmuState = "fmi2DeSerializeFMUstate",
+        get_directional_derivative: GetDirectionalDerivative = "fmi2GetDirectionalDerivative",
+    }
 
-/// The functions a Model Exchange FMU exports besides the common ones.
-pub const MODEL_EXCHANGE_FUNCTIONS: [&str; 10] = [
-    "fmi2EnterEventMode",
-    "fmi2NewDiscreteStates",
-    "fmi2EnterContinuousTimeMode",
-    "fmi2CompletedIntegratorStep",
-    "fmi2SetTime",
-    "fmi2SetContinuousStates",
-    "fmi2GetDerivatives",
-    "fmi2GetEventIndicators",
-    "fmi2GetContinuousStates",
-    "fmi2GetNominalsOfContinuousStates",
-];
+    /// The functions a Model Exchange FMU exports besides the common ones.
+    MODEL_EXCHANGE_FUNCTIONS {
+        enter_event_mode: EnterEventMode = "fmi2EnterEventMode",
+        new_discrete_states: NewDiscreteStates = "fmi2NewDiscreteStates",
+        enter_continuous_time_mode: EnterContinuousTimeMode = "fmi2EnterContinuousTimeMode",
+        completed_integrator_step: CompletedIntegratorStep = "fmi2CompletedIntegratorStep",
+        set_time: SetTime = "fmi2SetTime",
+        set_continuous_states: SetContinuousStates = "fmi2SetContinuousStates",
+        get_derivatives: GetDerivatives = "fmi2GetDerivatives",
+        get_event_indicators: GetEventIndicators = "fmi2GetEventIndicators",
+        get_continuous_states: GetContinuousStates = "fmi2GetContinuousStates",
+        get_nominals_of_continuous_states: GetNominalsOfContinuousStates = "fmi2GetNominalsOfContinuousStates",
+    }
 
-/// The functions a Co-Simulation FMU exports besides the common ones.
-pub const CO_SIMULATION_FUNCTIONS: [&str; 9] = [
-    "fmi2SetRealInputDerivatives",
-    "fmi2GetRealOutputDerivatives",
-    "fmi2DoStep",
-    "fmi2CancelStep",
-    "fmi2GetStatus",
-    "fmi2GetRealStatus",
-    "fmi2GetIntegerStatus",
-    "fmi2GetBooleanStatus",
-    "fmi2GetStringStatus",
-];
+    /// The functions a Co-Simulation FMU exports besides the common ones.
+    CO_SIMULATION_FUNCTIONS {
+        set_real_input_derivatives: SetRealInputDerivatives = "fmi2SetRealInputDerivatives",
+        get_real_output_derivatives: GetRealOutputDerivatives = "fmi2GetRealOutputDerivatives",
+        do_step: DoStep = "fmi2DoStep",
+        cancel_step: CancelStep = "fmi2CancelStep",
+        get_status: GetStatus = "fmi2GetStatus",
+        get_real_status: GetRealStatus = "fmi2GetRealStatus",
+        get_integer_status: GetIntegerStatus = "fmi2GetIntegerStatus",
+        get_boolean_status: GetBooleanStatus = "fmi2GetBooleanStatus",
+        get_string_status: GetStringStatus = "fmi2GetStringStatus",
+    }
+}
 
 /// What the logger shim's `componentEnvironment` points at: the plain callback that receives
 /// each formatted message, and the importer's context handed to it.
@@ -252,4 +218,20 @@ extern "C" {
 #[cfg(feature = "logger-shim")]
 pub fn logger_shim() -> CallbackLogger {
     fmi_c_fmi2_logger
+}
+
+#[cfg(feature = "logger-shim")]
+impl CallbackFunctions {
+    /// The callbacks an importer hands to `fmi2Instantiate`: the logger shim, whose messages
+    /// reach `forwarder` (which must outlive the instance), C's `calloc` and `free`, and no
+    /// `stepFinished` (steps are never asynchronous).
+    pub fn forwarding_to(forwarder: &LogForwarder) -> CallbackFunctions {
+        CallbackFunctions {
+            logger: Some(logger_shim()),
+            allocate_memory: Some(libc::calloc),
+            free_memory: Some(libc::free),
+            step_finished: None,
+            component_environment: forwarder as *const LogForwarder as *mut c_void,
+        }
+    }
 }

@@ -1,5 +1,6 @@
-//! FMI 3.0 (`fmi3PlatformTypes.h`, `fmi3FunctionTypes.h`): the C types, status codes and the
-//! signature of every one of the 75 functions.
+//! FMI 3.0 (`fmi3PlatformTypes.h`, `fmi3FunctionTypes.h`): the C types, status codes, the
+//! signature of every one of the 75 functions and (feature `symbols`) the table of them a loaded
+//! binary exports ([`Functions`]).
 
 use std::ffi::{c_char, c_int, c_void};
 
@@ -28,45 +29,11 @@ pub type Binary = *const u8;
 /// `fmi3Clock` (C `bool`).
 pub type Clock = bool;
 
-/// `fmi3Status` (an enum, passed as a C int).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-#[repr(i32)]
-pub enum Status {
-    Ok = 0,
-    Warning = 1,
-    Discard = 2,
-    Error = 3,
-    Fatal = 4,
-}
+pub use crate::Status;
 
-impl Status {
-    /// The status for a C return value, `None` for a value the standard does not define.
-    pub fn from_c(code: c_int) -> Option<Status> {
-        Some(match code {
-            0 => Status::Ok,
-            1 => Status::Warning,
-            2 => Status::Discard,
-            3 => Status::Error,
-            4 => Status::Fatal,
-            _ => return None,
-        })
-    }
-
-    /// The standard's name (`fmi3OK`, `fmi3Error`, ...).
-    pub fn name(self) -> &'static str {
-        match self {
-            Status::Ok => "fmi3OK",
-            Status::Warning => "fmi3Warning",
-            Status::Discard => "fmi3Discard",
-            Status::Error => "fmi3Error",
-            Status::Fatal => "fmi3Fatal",
-        }
-    }
-}
-
-/// The standard's name of a C status value, also for values it does not define.
+/// The standard's name of a C status value (`fmi3OK`, ...), also for values it does not define.
 pub fn status_name(code: c_int) -> &'static str {
-    Status::from_c(code).map_or("an unknown fmi3Status", Status::name)
+    Status::from_c(code, crate::FmiVersion::Fmi3).map_or("an unknown fmi3Status", |s| s.name(crate::FmiVersion::Fmi3))
 }
 
 /// `fmi3DependencyKind`.
@@ -225,87 +192,95 @@ pub type DoStep =
 // Scheduled Execution.
 pub type ActivateModelPartition = unsafe extern "C" fn(Instance, ValueReference, Float64) -> c_int;
 
-/// The functions common to every interface, as fmi3Functions.h lists them.
-pub const COMMON_FUNCTIONS: [&str; 61] = [
-    "fmi3GetVersion",
-    "fmi3SetDebugLogging",
-    "fmi3InstantiateModelExchange",
-    "fmi3InstantiateCoSimulation",
-    "fmi3InstantiateScheduledExecution",
-    "fmi3FreeInstance",
-    "fmi3EnterInitializationMode",
-    "fmi3ExitInitializationMode",
-    "fmi3EnterEventMode",
-    "fmi3Terminate",
-    "fmi3Reset",
-    "fmi3GetFloat32",
-    "fmi3GetFloat64",
-    "fmi3GetInt8",
-    "fmi3GetUInt8",
-    "fmi3GetInt16",
-    "fmi3GetUInt16",
-    "fmi3GetInt32",
-    "fmi3GetUInt32",
-    "fmi3GetInt64",
-    "fmi3GetUInt64",
-    "fmi3GetBoolean",
-    "fmi3GetString",
-    "fmi3GetBinary",
-    "fmi3GetClock",
-    "fmi3SetFloat32",
-    "fmi3SetFloat64",
-    "fmi3SetInt8",
-    "fmi3SetUInt8",
-    "fmi3SetInt16",
-    "fmi3SetUInt16",
-    "fmi3SetInt32",
-    "fmi3SetUInt32",
-    "fmi3SetInt64",
-    "fmi3SetUInt64",
-    "fmi3SetBoolean",
-    "fmi3SetString",
-    "fmi3SetBinary",
-    "fmi3SetClock",
-    "fmi3GetNumberOfVariableDependencies",
-    "fmi3GetVariableDependencies",
-    "fmi3GetFMUState",
-    "fmi3SetFMUState",
-    "fmi3FreeFMUState",
-    "fmi3SerializedFMUStateSize",
-    "fmi3SerializeFMUState",
-    "fmi3DeserializeFMUState",
-    "fmi3GetDirectionalDerivative",
-    "fmi3GetAdjointDerivative",
-    "fmi3EnterConfigurationMode",
-    "fmi3ExitConfigurationMode",
-    "fmi3GetIntervalDecimal",
-    "fmi3GetIntervalFraction",
-    "fmi3GetShiftDecimal",
-    "fmi3GetShiftFraction",
-    "fmi3SetIntervalDecimal",
-    "fmi3SetIntervalFraction",
-    "fmi3SetShiftDecimal",
-    "fmi3SetShiftFraction",
-    "fmi3EvaluateDiscreteStates",
-    "fmi3UpdateDiscreteStates",
-];
+crate::functions::functions! {
+    /// The functions common to every interface, as fmi3Functions.h lists them.
+    COMMON_FUNCTIONS {
+        get_version: GetVersion = "fmi3GetVersion",
+        set_debug_logging: SetDebugLogging = "fmi3SetDebugLogging",
+        instantiate_model_exchange: InstantiateModelExchange = "fmi3InstantiateModelExchange",
+        instantiate_co_simulation: InstantiateCoSimulation = "fmi3InstantiateCoSimulation",
+        instantiate_scheduled_execution: InstantiateScheduledExecution = "fmi3InstantiateScheduledExecution",
+        free_instance: FreeInstance = "fmi3FreeInstance",
+        enter_initialization_mode: EnterInitializationMode = "fmi3EnterInitializationMode",
+        exit_initialization_mode: ExitInitializationMode = "fmi3ExitInitializationMode",
+        enter_event_mode: EnterEventMode = "fmi3EnterEventMode",
+        terminate: Terminate = "fmi3Terminate",
+        reset: Reset = "fmi3Reset",
+        get_float32: GetFloat32 = "fmi3GetFloat32",
+        get_float64: GetFloat64 = "fmi3GetFloat64",
+        get_int8: GetInt8 = "fmi3GetInt8",
+        get_uint8: GetUInt8 = "fmi3GetUInt8",
+        get_int16: GetInt16 = "fmi3GetInt16",
+        get_uint16: GetUInt16 = "fmi3GetUInt16",
+        get_int32: GetInt32 = "fmi3GetInt32",
+        get_uint32: GetUInt32 = "fmi3GetUInt32",
+        get_int64: GetInt64 = "fmi3GetInt64",
+        get_uint64: GetUInt64 = "fmi3GetUInt64",
+        get_boolean: GetBoolean = "fmi3GetBoolean",
+        get_string: GetString = "fmi3GetString",
+        get_binary: GetBinary = "fmi3GetBinary",
+        get_clock: GetClock = "fmi3GetClock",
+        set_float32: SetFloat32 = "fmi3SetFloat32",
+        set_float64: SetFloat64 = "fmi3SetFloat64",
+        set_int8: SetInt8 = "fmi3SetInt8",
+        set_uint8: SetUInt8 = "fmi3SetUInt8",
+        set_int16: SetInt16 = "fmi3SetInt16",
+        set_uint16: SetUInt16 = "fmi3SetUInt16",
+        set_int32: SetInt32 = "fmi3SetInt32",
+        set_uint32: SetUInt32 = "fmi3SetUInt32",
+        set_int64: SetInt64 = "fmi3SetInt64",
+        set_uint64: SetUInt64 = "fmi3SetUInt64",
+        set_boolean: SetBoolean = "fmi3SetBoolean",
+        set_string: SetString = "fmi3SetString",
+        set_binary: SetBinary = "fmi3SetBinary",
+        set_clock: SetClock = "fmi3SetClock",
+        get_number_of_variable_dependencies: GetNumberOfVariableDependencies = "fmi3GetNumberOfVariableDependencies",
+        get_variable_dependencies: GetVariableDependencies = "fmi3GetVariableDependencies",
+        get_fmu_state: GetFmuState = "fmi3GetFMUState",
+        set_fmu_state: SetFmuState = "fmi3SetFMUState",
+        free_fmu_state: FreeFmuState = "fmi3FreeFMUState",
+        serialized_fmu_state_size: SerializedFmuStateSize = "fmi3SerializedFMUStateSize",
+        serialize_fmu_state: SerializeFmuState = "fmi3SerializeFMUState",
+        deserialize_fmu_state: DeserializeFmuState = "fmi3DeserializeFMUState",
+        get_directional_derivative: GetDirectionalDerivative = "fmi3GetDirectionalDerivative",
+        get_adjoint_derivative: GetAdjointDerivative = "fmi3GetAdjointDerivative",
+        enter_configuration_mode: EnterConfigurationMode = "fmi3EnterConfigurationMode",
+        exit_configuration_mode: ExitConfigurationMode = "fmi3ExitConfigurationMode",
+        get_interval_decimal: GetIntervalDecimal = "fmi3GetIntervalDecimal",
+        get_interval_fraction: GetIntervalFraction = "fmi3GetIntervalFraction",
+        get_shift_decimal: GetShiftDecimal = "fmi3GetShiftDecimal",
+        get_shift_fraction: GetShiftFraction = "fmi3GetShiftFraction",
+        set_interval_decimal: SetIntervalDecimal = "fmi3SetIntervalDecimal",
+        set_interval_fraction: SetIntervalFraction = "fmi3SetIntervalFraction",
+        set_shift_decimal: SetShiftDecimal = "fmi3SetShiftDecimal",
+        set_shift_fraction: SetShiftFraction = "fmi3SetShiftFraction",
+        evaluate_discrete_states: EvaluateDiscreteStates = "fmi3EvaluateDiscreteStates",
+        update_discrete_states: UpdateDiscreteStates = "fmi3UpdateDiscreteStates",
+    }
 
-/// The Model Exchange functions.
-pub const MODEL_EXCHANGE_FUNCTIONS: [&str; 10] = [
-    "fmi3EnterContinuousTimeMode",
-    "fmi3CompletedIntegratorStep",
-    "fmi3SetTime",
-    "fmi3SetContinuousStates",
-    "fmi3GetContinuousStateDerivatives",
-    "fmi3GetEventIndicators",
-    "fmi3GetContinuousStates",
-    "fmi3GetNominalsOfContinuousStates",
-    "fmi3GetNumberOfEventIndicators",
-    "fmi3GetNumberOfContinuousStates",
-];
+    /// The Model Exchange functions.
+    MODEL_EXCHANGE_FUNCTIONS {
+        enter_continuous_time_mode: EnterContinuousTimeMode = "fmi3EnterContinuousTimeMode",
+        completed_integrator_step: CompletedIntegratorStep = "fmi3CompletedIntegratorStep",
+        set_time: SetTime = "fmi3SetTime",
+        set_continuous_states: SetContinuousStates = "fmi3SetContinuousStates",
+        get_continuous_state_derivatives: GetContinuousStateDerivatives = "fmi3GetContinuousStateDerivatives",
+        get_event_indicators: GetEventIndicators = "fmi3GetEventIndicators",
+        get_continuous_states: GetContinuousStates = "fmi3GetContinuousStates",
+        get_nominals_of_continuous_states: GetNominalsOfContinuousStates = "fmi3GetNominalsOfContinuousStates",
+        get_number_of_event_indicators: GetNumberOfEventIndicators = "fmi3GetNumberOfEventIndicators",
+        get_number_of_continuous_states: GetNumberOfContinuousStates = "fmi3GetNumberOfContinuousStates",
+    }
 
-/// The Co-Simulation functions.
-pub const CO_SIMULATION_FUNCTIONS: [&str; 3] = ["fmi3EnterStepMode", "fmi3GetOutputDerivatives", "fmi3DoStep"];
+    /// The Co-Simulation functions.
+    CO_SIMULATION_FUNCTIONS {
+        enter_step_mode: EnterStepMode = "fmi3EnterStepMode",
+        get_output_derivatives: GetOutputDerivatives = "fmi3GetOutputDerivatives",
+        do_step: DoStep = "fmi3DoStep",
+    }
 
-/// The Scheduled Execution functions.
-pub const SCHEDULED_EXECUTION_FUNCTIONS: [&str; 1] = ["fmi3ActivateModelPartition"];
+    /// The Scheduled Execution functions.
+    SCHEDULED_EXECUTION_FUNCTIONS {
+        activate_model_partition: ActivateModelPartition = "fmi3ActivateModelPartition",
+    }
+}

@@ -3,11 +3,13 @@
 
 use std::sync::{Arc, Mutex};
 
+use crate::core::derivatives::{Known, Pass, Unknown};
 use crate::core::Failure;
 use crate::fmi2::state_machine::Interface;
 use crate::fmi2::Instance;
 use crate::logging::{Logger, Status};
-use crate::model::{BaseType, Model};
+use crate::model::{Access, BaseType, Causality, Model, Variability};
+use crate::table::{Row, Slot, Table};
 
 /// An instance plus the messages it logged.
 pub struct Harness<M: Model> {
@@ -179,4 +181,263 @@ impl<M: Model> Harness<M> {
         }
         Ok(())
     }
+}
+
+/// A Jacobian of a model's equations: `values[i][j]` is the partial derivative of
+/// `unknowns[i]` with respect to `knowns[j]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Jacobian {
+    pub unknowns: Vec<&'static str>,
+    pub knowns: Vec<&'static str>,
+    pub values: Vec<Vec<f64>>,
+}
+
+impl Jacobian {
+    /// The partial derivative of `unknown` with respect to `known`, by name.
+    pub fn get(&self, unknown: &str, known: &str) -> f64 {
+        let i = self.unknowns.iter().position(|n| *n == unknown).unwrap_or_else(|| panic!("'{unknown}' is no unknown"));
+        let j = self.knowns.iter().position(|n| *n == known).unwrap_or_else(|| panic!("'{known}' is no known"));
+        self.values[i][j]
+    }
+
+    /// The block of the unknowns and knowns named, in the order given.
+    pub fn block(&self, unknowns: &[&str], knowns: &[&str]) -> Vec<Vec<f64>> {
+        unknowns.iter().map(|u| knowns.iter().map(|k| self.get(u, k)).collect()).collect()
+    }
+}
+
+/// The equations the derivative checks differentiate, at one point: continuous time (the
+/// knowns time, the states and the Real inputs; the unknowns the state derivatives and the
+/// continuous Real outputs) or initialization (the knowns the Real inputs and parameters; the
+/// unknowns the states, their derivatives and the continuous Real outputs at the start).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    ContinuousTime,
+    Initialization,
+}
+
+/// The rows of the table that are knowns and unknowns of `equations`.
+fn jacobian_rows<M: Model>(table: &Table<M>, equations: Stage) -> (Vec<usize>, Vec<usize>) {
+    let known = |row: &Row<M>| match equations {
+        Stage::ContinuousTime => {
+            matches!(row.slot, Slot::Time | Slot::Model(Access::State(_))) || (row.causality == Causality::Input && row.field.is_some())
+        }
+        Stage::Initialization => matches!(row.causality, Causality::Input | Causality::Parameter) && row.field.is_some(),
+    };
+    let unknown = |row: &Row<M>| {
+        matches!(row.slot, Slot::Derivative(_))
+            || (row.causality == Causality::Output && row.variability == Variability::Continuous && row.field.is_some())
+            || (equations == Stage::Initialization && matches!(row.slot, Slot::Model(Access::State(_))))
+    };
+    let pick = |f: &dyn Fn(&Row<M>) -> bool| table.rows.iter().enumerate().filter(|(_, r)| f(r)).map(|(i, _)| i).collect();
+    (pick(&known), pick(&unknown))
+}
+
+/// The exact Jacobian of `equations` at time `t` and states `x` (continuous time; ignored at
+/// initialization, where the states are unknowns) for `model`'s parameters and inputs: forward
+/// passes in vector dual numbers ([`crate::core::derivatives::forward`]).
+pub fn jacobian<M: Model>(model: &M, t: f64, x: &[f64], equations: Stage) -> Jacobian {
+    let table = Table::<M>::new();
+    let lifting = M::lifting().expect("the model is generic over its number type: it has exact derivatives");
+    let (knowns, unknowns) = jacobian_rows(&table, equations);
+    let seeds: Vec<Known> = knowns
+        .iter()
+        .map(|&i| match (&table.rows[i].slot, table.rows[i].field) {
+            (Slot::Time, _) => Known::Time,
+            (Slot::Model(Access::State(k)), _) => Known::State(*k),
+            (_, Some(field)) => Known::Field(field),
+            _ => unreachable!("knowns are time, states and real fields"),
+        })
+        .collect();
+    let targets: Vec<Unknown> = unknowns
+        .iter()
+        .map(|&i| match (&table.rows[i].slot, table.rows[i].field) {
+            (Slot::Derivative(k), _) => Unknown::Derivative(*k),
+            (Slot::Model(Access::State(k)), _) => Unknown::State(*k),
+            (_, Some(field)) => Unknown::Field(field),
+            _ => Unknown::Zero,
+        })
+        .collect();
+    let pass = Pass { t, x, knowns: &seeds, unknowns: &targets, initialization: equations == Stage::Initialization };
+    let mut flat = vec![0.0; knowns.len() * unknowns.len()];
+    (lifting.forward)(model, &pass, &mut flat).expect("the model's equations evaluate at this point");
+    let values = flat.chunks(knowns.len().max(1)).take(unknowns.len()).map(<[f64]>::to_vec).collect();
+    let name = |i: &usize| table.rows[*i].name;
+    Jacobian { unknowns: unknowns.iter().map(name).collect(), knowns: knowns.iter().map(name).collect(), values }
+}
+
+/// The unknowns of `equations` (in [`jacobian`]'s order) computed in `f64` by the model's own
+/// equations, for `model` (whose derived fields are refreshed) at (t, x).
+fn evaluate<M: Model>(table: &Table<M>, unknowns: &[usize], model: &M, t: f64, x: &[f64], equations: Stage) -> Option<Vec<f64>> {
+    let mut model = model.clone();
+    crate::model::refresh(&mut model);
+    let mut x = x.to_vec();
+    if equations == Stage::Initialization {
+        model.initial_state(&mut x).ok()?;
+    }
+    let mut dx = vec![0.0; M::N_STATES];
+    model.derivatives(t, &x, &mut dx);
+    model.outputs(t, &x);
+    Some(
+        unknowns
+            .iter()
+            .map(|&i| match &table.rows[i].slot {
+                Slot::Derivative(k) => dx[*k],
+                Slot::Model(Access::State(k)) => x[*k],
+                Slot::Model(Access::Real { get, .. }) => get(&model),
+                _ => 0.0,
+            })
+            .collect(),
+    )
+}
+
+/// The Jacobian of [`jacobian`] by central differences of the model's own `f64` equations:
+/// known j moved by ±h_j, h_j = 1e-5 max(|v_j|, 1). `None` where the model refuses a moved
+/// parameter.
+pub fn difference_jacobian<M: Model>(model: &M, t: f64, x: &[f64], equations: Stage) -> Option<Jacobian> {
+    differences(model, t, x, equations).map(|d| d.central)
+}
+
+/// Central differences of [`jacobian`]'s unknowns, with the unknowns' values and the gaps
+/// between the forward and the backward difference at steps h and h/2.
+struct Differences {
+    central: Jacobian,
+    /// The central differences at h/2.
+    central_half: Vec<Vec<f64>>,
+    /// (f(v + h) - f(v)) / h - (f(v) - f(v - h)) / h: h f'' where f is smooth, the jump of the
+    /// slope at a kink.
+    gap: Vec<Vec<f64>>,
+    /// The same at h/2: half of `gap` where f is smooth, as large at a kink.
+    gap_half: Vec<Vec<f64>>,
+    values: Vec<f64>,
+}
+
+fn differences<M: Model>(model: &M, t: f64, x: &[f64], equations: Stage) -> Option<Differences> {
+    let table = Table::<M>::new();
+    let (knowns, unknowns) = jacobian_rows(&table, equations);
+    let base = evaluate(&table, &unknowns, model, t, x, equations)?;
+    let zeros = || vec![vec![0.0; knowns.len()]; unknowns.len()];
+    let (mut central, mut central_half, mut gap, mut gap_half) = (zeros(), zeros(), zeros(), zeros());
+    for (j, &known) in knowns.iter().enumerate() {
+        let row = &table.rows[known];
+        let moved = |sign: f64| -> Option<(f64, Vec<f64>)> {
+            let (step, sign) = (sign.abs(), sign.signum());
+            let (mut t, mut x, mut model) = (t, x.to_vec(), model.clone());
+            let v = match &row.slot {
+                Slot::Time => &mut t,
+                Slot::Model(Access::State(k)) => &mut x[*k],
+                _ => &mut 0.0,
+            };
+            let value = match &row.slot {
+                Slot::Model(Access::Real { get, .. }) => get(&model),
+                _ => *v,
+            };
+            let h = step * 1e-5 * value.abs().max(1.0);
+            match &row.slot {
+                Slot::Model(Access::Real { set: Some(set), .. }) => set(&mut model, value + sign * h),
+                _ => *v = value + sign * h,
+            }
+            Some((h, evaluate(&table, &unknowns, &model, t, &x, equations)?))
+        };
+        let ((h, plus), (_, minus)) = (moved(1.0)?, moved(-1.0)?);
+        let ((h2, plus2), (_, minus2)) = (moved(0.5)?, moved(-0.5)?);
+        for i in 0..unknowns.len() {
+            central[i][j] = (plus[i] - minus[i]) / (2.0 * h);
+            central_half[i][j] = (plus2[i] - minus2[i]) / (2.0 * h2);
+            gap[i][j] = (plus[i] - 2.0 * base[i] + minus[i]) / h;
+            gap_half[i][j] = (plus2[i] - 2.0 * base[i] + minus2[i]) / h2;
+        }
+    }
+    let name = |i: &usize| table.rows[*i].name;
+    let central = Jacobian { unknowns: unknowns.iter().map(name).collect(), knowns: knowns.iter().map(name).collect(), values: central };
+    Some(Differences { central, central_half, gap, gap_half, values: base })
+}
+
+/// What [`check_derivatives`] compared.
+#[derive(Debug, Clone, Default)]
+pub struct DerivativeCheck {
+    /// Points compared (continuous time along the run, and initialization).
+    pub points: usize,
+    /// Jacobian entries compared, and those of them that are not zero.
+    pub entries: usize,
+    pub nonzero: usize,
+    /// Entries left out at a kink of the f64 function (see [`check_derivatives`]).
+    pub kinks: usize,
+    /// The largest |exact - difference| over its bound.
+    pub worst: f64,
+}
+
+/// Checks model `M`'s exact derivatives against central differences of its own `f64`
+/// equations: in continuous time at up to 200 points along its default experiment (through
+/// every regime the run visits) and at initialization for its default parameters.
+///
+/// The exact value is compared with the central difference at h_j/2, h_j = 1e-5 max(|v_j|, 1).
+/// That errs by its truncation, h_j^2 |f'''| / 24, and its rounding, about eps |f_i| / h_j
+/// (or eps times the size of the terms of a quantity that cancels to near zero, such as a
+/// loop-closure gap: up to 1e2 in these models' SI units). The truncation is estimated from
+/// the differences themselves: the central difference at h_j errs four times as much, so their
+/// gap is three times the error at h_j/2. The rounding is bounded by 1e-6 s_ij + 1e-8, with
+/// s_ij = |J_ij| + |f_i| / max(|v_j|, 1) (eps |f_i| / h_j is 2e-11 |f_i| / max(|v_j|, 1), and
+/// eps 1e2 / h_j is 4e-9). The bound is the sum: it widens near a singular configuration
+/// (a linkage's limit position, where third derivatives are huge) and stays 1e-6 of the scale
+/// elsewhere, while an error in a derivative term is of the order of s_ij itself. The check
+/// fails naming the entry that exceeds it. Both sides differentiate the equations of the
+/// regime the model is in at the point (its discrete state stays as it is), so a point after
+/// an event checks the new regime's equations. Where the function has a kink at the point
+/// itself (the length |e| of a loop-closure gap that the projection has made zero) no
+/// derivative exists to compare: the forward and backward differences then disagree by the
+/// jump of the slope at any step, where for a smooth function they disagree by h f'', half as
+/// much at half the step. Entries whose disagreement exceeds the bound and does not shrink
+/// below 3/4 at h/2 are counted as `kinks`; the check fails if they are more than a tenth.
+pub fn check_derivatives<M: Model>() -> Result<DerivativeCheck, String> {
+    let table = Table::<M>::new();
+    let mut defaults = M::default();
+    crate::model::refresh(&mut defaults);
+    let mut points: Vec<(M, f64, Vec<f64>, Stage)> = vec![(defaults.clone(), 0.0, vec![0.0; M::N_STATES], Stage::Initialization)];
+    for s in crate::structure::trajectory(&defaults) {
+        points.push((s.model, s.t, s.x, Stage::ContinuousTime));
+    }
+    let mut report = DerivativeCheck::default();
+    for (model, t, x, equations) in &points {
+        let exact = jacobian(model, *t, x, *equations);
+        let Some(d) = differences(model, *t, x, *equations) else { continue };
+        let (knowns, unknowns) = jacobian_rows(&table, *equations);
+        report.points += 1;
+        for (i, &unknown) in unknowns.iter().enumerate() {
+            for (j, &known) in knowns.iter().enumerate() {
+                let scale_j = match &table.rows[known].slot {
+                    Slot::Time => t.abs(),
+                    Slot::Model(Access::State(k)) => x[*k].abs(),
+                    Slot::Model(Access::Real { get, .. }) => get(model).abs(),
+                    _ => 0.0,
+                }
+                .max(1.0);
+                let (a, c_full, c) = (exact.values[i][j], d.central.values[i][j], d.central_half[i][j]);
+                let bound = 1e-6 * (a.abs() + d.values[i].abs() / scale_j) + 1e-8 + (c_full - c).abs();
+                report.entries += 1;
+                let (g, g_half) = (d.gap[i][j].abs(), d.gap_half[i][j].abs());
+                if g > bound && g_half > 0.75 * g {
+                    report.kinks += 1;
+                    continue;
+                }
+                report.nonzero += usize::from(a != 0.0);
+                report.worst = report.worst.max((a - c).abs() / bound);
+                // A NaN on either side fails too.
+                let within = (a - c).abs() <= bound;
+                if !within {
+                    return Err(format!(
+                        "{equations:?} at t = {t}: d {} / d {} = {a:e} exactly, {c:e} by central differences (bound {bound:e})",
+                        table.rows[unknown].name, table.rows[known].name
+                    ));
+                }
+            }
+        }
+    }
+    if report.kinks * 10 > report.entries {
+        return Err(format!("{} of {} entries are at kinks: too few derivatives were compared", report.kinks, report.entries));
+    }
+    if report.nonzero == 0 {
+        return Err("no nonzero derivative was compared: the check would prove nothing".to_owned());
+    }
+    Ok(report)
 }

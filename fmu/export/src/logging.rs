@@ -1,16 +1,8 @@
 //! Log categories and the per-instance logger that honours `fmi2SetDebugLogging`.
 
-/// Status codes, numbered as FMI 2.0 and 3.0 number them (3.0 has no `Pending`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
-#[repr(i32)]
-pub enum Status {
-    Ok = 0,
-    Warning = 1,
-    Discard = 2,
-    Error = 3,
-    Fatal = 4,
-    Pending = 5,
-}
+/// Status codes, numbered as FMI 2.0 and 3.0 number them (3.0 has no `Pending`): the C
+/// interface's one [`fmi_c::Status`].
+pub use fmi_c::Status;
 
 /// A log category declared in `LogCategories`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

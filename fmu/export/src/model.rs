@@ -5,6 +5,8 @@
 
 use serde::{de::DeserializeOwned, Serialize};
 
+use crate::scalar::Scalar;
+
 /// Static facts about a model that end up in `modelDescription.xml` and its documentation.
 #[derive(Debug, Clone, Copy)]
 pub struct ModelInfo {
@@ -111,6 +113,9 @@ pub struct Variable<M> {
     /// The values a parameter or input accepts (checked by the toolkit, see [`Range`]).
     pub range: Range,
     pub access: Access<M>,
+    /// For a Real variable of the model struct: its index among the struct's real fields
+    /// ([`Lift::field`]), through which the toolkit seeds and reads derivatives.
+    pub field: Option<usize>,
 }
 
 impl<M> Clone for Variable<M> {
@@ -121,7 +126,18 @@ impl<M> Clone for Variable<M> {
 
 impl<M> Variable<M> {
     fn new(name: &'static str, description: &'static str, causality: Causality, variability: Variability, access: Access<M>) -> Self {
-        Variable { name, description, causality, variability, initial: None, unit: None, display_unit: None, range: Range::Any, access }
+        Variable {
+            name,
+            description,
+            causality,
+            variability,
+            initial: None,
+            unit: None,
+            display_unit: None,
+            range: Range::Any,
+            access,
+            field: None,
+        }
     }
 
     /// A real parameter (`causality="parameter"`, `variability="fixed"`, `initial="exact"`).
@@ -157,7 +173,7 @@ impl<M> Variable<M> {
         Self::new(name, description, Causality::Output, Variability::Continuous, Access::State(index))
     }
 
-    /// A continuous real output computed by [`Model::outputs`].
+    /// A continuous real output computed by [`Equations::outputs`].
     pub fn output(name: &'static str, description: &'static str, get: fn(&M) -> f64) -> Self {
         Self::new(name, description, Causality::Output, Variability::Continuous, Access::Real { get, set: None })
     }
@@ -204,6 +220,12 @@ impl<M> Variable<M> {
     /// Overrides the `initial` attribute.
     pub fn initial(mut self, initial: Initial) -> Self {
         self.initial = Some(initial);
+        self
+    }
+
+    /// Names the struct's real field `k` ([`Lift::field`]) as this variable's value.
+    pub fn field(mut self, k: usize) -> Self {
+        self.field = Some(k);
         self
     }
 
@@ -264,7 +286,7 @@ pub enum EventOutcome {
 }
 
 /// The values a parameter or input accepts. The toolkit checks every declared range when
-/// initialization ends, before [`Model::initial_state`], with the messages of the
+/// initialization ends, before [`Equations::initial_state`], with the messages of the
 /// `require_*` helpers, and writes the bounds as `min`/`max` into modelDescription.xml where
 /// FMI can say them (`min="0"` for both `Positive` and `NonNegative`: FMI bounds are
 /// inclusive). Non-finite Reals are refused when they are set, whatever the range.
@@ -382,10 +404,46 @@ pub trait Variables: Sized {
 
     /// The rows, in value-reference order (solver controls are appended by the toolkit).
     fn variables() -> Vec<Variable<Self>>;
+
+    /// The model over dual numbers (see [`Lift`]): the derive gives it for a struct generic
+    /// over its number type; `None` (a model written on `f64`) means no exact derivatives, and
+    /// the FMU declares none.
+    fn lifting() -> Option<Lifting<Self>> {
+        None
+    }
 }
 
+/// The toolkit's handles on a model's [`Lift`] (written by `#[derive(Variables)]`, so that a
+/// model written on `f64` needs none).
+pub struct Lifting<M> {
+    /// [`Lift::refresh`].
+    pub refresh: fn(&mut M),
+    /// [`Lift::derived_current`].
+    pub derived_current: fn(&M) -> bool,
+    /// One forward pass in dual numbers ([`crate::core::derivatives::forward`]).
+    pub forward: fn(&M, &crate::core::derivatives::Pass, &mut [f64]) -> Result<(), ModelError>,
+    /// Output derivatives along the trajectory ([`crate::core::derivatives::trajectory`]).
+    pub trajectory: fn(&M, &crate::core::derivatives::Trajectory, &mut [crate::core::derivatives::Rates]) -> Result<(), ModelError>,
+}
+
+/// Computes the `#[derived]` fields of `model` from its parameters again ([`Lift::refresh`];
+/// nothing for a model without them). The toolkit calls it whenever parameters change.
+pub fn refresh<M: Variables>(model: &mut M) {
+    if let Some(lifting) = M::lifting() {
+        (lifting.refresh)(model);
+    }
+}
+
+impl<M> Clone for Lifting<M> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<M> Copy for Lifting<M> {}
+
 /// Checks every range `M` declares against `model`'s current values, in table order (the
-/// toolkit does so before [`Model::initial_state`]).
+/// toolkit does so before [`Equations::initial_state`]).
 pub fn check_ranges<M: Variables>(model: &M) -> Result<(), ModelError> {
     for v in M::variables().iter().filter(|v| v.range != Range::Any) {
         let value = match &v.access {
@@ -451,12 +509,96 @@ pub fn place_states<M>(rows: Vec<Variable<M>>, states_at: usize, states: Vec<Sta
     out
 }
 
-/// The equations of one lab system.
+/// The equations of a model, over the number type `T` (see [`Scalar`]): `f64` to simulate,
+/// dual numbers to differentiate. Implemented once for every `T`
+/// (`impl<T: Scalar> Equations<T> for Model<T>`): the toolkit's exact derivatives (directional,
+/// adjoint, output derivatives) are these functions run on dual numbers, so they cannot
+/// disagree with the simulation.
+pub trait Equations<T: Scalar> {
+    /// Checks what the declared ranges cannot (conditions across parameters, such as a linkage
+    /// that must assemble; the toolkit has checked every [`Range`] before) and fills the
+    /// initial state `x` (called when initialization ends, and for initial unknowns read
+    /// during initialization; the toolkit calls it again after any parameter change). It may
+    /// set the model's discrete state (its starting regime).
+    fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError>;
+
+    /// The right-hand side: `dx = f(t, x, inputs)`, in the current regime.
+    fn derivatives(&self, t: T, x: &[T], dx: &mut [T]);
+
+    /// Computes the output fields from the current time and state.
+    fn outputs(&mut self, _t: T, _x: &[T]) {}
+}
+
+/// A model struct over another number type: `#[derive(Variables)]` writes it for a struct
+/// generic over its number type (the type parameter whose default is `f64`,
+/// `struct Car<T = f64>`), whose Real variables are of that type. The toolkit lifts the `f64`
+/// model it simulates into dual numbers to differentiate its equations.
+pub trait Lift: Sized {
+    /// The same model with number type `U` (`Self` is `Over<f64>`).
+    type Over<U: Scalar>: Equations<U> + Clone;
+
+    /// A copy with every real field converted to `U` (derivative parts zero) and the
+    /// `#[derived]` fields computed again from the converted ones.
+    fn lift<U: Scalar>(&self) -> Self::Over<U>;
+
+    /// The real field number `k` of a lifted model, as [`Variable::field`] numbers them.
+    /// Panics on a number the struct does not have (the table only holds valid ones).
+    fn field<U: Scalar>(model: &mut Self::Over<U>, k: usize) -> &mut U;
+
+    /// Computes the `#[derived]` fields from the parameters again (the toolkit calls it after
+    /// parameters change; a model without such fields has nothing to do).
+    fn refresh(&mut self);
+
+    /// [`Lift::refresh`] for a lifted model (after its parameters were given derivative parts).
+    fn refresh_over<U: Scalar>(model: &mut Self::Over<U>);
+
+    /// True when the `#[derived]` fields are those the parameters give (bit for bit): the
+    /// toolkit checks it in debug builds before it integrates.
+    fn derived_current(&self) -> bool;
+}
+
+/// A value a model derives from its parameters, for a `#[derived]` field: the toolkit computes
+/// it with [`Derived::of`] whenever the parameters change (and for every lifted copy), so the
+/// right-hand side reads it without repeating the work at every solver stage, and it can never
+/// be stale. Its `PartialEq` is the debug builds' check that nothing changed a parameter
+/// behind the toolkit's back; its `Default` (zeros: dual numbers have no `Default`, so it is
+/// written out) is a placeholder until the toolkit computes it.
+///
+/// ```
+/// use fmu_export::{Derived, Scalar};
+///
+/// struct Spring<T> { k: T, m: T }
+///
+/// /// The natural frequency sqrt(k/m).
+/// #[derive(Debug, Clone, PartialEq)]
+/// struct Natural<T> { omega: T }
+///
+/// impl<T: Scalar> Default for Natural<T> {
+///     fn default() -> Self {
+///         Natural { omega: T::zero() }
+///     }
+/// }
+///
+/// impl<T: Scalar> Derived<Spring<T>> for Natural<T> {
+///     fn of(s: &Spring<T>) -> Self {
+///         Natural { omega: (s.k / s.m).sqrt() }
+///     }
+/// }
+/// assert_eq!(Natural::of(&Spring { k: 8.0, m: 2.0 }).omega, 2.0);
+/// ```
+pub trait Derived<M>: Default + Clone + PartialEq {
+    /// The value for the model's current parameters.
+    fn of(model: &M) -> Self;
+}
+
+/// One lab system as an FMU: its equations ([`Equations`] over `f64`, and over dual numbers
+/// through [`Lift`] when it is generic over its number type), its identity, and its discrete
+/// behaviour (events, projections).
 ///
 /// The toolkit owns time, the state vector, the solver and the FMI state machine; the model
-/// owns its parameters, inputs, discrete mode and computed outputs (its struct fields), and
-/// supplies the right-hand side. `Default` gives the start values of the variable table.
-pub trait Model: Variables + Default + Clone + Send + Serialize + DeserializeOwned + 'static {
+/// owns its parameters, inputs, discrete mode and computed outputs (its struct fields).
+/// `Default` gives the start values of the variable table.
+pub trait Model: Variables + Equations<f64> + Default + Clone + Send + Serialize + DeserializeOwned + 'static {
     /// Number of continuous states (fixed for the model; unused states may have zero rate).
     const N_STATES: usize;
     /// Number of event indicators watched for sign changes.
@@ -464,20 +606,6 @@ pub trait Model: Variables + Default + Clone + Send + Serialize + DeserializeOwn
 
     /// Identifier, description, default experiment and documentation.
     fn info() -> ModelInfo;
-
-    /// Checks what the declared ranges cannot (conditions across parameters, such as a linkage
-    /// that must assemble; the toolkit has checked every [`Range`] before) and fills the
-    /// initial state `x` (called when initialization ends, and for initial unknowns read
-    /// during initialization). The toolkit calls it again
-    /// after any parameter change and before the solver starts, so it is also the place to
-    /// derive constants the right-hand side needs from the parameters (see quarter_car).
-    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError>;
-
-    /// The right-hand side: `dx = f(t, x, inputs)`.
-    fn derivatives(&self, t: f64, x: &[f64], dx: &mut [f64]);
-
-    /// Computes the output fields from the current time and state.
-    fn outputs(&mut self, _t: f64, _x: &[f64]) {}
 
     /// Event indicators: an event fires where one changes sign.
     fn event_indicators(&self, _t: f64, _x: &[f64], _z: &mut [f64]) {}
@@ -511,4 +639,10 @@ pub trait Model: Variables + Default + Clone + Send + Serialize + DeserializeOwn
     fn resources(&mut self, _dir: &std::path::Path) -> Result<(), ModelError> {
         Ok(())
     }
+}
+
+/// True when the derived value `d` is the one `model`'s parameters give now (what
+/// [`Lift::derived_current`] checks for each `#[derived]` field).
+pub fn is_current<M, D: Derived<M>>(d: &D, model: &M) -> bool {
+    *d == D::of(model)
 }

@@ -18,6 +18,10 @@
 //! than glibc's on the sweep, and no crate keeps an anchor between calls.
 
 use std::cell::Cell;
+
+use serde::{Deserialize, Serialize};
+
+use crate::scalar::Scalar;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// 1.5 * 2^50: adding it to a phase below 2^49 in magnitude rounds the phase to a multiple of
@@ -43,7 +47,7 @@ impl Default for PhaseCosine {
 
 impl PhaseCosine {
     /// cos(phase): the anchored sum when the memo holds the phase's anchor, else see
-    /// [`move_anchor`]. Always inlined: a solver stage then holds a compare and 25 arithmetic
+    /// `move_anchor`. Always inlined: a solver stage then holds a compare and 25 arithmetic
     /// instructions instead of a call.
     #[inline(always)]
     pub fn cos(&self, phase: f64) -> f64 {
@@ -149,6 +153,48 @@ fn horner_pair(z: f64, a: &[f64; 5], b: &[f64; 5]) -> [f64; 2] {
             p = [a[k] + z * p[0], b[k] + z * p[1]];
         }
         p
+    }
+}
+
+/// A sinusoidal forcing `amplitude cos(omega t)`, such as quarter_car's road rate: a model
+/// derives it from its parameters (a `#[derived]` field, see [`crate::Derived`]) and evaluates
+/// it at every solver stage. Simulating (`T = f64`), its cosine is the memoized
+/// [`PhaseCosine`]; differentiating, the plain cosine of the dual number.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Harmonic<T> {
+    /// The amplitude.
+    pub amplitude: T,
+    /// The angular frequency (rad/s).
+    pub omega: T,
+    /// The anchor of the last cosine; not part of the saved state (see [`PhaseCosine`]).
+    #[serde(skip)]
+    memo: PhaseCosine,
+}
+
+impl<T: Scalar> Harmonic<T> {
+    /// `amplitude cos(omega t)`.
+    pub fn new(amplitude: T, omega: T) -> Harmonic<T> {
+        Harmonic { amplitude, omega, memo: PhaseCosine::default() }
+    }
+
+    /// The value at time `t`: `amplitude cos(omega t)`. Always inlined, as the cosine it calls.
+    #[inline(always)]
+    pub fn at(&self, t: T) -> T {
+        self.amplitude * (self.omega * t).cos_near(&self.memo)
+    }
+}
+
+impl<T: PartialEq> PartialEq for Harmonic<T> {
+    /// The same forcing (whatever anchor the memos hold).
+    fn eq(&self, other: &Self) -> bool {
+        self.amplitude == other.amplitude && self.omega == other.omega
+    }
+}
+
+impl<T: Scalar> Default for Harmonic<T> {
+    /// No forcing (zero amplitude and frequency).
+    fn default() -> Self {
+        Harmonic::new(T::zero(), T::zero())
     }
 }
 

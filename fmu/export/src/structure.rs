@@ -68,7 +68,8 @@ fn drawable<M>(row: &Row<M>) -> Option<fn(&mut M, f64)> {
 
 /// The default parameters and up to [`DRAWS`] sets around them that the model accepts.
 fn parameter_sets<M: Model>(table: &Table<M>) -> Vec<M> {
-    let defaults = M::default();
+    let mut defaults = M::default();
+    crate::model::refresh(&mut defaults);
     let mut sets = vec![defaults.clone()];
     let mut rng = Lcg(0x005e_ed0f_d3e9);
     for _ in 0..ATTEMPTS {
@@ -85,6 +86,7 @@ fn parameter_sets<M: Model>(table: &Table<M>) -> Vec<M> {
             }
         }
         let mut x = vec![0.0; M::N_STATES];
+        crate::model::refresh(&mut model);
         if model.clone().initial_state(&mut x).is_ok() {
             sets.push(model);
         }
@@ -94,7 +96,7 @@ fn parameter_sets<M: Model>(table: &Table<M>) -> Vec<M> {
 
 /// The states of a run of the default experiment from `model`'s parameters, at up to
 /// [`SAMPLES`] communication points and where the run ends.
-fn trajectory<M: Model>(model: &M) -> Vec<State<M>> {
+pub(crate) fn trajectory<M: Model>(model: &M) -> Vec<State<M>> {
     let mut core = Core::<M>::new("probe", Logger::new(None, false), PROBE_NAMES);
     let table = Table::<M>::new();
     // The parameters go in through the table, as an importer would set them.
@@ -203,6 +205,7 @@ fn continuous<M: Model>(table: &Table<M>, sets: &[M]) -> Option<Vec<BTreeSet<usi
                         for h in steps(v) {
                             let mut model = s.model.clone();
                             set(&mut model, v + h);
+                            crate::model::refresh(&mut model);
                             record(&mut found, &base, &values(table, &model, s.t, &s.x), j);
                         }
                     }
@@ -244,6 +247,9 @@ fn moves<M: Model>(row: &Row<M>, model: &M) -> Vec<Move<M>> {
 /// the model refuses them.
 fn initial_values<M: Model>(table: &Table<M>, model: &M, t: f64) -> Option<Vec<u64>> {
     let mut model = model.clone();
+    // What the model derives from its parameters, as the FMU derives it before the initial
+    // state.
+    crate::model::refresh(&mut model);
     let mut x = vec![0.0; M::N_STATES];
     model.initial_state(&mut x).ok()?;
     Some(values(table, &model, t, &x))

@@ -32,6 +32,9 @@ pub struct Row<M> {
     pub display_unit: Option<&'static str>,
     pub base_type: BaseType,
     pub slot: Slot<M>,
+    /// The model struct's real field holding the value ([`crate::Lift::field`]), for a
+    /// model variable of type Real.
+    pub field: Option<usize>,
 }
 
 impl<M> Row<M> {
@@ -46,6 +49,7 @@ impl<M> Row<M> {
             display_unit: v.display_unit,
             base_type: v.base_type(),
             slot: Slot::Model(v.access),
+            field: v.field,
         }
     }
 
@@ -65,6 +69,7 @@ impl<M> Row<M> {
             display_unit: None,
             base_type: if c.is_integer() { BaseType::Integer } else { BaseType::Real },
             slot: Slot::Control(c),
+            field: None,
         }
     }
 
@@ -79,6 +84,7 @@ impl<M> Row<M> {
             display_unit: None,
             base_type: BaseType::Real,
             slot: Slot::Time,
+            field: None,
         }
     }
 
@@ -95,6 +101,7 @@ impl<M> Row<M> {
             display_unit: None,
             base_type: BaseType::Real,
             slot: Slot::Derivative(k),
+            field: None,
         }
     }
 

@@ -22,6 +22,9 @@ pub struct DisplayUnit {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UnitDef {
     pub name: &'static str,
+    /// What the unit measures, as Modelica's SI types name it (`Angle` for rad): the name of
+    /// the FMI 3.0 type that declares it.
+    pub quantity: &'static str,
     pub base: BaseUnit,
     pub display_units: &'static [DisplayUnit],
 }
@@ -49,26 +52,31 @@ const fn d(name: &'static str, si_per_display: f64) -> DisplayUnit {
 
 /// Every unit known to the toolkit.
 pub const UNITS: &[UnitDef] = &[
-    UnitDef { name: "1", base: b(0, 0, 0, 0), display_units: &[] },
-    UnitDef { name: "s", base: b(0, 0, 1, 0), display_units: &[d("ms", 1e-3)] },
-    UnitDef { name: "m", base: b(0, 1, 0, 0), display_units: &[d("mm", 1e-3), d("in", INCH)] },
-    UnitDef { name: "m/s", base: b(0, 1, -1, 0), display_units: &[d("mm/s", 1e-3), d("in/s", INCH)] },
-    UnitDef { name: "m/s2", base: b(0, 1, -2, 0), display_units: &[d("mm/s2", 1e-3), d("in/s2", INCH)] },
-    UnitDef { name: "kg", base: b(1, 0, 0, 0), display_units: &[d("lbf.s2/in", LBF / INCH)] },
-    UnitDef { name: "kg.m2", base: b(1, 2, 0, 0), display_units: &[] },
-    UnitDef { name: "N", base: b(1, 1, -2, 0), display_units: &[d("lbf", LBF), d("ozf", OZF)] },
-    UnitDef { name: "N/m", base: b(1, 0, -2, 0), display_units: &[d("lbf/in", LBF / INCH), d("lbf/ft", LBF / FOOT)] },
-    UnitDef { name: "N.s/m", base: b(1, 0, -1, 0), display_units: &[d("lbf.s/in", LBF / INCH)] },
-    UnitDef { name: "N.m", base: b(1, 2, -2, 0), display_units: &[d("lbf.in", LBF * INCH), d("ozf.in", OZF * INCH)] },
-    UnitDef { name: "N.m.s/rad", base: b(1, 2, -1, -1), display_units: &[] },
-    UnitDef { name: "J", base: b(1, 2, -2, 0), display_units: &[] },
-    UnitDef { name: "W", base: b(1, 2, -3, 0), display_units: &[] },
-    UnitDef { name: "rad", base: b(0, 0, 0, 1), display_units: &[d("deg", DEGREE)] },
-    UnitDef { name: "rad/s", base: b(0, 0, -1, 1), display_units: &[d("rpm", RPM), d("deg/s", DEGREE)] },
-    UnitDef { name: "rad/s2", base: b(0, 0, -2, 1), display_units: &[d("deg/s2", DEGREE)] },
-    UnitDef { name: "m/s3", base: b(0, 1, -3, 0), display_units: &[] },
-    UnitDef { name: "N/m2", base: b(1, -1, -2, 0), display_units: &[] },
-    UnitDef { name: "1/s", base: b(0, 0, -1, 0), display_units: &[] },
+    UnitDef { name: "1", quantity: "Dimensionless", base: b(0, 0, 0, 0), display_units: &[] },
+    UnitDef { name: "s", quantity: "Time", base: b(0, 0, 1, 0), display_units: &[d("ms", 1e-3)] },
+    UnitDef { name: "m", quantity: "Length", base: b(0, 1, 0, 0), display_units: &[d("mm", 1e-3), d("in", INCH)] },
+    UnitDef { name: "m/s", quantity: "Velocity", base: b(0, 1, -1, 0), display_units: &[d("mm/s", 1e-3), d("in/s", INCH)] },
+    UnitDef { name: "m/s2", quantity: "Acceleration", base: b(0, 1, -2, 0), display_units: &[d("mm/s2", 1e-3), d("in/s2", INCH)] },
+    UnitDef { name: "kg", quantity: "Mass", base: b(1, 0, 0, 0), display_units: &[d("lbf.s2/in", LBF / INCH)] },
+    UnitDef { name: "kg.m2", quantity: "MomentOfInertia", base: b(1, 2, 0, 0), display_units: &[] },
+    UnitDef { name: "N", quantity: "Force", base: b(1, 1, -2, 0), display_units: &[d("lbf", LBF), d("ozf", OZF)] },
+    UnitDef {
+        name: "N/m",
+        quantity: "TranslationalSpringConstant",
+        base: b(1, 0, -2, 0),
+        display_units: &[d("lbf/in", LBF / INCH), d("lbf/ft", LBF / FOOT)],
+    },
+    UnitDef { name: "N.s/m", quantity: "TranslationalDampingConstant", base: b(1, 0, -1, 0), display_units: &[d("lbf.s/in", LBF / INCH)] },
+    UnitDef { name: "N.m", quantity: "Torque", base: b(1, 2, -2, 0), display_units: &[d("lbf.in", LBF * INCH), d("ozf.in", OZF * INCH)] },
+    UnitDef { name: "N.m.s/rad", quantity: "RotationalDampingConstant", base: b(1, 2, -1, -1), display_units: &[] },
+    UnitDef { name: "J", quantity: "Energy", base: b(1, 2, -2, 0), display_units: &[] },
+    UnitDef { name: "W", quantity: "Power", base: b(1, 2, -3, 0), display_units: &[] },
+    UnitDef { name: "rad", quantity: "Angle", base: b(0, 0, 0, 1), display_units: &[d("deg", DEGREE)] },
+    UnitDef { name: "rad/s", quantity: "AngularVelocity", base: b(0, 0, -1, 1), display_units: &[d("rpm", RPM), d("deg/s", DEGREE)] },
+    UnitDef { name: "rad/s2", quantity: "AngularAcceleration", base: b(0, 0, -2, 1), display_units: &[d("deg/s2", DEGREE)] },
+    UnitDef { name: "m/s3", quantity: "Jerk", base: b(0, 1, -3, 0), display_units: &[] },
+    UnitDef { name: "N/m2", quantity: "Pressure", base: b(1, -1, -2, 0), display_units: &[] },
+    UnitDef { name: "1/s", quantity: "Rate", base: b(0, 0, -1, 0), display_units: &[] },
 ];
 
 /// Looks a unit up by name.
@@ -123,6 +131,7 @@ mod tests {
     fn unit_names_are_unique_and_display_names_unique_within_unit() {
         for (i, u) in UNITS.iter().enumerate() {
             assert!(UNITS[i + 1..].iter().all(|v| v.name != u.name), "duplicate unit {}", u.name);
+            assert!(UNITS[i + 1..].iter().all(|v| v.quantity != u.quantity), "two units measure {}", u.quantity);
             for (j, du) in u.display_units.iter().enumerate() {
                 assert!(u.display_units[j + 1..].iter().all(|e| e.name != du.name));
                 assert!(du.factor.is_finite() && du.factor > 0.0);

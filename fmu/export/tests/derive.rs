@@ -114,13 +114,7 @@ impl<F> Default for Toy<F> {
     }
 }
 
-impl<F: Flavour> Model for Toy<F> {
-    const N_STATES: usize = Cart::LEN;
-
-    fn info() -> ModelInfo {
-        ModelInfo { identifier: "toy", description: "a cart", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
-    }
-
+impl<F: Flavour> fmu_export::Equations<f64> for Toy<F> {
     fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
         // A cross-parameter condition, checked after the declared ranges.
         if self.k == 0.0 && self.x0 != 0.0 {
@@ -137,6 +131,14 @@ impl<F: Flavour> Model for Toy<F> {
 
     fn outputs(&mut self, _t: f64, x: &[f64]) {
         self.spring = self.k * Cart::load(x).position;
+    }
+}
+
+impl<F: Flavour> Model for Toy<F> {
+    const N_STATES: usize = Cart::LEN;
+
+    fn info() -> ModelInfo {
+        ModelInfo { identifier: "toy", description: "a cart", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
     }
 }
 
@@ -302,16 +304,20 @@ macro_rules! one_parameter_model {
             pub p: f64,
             $(pub $extra: $ty,)*
         }
+        impl fmu_export::Equations<f64> for $name {
+            fn initial_state(&mut self, _x: &mut [f64]) -> Result<(), ModelError> {
+                Ok(())
+            }
+
+            fn derivatives(&self, _t: f64, _x: &[f64], dx: &mut [f64]) {
+                dx.fill(0.0);
+            }
+        }
+
         impl Model for $name {
             const N_STATES: usize = Still::LEN;
             fn info() -> ModelInfo {
                 ModelInfo { identifier: "builds", description: "", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
-            }
-            fn initial_state(&mut self, _x: &mut [f64]) -> Result<(), ModelError> {
-                Ok(())
-            }
-            fn derivatives(&self, _t: f64, _x: &[f64], dx: &mut [f64]) {
-                dx.fill(0.0);
             }
         }
     };

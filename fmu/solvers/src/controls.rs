@@ -93,7 +93,8 @@ impl Control {
         match self {
             Control::Solver => {
                 "Integration method: 0 = forward Euler, 1 = classical RK4 (both with fixed_step), 2 = adaptive Dormand-Prince 5(4) \
-                 (ode45), 3 = Bogacki-Shampine 3(2) (ode23), 4 = Dormand-Prince 8(5,3) (DOP853). The adaptive methods step across \
+                 (ode45), 3 = Bogacki-Shampine 3(2) (ode23), 4 = Dormand-Prince 8(5,3) (DOP853), and for stiff systems the implicit \
+                 5 = BDF of orders 1 to 5 (CVODE's class) and 6 = ESDIRK 3(2), L-stable. The adaptive methods step across \
                  communication points, take the values there from the step's dense output and go on from the step's end; a new \
                  input, parameter or state value, or a restored FMU state, restarts them from the communication point, and no \
                  step crosses an event"
@@ -180,7 +181,7 @@ mod tests {
         assert!(Control::MaxStep.check(0.0).is_ok());
         assert_eq!(Control::MaxStep.default_value(), Some(0.0));
         assert_eq!(Control::Solver.check(4.0), Ok(()));
-        assert!(e.ends_with("3 (Bogacki-Shampine 3(2)) or 4 (Dormand-Prince 8(5,3))"), "{e}");
+        assert!(e.ends_with("4 (Dormand-Prince 8(5,3)), 5 (implicit BDF, orders 1-5) or 6 (implicit ESDIRK 3(2))"), "{e}");
         assert_eq!(Control::named("abs_tol"), Some(Control::AbsTol));
         assert_eq!(Control::FixedStep.default_value(), Some(1e-3));
         let mut c = Controls::default();

@@ -1,7 +1,9 @@
-//! ODE integrators for co-simulation: forward Euler and classic RK4 with a fixed step, and the
-//! adaptive Dormand–Prince 5(4), Bogacki–Shampine 3(2) and Dormand–Prince 8(5,3), with dense
-//! output and event (zero-crossing) location. Used inside the exported FMUs and by the runner to
-//! integrate Model Exchange FMUs.
+//! ODE integrators for co-simulation: forward Euler and classic RK4 with a fixed step, the
+//! adaptive Dormand–Prince 5(4), Bogacki–Shampine 3(2) and Dormand–Prince 8(5,3), and for stiff
+//! systems the implicit variable-order BDF and the L-stable ESDIRK 3(2) (Newton iterations with
+//! a Jacobian from the system's directional derivatives or grouped finite differences), all
+//! with dense output and event (zero-crossing) location. Used inside the exported FMUs and by
+//! the runner to integrate Model Exchange FMUs.
 //!
 //! The adaptive methods take the steps their error control chooses, across the times `advance`
 //! is asked to reach: the state there comes from the dense output of the step that covers it,
@@ -20,14 +22,19 @@
 use serde::{Deserialize, Serialize};
 
 mod adaptive;
+mod bdf;
 mod bs23;
 pub mod controls;
 mod dop853;
 mod dopri5;
+mod esdirk;
 mod events;
 mod fixed;
+pub mod implicit;
 mod lanes;
 mod root;
+#[cfg(test)]
+mod stiff_tests;
 #[cfg(test)]
 mod tests;
 
@@ -43,6 +50,21 @@ pub trait OdeSystem {
     }
     /// Writes the event indicator values at (t, x) into `z`.
     fn event_indicators(&self, _t: f64, _x: &[f64], _z: &mut [f64]) {}
+    /// For each derivative (row of the Jacobian df/dx), the states it depends on, when known
+    /// (an FMU's ModelStructure): the implicit methods then evaluate columns that share no row
+    /// together. `None` (the default): every derivative may depend on every state.
+    fn jacobian_pattern(&self) -> Option<&[Vec<usize>]> {
+        None
+    }
+    /// Whether `directional_derivative` gives exact Jacobian products (else the implicit
+    /// methods take finite differences of `rhs`).
+    fn provides_directional_derivative(&self) -> bool {
+        false
+    }
+    /// Writes df/dx(t, x) · v into `out` (NaN where it cannot be evaluated).
+    fn directional_derivative(&self, _t: f64, _x: &[f64], _v: &[f64], out: &mut [f64]) {
+        out.fill(f64::NAN);
+    }
 }
 
 /// Integration method.
@@ -58,14 +80,18 @@ pub enum Method {
     Bs23,
     /// Adaptive Dormand–Prince 8(5,3) with its 7th-order dense output (Hairer's DOP853).
     Dop853,
+    /// Implicit variable-order (1–5) variable-step BDF for stiff systems (CVODE's class).
+    Bdf,
+    /// Implicit L-stable ESDIRK 3(2) (Kennedy & Carpenter) for stiff systems.
+    Esdirk,
 }
 
 impl Method {
     /// Every method, in the order of their codes.
-    pub const ALL: [Method; 5] = [Method::Euler, Method::Rk4, Method::Dopri5, Method::Bs23, Method::Dop853];
+    pub const ALL: [Method; 7] = [Method::Euler, Method::Rk4, Method::Dopri5, Method::Bs23, Method::Dop853, Method::Bdf, Method::Esdirk];
 
     /// Method for an integer code as exposed in the model description (0 Euler, 1 Rk4, 2 Dopri5,
-    /// 3 Bs23, 4 Dop853).
+    /// 3 Bs23, 4 Dop853, 5 Bdf, 6 Esdirk).
     pub fn from_code(code: i32) -> Option<Method> {
         Method::ALL.into_iter().find(|m| m.code() == code)
     }
@@ -78,10 +104,12 @@ impl Method {
             Method::Dopri5 => 2,
             Method::Bs23 => 3,
             Method::Dop853 => 4,
+            Method::Bdf => 5,
+            Method::Esdirk => 6,
         }
     }
 
-    /// Lower-case name: "euler", "rk4", "dopri5", "bs23" or "dop853".
+    /// Lower-case name: "euler", "rk4", "dopri5", "bs23", "dop853", "bdf" or "esdirk".
     pub fn name(self) -> &'static str {
         match self {
             Method::Euler => "euler",
@@ -89,6 +117,8 @@ impl Method {
             Method::Dopri5 => "dopri5",
             Method::Bs23 => "bs23",
             Method::Dop853 => "dop853",
+            Method::Bdf => "bdf",
+            Method::Esdirk => "esdirk",
         }
     }
 
@@ -100,6 +130,8 @@ impl Method {
             Method::Dopri5 => "Dormand-Prince 5(4)",
             Method::Bs23 => "Bogacki-Shampine 3(2)",
             Method::Dop853 => "Dormand-Prince 8(5,3)",
+            Method::Bdf => "implicit BDF, orders 1-5",
+            Method::Esdirk => "implicit ESDIRK 3(2)",
         }
     }
 
@@ -113,7 +145,12 @@ impl Method {
         matches!(self, Method::Euler | Method::Rk4)
     }
 
-    /// The order of the method's solution (1, 4, 5, 3, 8).
+    /// True for the implicit methods for stiff systems (BDF, ESDIRK).
+    pub fn is_implicit(self) -> bool {
+        matches!(self, Method::Bdf | Method::Esdirk)
+    }
+
+    /// The order of the method's solution (1, 4, 5, 3, 8; BDF's highest, 5; ESDIRK 3).
     pub fn order(self) -> u32 {
         match self {
             Method::Euler => 1,
@@ -121,6 +158,8 @@ impl Method {
             Method::Dopri5 => 5,
             Method::Bs23 => 3,
             Method::Dop853 => 8,
+            Method::Bdf => 5,
+            Method::Esdirk => 3,
         }
     }
 }
@@ -338,6 +377,8 @@ pub struct Integrator {
     /// serialized state may carry any settings), not on every call.
     #[serde(skip)]
     settings_checked: bool,
+    /// The implicit methods' Jacobian, BDF history and counters (empty for the others).
+    implicit: implicit::Implicit,
     #[serde(skip)]
     work: Work,
 }
@@ -369,6 +410,7 @@ impl Integrator {
             dense_h: 0.0,
             dense: vec![0.0; DENSE_COEFFICIENTS * dim],
             settings_checked: false,
+            implicit: implicit::Implicit::default(),
             work: Work::new(dim, n_event_indicators),
         }
     }
@@ -419,9 +461,31 @@ impl Integrator {
         self.n_steps
     }
 
-    /// Right-hand-side evaluations since construction (indicator evaluations not counted).
+    /// Right-hand-side evaluations since construction, the implicit methods' finite-difference
+    /// Jacobian columns included (indicator evaluations not counted).
     pub fn n_rhs(&self) -> u64 {
-        self.n_rhs
+        self.n_rhs + self.implicit.difference_rhs()
+    }
+
+    /// Jacobian evaluations of the implicit methods since construction.
+    pub fn n_jacobians(&self) -> u64 {
+        self.implicit.n_jacobians
+    }
+
+    /// Jacobian columns (or groups of columns sharing no row) evaluated, each one
+    /// right-hand-side evaluation (counted in `n_rhs` too) or one directional derivative.
+    pub fn n_jacobian_columns(&self) -> u64 {
+        self.implicit.n_jacobian_columns
+    }
+
+    /// Directional-derivative evaluations (the system's exact Jacobian products).
+    pub fn n_directional(&self) -> u64 {
+        self.implicit.n_directional
+    }
+
+    /// Step attempts of the implicit methods whose Newton iteration did not converge.
+    pub fn n_newton_failures(&self) -> u64 {
+        self.implicit.n_newton_failures
     }
 
     /// Rejected step attempts of the adaptive methods since construction.
@@ -539,6 +603,8 @@ impl Integrator {
                 Method::Dopri5 => self.advance_adaptive::<S, dopri5::Dopri5>(sys, t_end),
                 Method::Bs23 => self.advance_adaptive::<S, bs23::Bs23>(sys, t_end),
                 Method::Dop853 => self.advance_adaptive::<S, dop853::Dop853>(sys, t_end),
+                Method::Bdf => self.advance_bdf(sys, t_end),
+                Method::Esdirk => self.advance_esdirk(sys, t_end),
                 Method::Euler | Method::Rk4 => unreachable!("fixed-step methods returned above"),
             };
             if let Err(e) = stepped {
@@ -571,6 +637,8 @@ impl Integrator {
             Method::Dopri5 => adaptive::interpolate::<dopri5::Dopri5>(th, n, &self.dense, &mut self.x_out),
             Method::Bs23 => adaptive::interpolate::<bs23::Bs23>(th, n, &self.dense, &mut self.x_out),
             Method::Dop853 => adaptive::interpolate::<dop853::Dop853>(th, n, &self.dense, &mut self.x_out),
+            Method::Bdf => bdf::eval(self.implicit.dense_order, th, n, &self.dense, &mut self.x_out),
+            Method::Esdirk => adaptive::interpolate::<bs23::Bs23>(th, n, &self.dense, &mut self.x_out),
             // Never pending: they land on every point they are asked for.
             Method::Euler | Method::Rk4 => unreachable!("a fixed-step method has no pending step"),
         }

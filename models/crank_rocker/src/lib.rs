@@ -47,8 +47,8 @@ mod tests {
     use fmu_export::harness::Harness;
     use fmu_export::table::Table;
     #[allow(unused_imports)]
-    use fmu_export::Model;
-    use runner_engine::references::References;
+    use fmu_export::{Equations, Model};
+    use formulas::References;
     use std::f64::consts::PI;
 
     /// Entry `name` of references.toml at the input angle `th` for the parameters of `p`: the
@@ -186,5 +186,15 @@ mod tests {
     #[test]
     fn catalogue_entry_is_current() {
         fmu_export::catalogue::check::<FourBar>(env!("CARGO_MANIFEST_DIR"));
+    }
+
+    /// The FMU's exact derivatives (dual numbers through the model's own equations) against
+    /// central differences of its f64 equations, along the default run and at initialization
+    /// (`check_derivatives` states the bound and why).
+    #[test]
+    fn exact_derivatives_match_central_differences() {
+        let report = fmu_export::harness::check_derivatives::<FourBar>().unwrap();
+        eprintln!("{report:?}");
+        assert!(report.points > 10, "{report:?}");
     }
 }

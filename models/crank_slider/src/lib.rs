@@ -41,8 +41,8 @@ mod tests {
     use fmu_export::logging::Status;
     use fmu_export::table::Table;
     #[allow(unused_imports)]
-    use fmu_export::Model;
-    use runner_engine::references::References;
+    use fmu_export::{Equations, Model};
+    use formulas::References;
     use std::f64::consts::PI;
 
     /// Entry `name` of references.toml at the crank angle `th` for the parameters of `p`: the
@@ -173,8 +173,9 @@ mod tests {
     /// The crank turns fully (l_AB > l_OA): the default run reaches the stop time with Ok.
     /// With l_AB = 60 mm < l_OA it cannot: from theta0 = 0 the rod becomes vertical when
     /// sin(theta) = l_AB / l_OA = 0.75 (references.toml's theta_limit), theta = 48.590 deg;
-    /// the FMU must stop there with
-    /// Discard, a message naming the limit and the angle, finite outputs, and no jump of branch.
+    /// the FMU must stop the margin |cos(theta3)| = 0.05 before it (references.toml's
+    /// theta_stop, 48.51 deg) with Discard, a message naming the limit and the angle, finite
+    /// outputs, and no jump of branch.
     #[test]
     fn short_rod_stops_at_the_limit_position() {
         let mut h = harness(&[("l_AB", 0.06), ("theta0", 0.0)], None);
@@ -182,18 +183,26 @@ mod tests {
         let t_end = *tr.time.last().unwrap();
         let p = CrankSlider { l_ab: 0.06, theta0: 0.0, ..CrankSlider::default() };
         let limit = reference("theta_limit", &p, p.theta0);
+        let stop = reference("theta_stop", &p, p.theta0);
         let th_end = *tr.get("theta").last().unwrap();
-        eprintln!("stopped at t = {t_end}, theta = {:.6} deg (limit {:.6} deg)", th_end.to_degrees(), limit.to_degrees());
+        eprintln!(
+            "stopped at t = {t_end}, theta = {:.6} deg (limit {:.6} deg, stop {:.6} deg, off by {:.2e} rad)",
+            th_end.to_degrees(),
+            limit.to_degrees(),
+            stop.to_degrees(),
+            th_end - stop
+        );
         assert_eq!(h.instance.do_step_status().unwrap(), Status::Discard);
         assert!(h.instance.terminated().unwrap());
-        // Indicator cos(theta3) = 1e-3: theta short of the limit by ~l_AB cos3^2 / (2 l_OA cos(limit)) = 6e-7 rad.
-        assert!(th_end <= limit && limit - th_end < 1e-5, "{th_end} vs {limit}");
+        // The indicator is a function of the exact crank angle: the located stop is at
+        // theta_stop to the event location's precision (bound 1e-8 rad).
+        assert!(th_end < limit && (th_end - stop).abs() < 1e-8, "{th_end} vs {stop}");
         for (j, n) in NAMES.iter().enumerate() {
             assert!(tr.values[j].iter().all(|v| v.is_finite()), "{n} not finite");
         }
         assert!(tr.get("B_x").iter().zip(tr.get("A_x")).all(|(b, a)| b > a), "branch jump");
         let msg = h.messages().join("\n");
-        assert!(msg.contains("limit position at theta = 48.59"), "{msg}");
+        assert!(msg.contains("limit position at theta = 48.50"), "{msg}");
     }
 
     #[test]
@@ -221,5 +230,15 @@ mod tests {
     #[test]
     fn catalogue_entry_is_current() {
         fmu_export::catalogue::check::<CrankSlider>(env!("CARGO_MANIFEST_DIR"));
+    }
+
+    /// The FMU's exact derivatives (dual numbers through the model's own equations) against
+    /// central differences of its f64 equations, along the default run and at initialization
+    /// (`check_derivatives` states the bound and why).
+    #[test]
+    fn exact_derivatives_match_central_differences() {
+        let report = fmu_export::harness::check_derivatives::<CrankSlider>().unwrap();
+        eprintln!("{report:?}");
+        assert!(report.points > 10, "{report:?}");
     }
 }

@@ -1,7 +1,8 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu_export::{EventOutcome, Model, ModelError, ModelInfo, StateVector, Variables};
+use fmu_export::scalar::length;
+use fmu_export::{Equations, EventOutcome, Model, ModelError, ModelInfo, Scalar, StateVector, Variables};
 use nalgebra::{Matrix2, Matrix6, Matrix6x2, Vector2, Vector6};
 use serde::{Deserialize, Serialize};
 
@@ -14,80 +15,80 @@ const NEWTON_ITERS: usize = 20;
 /// collar pivoted at C. Loop r1 + r2 = r3 (r1 = C->A along +x, r3 = C->B).
 #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
 #[variables(states = State)]
-pub struct InvertedCrankSlider {
+pub struct InvertedCrankSlider<T = f64> {
     /// Ground distance from the collar pivot C to the crank pivot A
     #[parameter(unit = "m", display = "mm", positive)]
-    pub r1: f64,
+    pub r1: T,
     /// Crank length AB
     #[parameter(unit = "m", display = "mm", positive)]
-    pub r2: f64,
+    pub r2: T,
     /// Length of link BD (slides through the collar at C)
     #[parameter(name = "L3", unit = "m", display = "mm", positive)]
-    pub l3: f64,
+    pub l3: T,
     /// Crank angular velocity theta2' (counter-clockwise positive; the default turns
     /// clockwise as in Fig. E.1)
     #[parameter(unit = "rad/s", display = "rpm", finite)]
-    pub omega: f64,
+    pub omega: T,
     /// Initial crank angle theta2 (counter-clockwise from +x)
     #[parameter(unit = "rad", display = "deg", finite)]
-    pub theta2_0: f64,
+    pub theta2_0: T,
     /// Mass of the crank AB (centre of mass at its middle)
     #[parameter(unit = "kg", non_negative)]
-    pub m2: f64,
+    pub m2: T,
     /// Mass of link BD (centre of mass at its middle)
     #[parameter(unit = "kg", non_negative)]
-    pub m3: f64,
+    pub m3: T,
     /// Moment of inertia of link BD about its centre of mass
     #[parameter(name = "I3", unit = "kg.m2", non_negative)]
-    pub i3: f64,
+    pub i3: T,
     /// Sliding acceleration r3''
     #[output(unit = "m/s2")]
-    pub r3_ddot: f64,
+    pub r3_ddot: T,
     /// Angular acceleration of link BD
     #[output(unit = "rad/s2")]
-    pub theta3_ddot: f64,
+    pub theta3_ddot: T,
     // The kinetics' unknowns y = [F_Ax, F_Ay, F_Bx, F_By, F_C, T] (E.24):
     /// x force of the ground on the crank at A
     #[output(name = "F_Ax", unit = "N")]
-    pub f_ax: f64,
+    pub f_ax: T,
     /// y force of the ground on the crank at A
     #[output(name = "F_Ay", unit = "N")]
-    pub f_ay: f64,
+    pub f_ay: T,
     /// x force of link BD on the crank at B
     #[output(name = "F_Bx", unit = "N")]
-    pub f_bx: f64,
+    pub f_bx: T,
     /// y force of link BD on the crank at B
     #[output(name = "F_By", unit = "N")]
-    pub f_by: f64,
+    pub f_by: T,
     /// Collar force on link BD, along (-sin theta3, cos theta3)
     #[output(name = "F_C", unit = "N")]
-    pub f_c: f64,
+    pub f_c: T,
     /// Input torque on the crank (counter-clockwise positive)
     #[output(name = "T", unit = "N.m")]
-    pub torque: f64,
+    pub torque: T,
     /// Vector-loop gap |e| (E.16)
     #[output(unit = "m")]
-    pub loop_residual: f64,
+    pub loop_residual: T,
 }
 
 /// The state vector: the crank angle, the loop's unknowns x = [r3, theta3] and their rates.
 #[derive(StateVector)]
-pub struct State {
+pub struct State<T = f64> {
     /// Crank angle
     #[state(unit = "rad", display = "deg")]
-    pub theta2: f64,
+    pub theta2: T,
     /// Distance from the collar pivot C to B
     #[state(unit = "m")]
-    pub r3: f64,
+    pub r3: T,
     /// Angle of C->B (of link BD)
     #[state(unit = "rad", display = "deg")]
-    pub theta3: f64,
+    pub theta3: T,
     /// Sliding velocity r3'
     #[state(unit = "m/s")]
-    pub r3_dot: f64,
+    pub r3_dot: T,
     /// Angular velocity of link BD
     #[state(unit = "rad/s")]
-    pub theta3_dot: f64,
+    pub theta3_dot: T,
 }
 
 impl Default for InvertedCrankSlider {
@@ -122,83 +123,79 @@ impl Default for InvertedCrankSlider {
     }
 }
 
-impl InvertedCrankSlider {
+impl<T: Scalar> InvertedCrankSlider<T> {
     /// Loop gap e = r1 + r2 - r3 (E.14, E.15).
-    pub fn gap(&self, th2: f64, r3: f64, th3: f64) -> Vector2<f64> {
+    pub fn gap(&self, th2: T, r3: T, th3: T) -> Vector2<T> {
         Vector2::new(self.r1 + self.r2 * th2.cos() - r3 * th3.cos(), self.r2 * th2.sin() - r3 * th3.sin())
     }
 
     /// A of E.7 and E.12 (A11 of E.23).
-    pub fn a_matrix(r3: f64, th3: f64) -> Matrix2<f64> {
+    pub fn a_matrix(r3: T, th3: T) -> Matrix2<T> {
         let (s3, c3) = th3.sin_cos();
         Matrix2::new(c3, -r3 * s3, s3, r3 * c3)
     }
 
-    fn b_velocity(&self, th2: f64) -> Vector2<f64> {
+    fn b_velocity(&self, th2: T) -> Vector2<T> {
         let (s2, c2) = th2.sin_cos();
         Vector2::new(-self.r2 * s2 * self.omega, self.r2 * c2 * self.omega)
     }
 
     /// b1 of E.12.
-    fn b_acceleration(&self, s: &State) -> Vector2<f64> {
+    fn b_acceleration(&self, s: &State<T>) -> Vector2<T> {
         let (s2, c2) = s.theta2.sin_cos();
         let (s3, c3) = s.theta3.sin_cos();
         let (r3, r3d, w3, w2) = (s.r3, s.r3_dot, s.theta3_dot, self.omega);
         Vector2::new(
-            -self.r2 * c2 * w2 * w2 + 2.0 * s3 * r3d * w3 + r3 * c3 * w3 * w3,
-            -self.r2 * s2 * w2 * w2 - 2.0 * c3 * r3d * w3 + r3 * s3 * w3 * w3,
+            -self.r2 * c2 * w2 * w2 + s3 * 2.0 * r3d * w3 + r3 * c3 * w3 * w3,
+            -self.r2 * s2 * w2 * w2 - c3 * 2.0 * r3d * w3 + r3 * s3 * w3 * w3,
         )
     }
 
     /// x'' = A^-1 b (A is regular: det A = r3 >= r1 - r2 > 0).
-    fn accelerations(&self, s: &State) -> Vector2<f64> {
+    fn accelerations(&self, s: &State<T>) -> Vector2<T> {
         Self::a_matrix(s.r3, s.theta3).lu().solve(&self.b_acceleration(s)).unwrap_or_else(Vector2::zeros)
     }
 
     /// The kinetics, E.17 to E.24: y = A22^-1 (b2 - A21 x''), y = [F_Ax, F_Ay, F_Bx, F_By, F_C, T].
-    pub fn forces(&self, s: &State, acc: &Vector2<f64>) -> Vector6<f64> {
+    pub fn forces(&self, s: &State<T>, acc: &Vector2<T>) -> Vector6<T> {
         let (s2, c2) = s.theta2.sin_cos();
         let (s3, c3) = s.theta3.sin_cos();
         let (r2, l3, m2, m3) = (self.r2, self.l3, self.m2, self.m3);
         let (r3, r3d, w3, w2) = (s.r3, s.r3_dot, s.theta3_dot, self.omega);
-        let g = r3 - 0.5 * l3;
+        let g = r3 - l3 * 0.5;
+        let (zero, one) = (T::zero(), T::one());
+        #[rustfmt::skip]
         let a21 = Matrix6x2::new(
-            0.0,
-            0.0, //
-            0.0,
-            0.0, //
-            0.0,
-            0.0, //
-            -m3 * c3,
-            m3 * g * s3, //
-            -m3 * s3,
-            -m3 * g * c3, //
-            0.0,
-            -self.i3,
+            zero, zero,
+            zero, zero,
+            zero, zero,
+            -m3 * c3, m3 * g * s3,
+            -m3 * s3, -m3 * g * c3,
+            zero, -self.i3,
         );
         #[rustfmt::skip]
         let a22 = Matrix6::new(
-            1.0, 0.0, 1.0, 0.0, 0.0, 0.0,
-            0.0, 1.0, 0.0, 1.0, 0.0, 0.0,
-            0.5 * r2 * s2, -0.5 * r2 * c2, -0.5 * r2 * s2, 0.5 * r2 * c2, 0.0, 1.0,
-            0.0, 0.0, -1.0, 0.0, -s3, 0.0,
-            0.0, 0.0, 0.0, -1.0, c3, 0.0,
-            0.0, 0.0, 0.5 * l3 * s3, -0.5 * l3 * c3, -g, 0.0,
+            one, zero, one, zero, zero, zero,
+            zero, one, zero, one, zero, zero,
+            r2 * 0.5 * s2, -r2 * 0.5 * c2, -r2 * 0.5 * s2, r2 * 0.5 * c2, zero, one,
+            zero, zero, -one, zero, -s3, zero,
+            zero, zero, zero, -one, c3, zero,
+            zero, zero, l3 * 0.5 * s3, -l3 * 0.5 * c3, -g, zero,
         );
         let b2 = Vector6::new(
-            -0.5 * m2 * r2 * c2 * w2 * w2,
-            -0.5 * m2 * r2 * s2 * w2 * w2,
-            0.0,
-            -2.0 * m3 * s3 * r3d * w3 - m3 * g * c3 * w3 * w3,
-            2.0 * m3 * c3 * r3d * w3 - m3 * g * s3 * w3 * w3,
-            0.0,
+            m2 * -0.5 * r2 * c2 * w2 * w2,
+            m2 * -0.5 * r2 * s2 * w2 * w2,
+            zero,
+            m3 * -2.0 * s3 * r3d * w3 - m3 * g * c3 * w3 * w3,
+            m3 * 2.0 * c3 * r3d * w3 - m3 * g * s3 * w3 * w3,
+            zero,
         );
         a22.lu().solve(&(b2 - a21 * acc)).unwrap_or_else(Vector6::zeros)
     }
 
     /// Initial positions: the zero of the gap (E.3.1) in closed form, r3 = |r1 + r2|
     /// (r3 > 0); velocities from A x' = b (E.3.2).
-    fn assemble(&self, x: &mut [f64]) -> Result<(), ModelError> {
+    fn assemble(&self, x: &mut [T]) -> Result<(), ModelError> {
         let (s2, c2) = self.theta2_0.sin_cos();
         let (bx, by) = (self.r1 + self.r2 * c2, self.r2 * s2);
         let (r3, th3) = (bx.hypot(by), by.atan2(bx));
@@ -208,6 +205,60 @@ impl InvertedCrankSlider {
             .ok_or_else(|| ModelError("A is singular at theta2_0".into()))?;
         State { theta2: self.theta2_0, r3, theta3: th3, r3_dot: v[0], theta3_dot: v[1] }.store(x);
         Ok(())
+    }
+}
+
+impl<T: Scalar> Equations<T> for InvertedCrankSlider<T> {
+    fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError> {
+        if self.r2 >= self.r1 {
+            return Err(ModelError(format!(
+                "parameters r2 = {} m and r1 = {} m: the crank must be shorter than the ground distance (r2 < r1), otherwise B passes through the collar pivot C (r3 = 0, A singular)",
+                self.r2.value(),
+                self.r1.value()
+            )));
+        }
+        // C-B at the start: where `assemble` puts B (r3 of the closed form).
+        let r3_0 = (self.r1 + self.r2 * self.theta2_0.cos()).hypot(self.r2 * self.theta2_0.sin());
+        if self.l3 <= r3_0 {
+            return Err(ModelError(format!(
+                "the mechanism cannot be assembled at theta2_0 = {:.4} deg: link BD (L3 = {} m) does not reach through the collar, \
+                 C is {} m from B (r1 = {} m, r2 = {} m); L3 must exceed r1 + r2 for the crank to turn",
+                self.theta2_0.value().to_degrees(),
+                self.l3.value(),
+                r3_0.value(),
+                self.r1.value(),
+                self.r2.value()
+            )));
+        }
+        if self.r1 + self.r2 >= self.l3 {
+            return Err(ModelError(format!(
+                "parameters r1 = {} m, r2 = {} m, L3 = {} m: link BD would leave the collar during the crank's turn; \
+                 it must be longer than the largest C-B distance r1 + r2 (at theta2 = 0)",
+                self.r1.value(),
+                self.r2.value(),
+                self.l3.value()
+            )));
+        }
+        self.assemble(x)
+    }
+
+    /// The crank turns at omega; the unknowns' accelerations from A x'' = b (E.12).
+    fn derivatives(&self, _t: T, x: &[T], dx: &mut [T]) {
+        let s = State::load(x);
+        let acc = self.accelerations(&s);
+        State { theta2: self.omega, r3: s.r3_dot, theta3: s.theta3_dot, r3_dot: acc[0], theta3_dot: acc[1] }.store(dx);
+    }
+
+    fn outputs(&mut self, _t: T, x: &[T]) {
+        let s = State::load(x);
+        let acc = self.accelerations(&s);
+        self.r3_ddot = acc[0];
+        self.theta3_ddot = acc[1];
+        let y = self.forces(&s, &acc);
+        [self.f_ax, self.f_ay, self.f_bx, self.f_by, self.f_c, self.torque] = [y[0], y[1], y[2], y[3], y[4], y[5]];
+        // Zero but for the rounding of its terms (lengths up to r1 + r2) after a projection.
+        let noise = 16.0 * f64::EPSILON * (self.r1 + self.r2).value();
+        self.loop_residual = length(&self.gap(s.theta2, s.r3, s.theta3), noise);
     }
 }
 
@@ -225,52 +276,6 @@ impl Model for InvertedCrankSlider {
             output_interval: 1e-3,
             documentation: include_str!("../derivation.md"),
         }
-    }
-
-    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        if self.r2 >= self.r1 {
-            return Err(ModelError(format!(
-                "parameters r2 = {} m and r1 = {} m: the crank must be shorter than the ground distance (r2 < r1), otherwise B passes through the collar pivot C (r3 = 0, A singular)",
-                self.r2, self.r1
-            )));
-        }
-        // C-B at the start: where `assemble` puts B (r3 of the closed form).
-        let r3_0 = (self.r1 + self.r2 * self.theta2_0.cos()).hypot(self.r2 * self.theta2_0.sin());
-        if self.l3 <= r3_0 {
-            return Err(ModelError(format!(
-                "the mechanism cannot be assembled at theta2_0 = {:.4} deg: link BD (L3 = {} m) does not reach through the collar, \
-                 C is {r3_0} m from B (r1 = {} m, r2 = {} m); L3 must exceed r1 + r2 for the crank to turn",
-                self.theta2_0.to_degrees(),
-                self.l3,
-                self.r1,
-                self.r2
-            )));
-        }
-        if self.r1 + self.r2 >= self.l3 {
-            return Err(ModelError(format!(
-                "parameters r1 = {} m, r2 = {} m, L3 = {} m: link BD would leave the collar during the crank's turn; \
-                 it must be longer than the largest C-B distance r1 + r2 (at theta2 = 0)",
-                self.r1, self.r2, self.l3
-            )));
-        }
-        self.assemble(x)
-    }
-
-    /// The crank turns at omega; the unknowns' accelerations from A x'' = b (E.12).
-    fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
-        let s = State::load(x);
-        let acc = self.accelerations(&s);
-        State { theta2: self.omega, r3: s.r3_dot, theta3: s.theta3_dot, r3_dot: acc[0], theta3_dot: acc[1] }.store(dx);
-    }
-
-    fn outputs(&mut self, _t: f64, x: &[f64]) {
-        let s = State::load(x);
-        let acc = self.accelerations(&s);
-        self.r3_ddot = acc[0];
-        self.theta3_ddot = acc[1];
-        let y: [f64; 6] = self.forces(&s, &acc).into();
-        [self.f_ax, self.f_ay, self.f_bx, self.f_by, self.f_c, self.torque] = y;
-        self.loop_residual = self.gap(s.theta2, s.r3, s.theta3).norm();
     }
 
     /// The loop-closure gap |e| over r1 + r2 (Model Exchange projects with a step event when
@@ -323,7 +328,7 @@ mod tests {
     use super::*;
     use fmu_export::harness::{Harness, Trajectory};
     use fmu_export::table::Table;
-    use runner_engine::references::References;
+    use formulas::References;
     use std::f64::consts::PI;
 
     fn wrap(a: f64) -> f64 {
@@ -563,5 +568,15 @@ mod tests {
     #[test]
     fn catalogue_entry_is_current() {
         fmu_export::catalogue::check::<InvertedCrankSlider>(env!("CARGO_MANIFEST_DIR"));
+    }
+
+    /// The FMU's exact derivatives (dual numbers through the model's own equations) against
+    /// central differences of its f64 equations, along the default run and at initialization
+    /// (`check_derivatives` states the bound and why).
+    #[test]
+    fn exact_derivatives_match_central_differences() {
+        let report = fmu_export::harness::check_derivatives::<InvertedCrankSlider>().unwrap();
+        eprintln!("{report:?}");
+        assert!(report.points > 10, "{report:?}");
     }
 }

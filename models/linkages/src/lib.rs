@@ -10,13 +10,14 @@ pub mod slider_crank;
 pub use four_bar::FourBar;
 pub use slider_crank::SliderCrank;
 
-use fmu_export::ModelInfo;
+use fmu_export::nalgebra::Vector2;
+use fmu_export::{ModelInfo, Scalar};
 
 /// Position and velocity of the crank pin A of an input link of length `l_oa` at angle
-/// `theta` turning at `omega`: (A_x, A_y, v_A_x, v_A_y).
-pub fn crank_point(l_oa: f64, theta: f64, omega: f64) -> (f64, f64, f64, f64) {
+/// `theta` turning at `omega`: (A, v_A).
+pub fn crank_point<T: Scalar>(l_oa: T, theta: T, omega: T) -> (Vector2<T>, Vector2<T>) {
     let (s, c) = theta.sin_cos();
-    (l_oa * c, l_oa * s, -l_oa * omega * s, l_oa * omega * c)
+    (Vector2::new(l_oa * c, l_oa * s), Vector2::new(-l_oa * omega * s, l_oa * omega * c))
 }
 
 /// Default parameters of a four-bar FMU.

@@ -2,48 +2,48 @@
 #![deny(unsafe_code)]
 
 use fmu_export::units::{INCH, LBF};
-use fmu_export::{Model, ModelError, ModelInfo, StateVector, Variables};
+use fmu_export::{Equations, Model, ModelError, ModelInfo, Scalar, StateVector, Variables};
 use serde::{Deserialize, Serialize};
 
 /// `m x'' + b x' + k x = F(t)`, F an input.
 #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
 #[variables(states = State)]
-pub struct MassSpringDamper {
+pub struct MassSpringDamper<T = f64> {
     /// Mass (2 lbf.s2/in)
     #[parameter(unit = "kg", display = "lbf.s2/in", positive)]
-    pub m: f64,
+    pub m: T,
     /// Damping coefficient (1 lbf.s/in)
     #[parameter(unit = "N.s/m", display = "lbf.s/in", non_negative)]
-    pub b: f64,
+    pub b: T,
     /// Spring stiffness (10 lbf/in)
     #[parameter(unit = "N/m", display = "lbf/in", non_negative)]
-    pub k: f64,
+    pub k: T,
     /// Initial displacement
     #[parameter(unit = "m", display = "in", finite)]
-    pub x0: f64,
+    pub x0: T,
     /// Initial velocity
     #[parameter(unit = "m/s", display = "in/s", finite)]
-    pub v0: f64,
+    pub v0: T,
     /// Applied force F(t)
     #[input(name = "F", unit = "N", display = "lbf")]
-    pub force: f64,
+    pub force: T,
     /// Acceleration
     #[output(unit = "m/s2", display = "in/s2")]
-    pub a: f64,
+    pub a: T,
     /// Force through spring and damper, k x + b v
     #[output(name = "F_total", unit = "N", display = "lbf")]
-    pub f_total: f64,
+    pub f_total: T,
 }
 
 /// The state vector.
 #[derive(StateVector)]
-pub struct State {
+pub struct State<T = f64> {
     /// Displacement
     #[state(unit = "m", display = "in")]
-    pub x: f64,
+    pub x: T,
     /// Velocity
     #[state(unit = "m/s", display = "in/s")]
-    pub v: f64,
+    pub v: T,
 }
 
 impl Default for MassSpringDamper {
@@ -52,11 +52,31 @@ impl Default for MassSpringDamper {
     }
 }
 
-impl MassSpringDamper {
+impl<T: Scalar> MassSpringDamper<T> {
     /// Acceleration from Newton's second law.
     #[inline]
-    fn acceleration(&self, x: f64, v: f64) -> f64 {
+    fn acceleration(&self, x: T, v: T) -> T {
         (self.force - self.b * v - self.k * x) / self.m
+    }
+}
+
+impl<T: Scalar> Equations<T> for MassSpringDamper<T> {
+    fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError> {
+        State { x: self.x0, v: self.v0 }.store(x);
+        Ok(())
+    }
+
+    #[inline]
+    fn derivatives(&self, _t: T, x: &[T], dx: &mut [T]) {
+        let s = State::load(x);
+        State { x: s.v, v: self.acceleration(s.x, s.v) }.store(dx);
+    }
+
+    /// The App. B output equation y = C x + D u.
+    fn outputs(&mut self, _t: T, x: &[T]) {
+        let s = State::load(x);
+        self.a = self.acceleration(s.x, s.v);
+        self.f_total = self.k * s.x + self.b * s.v;
     }
 }
 
@@ -73,24 +93,6 @@ impl Model for MassSpringDamper {
             documentation: include_str!("../derivation.md"),
         }
     }
-
-    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        State { x: self.x0, v: self.v0 }.store(x);
-        Ok(())
-    }
-
-    #[inline]
-    fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
-        let s = State::load(x);
-        State { x: s.v, v: self.acceleration(s.x, s.v) }.store(dx);
-    }
-
-    /// The App. B output equation y = C x + D u.
-    fn outputs(&mut self, _t: f64, x: &[f64]) {
-        let s = State::load(x);
-        self.a = self.acceleration(s.x, s.v);
-        self.f_total = self.k * s.x + self.b * s.v;
-    }
 }
 
 fmu_export::export_fmu!(MassSpringDamper);
@@ -99,7 +101,9 @@ fmu_export::export_fmu!(MassSpringDamper);
 mod tests {
     use super::*;
     use fmu_export::harness::Harness;
-    use runner_engine::metrics::Formula;
+    use fmu_export::harness::{jacobian, Stage};
+    use formulas::Formula;
+    use formulas::References;
 
     /// The underdamped free vibration of experiment.toml's `[compare.reference]` (derivation.md),
     /// the closed form `runner compare` and tests/fmpy evaluate too, at `t` from (x0, v0).
@@ -216,5 +220,39 @@ mod tests {
     #[test]
     fn catalogue_entry_is_current() {
         fmu_export::catalogue::check::<MassSpringDamper>(env!("CARGO_MANIFEST_DIR"));
+    }
+
+    /// The FMU's exact derivatives (dual numbers through the model's own equations) against
+    /// central differences of its f64 equations, along the default run and at initialization
+    /// (`check_derivatives` states the bound and why).
+    #[test]
+    fn exact_derivatives_match_central_differences() {
+        let report = fmu_export::harness::check_derivatives::<MassSpringDamper>().unwrap();
+        eprintln!("{report:?}");
+        assert!(report.points > 10, "{report:?}");
+    }
+
+    /// The exact Jacobians of the FMU's derivatives and outputs are A, B, C and D of
+    /// references.toml (App. B's state-space form), to rounding (a few ulps of each matrix's
+    /// largest entry), at a state away from rest and with a force applied.
+    #[test]
+    fn the_jacobians_are_the_state_space_matrices() {
+        let p = MassSpringDamper { force: 3.0, ..Default::default() };
+        let refs = References::from_toml(include_str!("../references.toml")).expect("valid references");
+        let values = [("m", p.m), ("b", p.b), ("k", p.k)];
+        let j = jacobian(&p, 0.0, &[0.02, -0.1], Stage::ContinuousTime);
+        let (states, derivatives, outputs) = (["x", "v"], ["der(x)", "der(v)"], ["a", "F_total"]);
+        for (name, got) in [
+            ("A", j.block(&derivatives, &states)),
+            ("B", j.block(&derivatives, &["F"])),
+            ("C", j.block(&outputs, &states)),
+            ("D", j.block(&outputs, &["F"])),
+        ] {
+            let want = refs.matrix(name, &values).unwrap();
+            let scale = want.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (g, w) in got.iter().flatten().zip(want.iter().flatten()) {
+                assert!((g - w).abs() <= 4.0 * f64::EPSILON * scale, "{name}: {got:?} vs {want:?}");
+            }
+        }
     }
 }

@@ -3,111 +3,104 @@
 
 use std::f64::consts::PI;
 
-use fmu_export::{Model, ModelError, ModelInfo, PhaseCosine, StateVector, Variables};
+use fmu_export::{Derived, Equations, Harmonic, Model, ModelError, ModelInfo, Scalar, StateVector, Variables};
 use serde::{Deserialize, Serialize};
 
 /// Ex. 4: sprung and unsprung masses on suspension and tire, driven by the road rate z_r'.
 #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
 #[variables(states = State)]
-pub struct QuarterCar {
+pub struct QuarterCar<T = f64> {
     /// Sprung mass (a quarter of the body)
     #[parameter(unit = "kg", positive)]
-    pub m_s: f64,
+    pub m_s: T,
     /// Unsprung mass (wheel, hub, brake)
     #[parameter(unit = "kg", positive)]
-    pub m_u: f64,
+    pub m_u: T,
     /// Suspension spring stiffness
     // The springs must carry the static weight the derivation subtracts: zero stiffness is refused.
     #[parameter(unit = "N/m", positive)]
-    pub k_s: f64,
+    pub k_s: T,
     /// Suspension damping coefficient
     #[parameter(unit = "N.s/m", non_negative)]
-    pub b_s: f64,
+    pub b_s: T,
     /// Tire stiffness
     #[parameter(unit = "N/m", positive)]
-    pub k_t: f64,
+    pub k_t: T,
     /// Tire damping coefficient
     #[parameter(unit = "N.s/m", non_negative)]
-    pub b_t: f64,
+    pub b_t: T,
     /// Horizontal speed of the car x_c'
     #[parameter(unit = "m/s", non_negative)]
-    pub speed: f64,
+    pub speed: T,
     /// Amplitude a of the road z_r = a sin(2 pi x_c / wavelength)
     #[parameter(unit = "m", finite)]
-    pub road_amplitude: f64,
+    pub road_amplitude: T,
     /// Wavelength of the sinusoidal road
     #[parameter(unit = "m", positive)]
-    pub road_wavelength: f64,
+    pub road_wavelength: T,
     /// External road rate, added to the sinusoidal road's rate
     #[input(unit = "m/s", finite)]
-    pub z_r_dot_ext: f64,
+    pub z_r_dot_ext: T,
     /// Sprung mass acceleration
     #[output(unit = "m/s2")]
-    pub z_s_ddot: f64,
+    pub z_s_ddot: T,
     /// Unsprung mass acceleration
     #[output(unit = "m/s2")]
-    pub z_u_ddot: f64,
+    pub z_u_ddot: T,
     /// Road rate u = z_r' (sinusoidal road plus z_r_dot_ext)
     #[output(unit = "m/s")]
-    pub z_r_dot: f64,
-    /// What the right-hand side needs of the parameters, set by `initial_state`.
-    derived: Derived,
-    /// The road's cos(omega t), memoized (see `fmu_export::PhaseCosine`); not part of the saved state.
-    #[serde(skip)]
-    road_cos: PhaseCosine,
+    pub z_r_dot: T,
+    /// The road's rate and the masses' reciprocals, from the parameters (see `Road`).
+    #[derived]
+    road: Road<T>,
 }
 
 /// The state vector.
 #[derive(StateVector)]
-pub struct State {
+pub struct State<T = f64> {
     /// Sprung mass displacement from static equilibrium
     #[state(unit = "m")]
-    pub z_s: f64,
+    pub z_s: T,
     /// Unsprung mass displacement from static equilibrium
     #[state(unit = "m")]
-    pub z_u: f64,
+    pub z_u: T,
     /// Road elevation under the tire
     #[state(unit = "m")]
-    pub z_r: f64,
+    pub z_r: T,
     /// Sprung mass velocity
     #[state(unit = "m/s")]
-    pub z_s_dot: f64,
+    pub z_s_dot: T,
     /// Unsprung mass velocity
     #[state(unit = "m/s")]
-    pub z_u_dot: f64,
+    pub z_u_dot: T,
 }
 
-/// The parameter combinations of the right-hand side, computed once by `initial_state` (which
-/// the FMU runs after the last parameter change and before any step), so that no solver stage
-/// divides: the road frequency's and the masses' divisions cost 7 % of a run when every stage
-/// repeated them. Code that changes a parameter field directly calls `initial_state` again
-/// before `derivatives`; debug builds check it.
-#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
-struct Derived {
-    /// Road angular frequency omega (rad/s).
-    omega: f64,
-    /// Amplitude of the road rate, a omega (m/s).
-    rate_amplitude: f64,
-    inv_m_s: f64,
-    inv_m_u: f64,
+/// What the right-hand side needs of the parameters: the sinusoidal road's rate
+/// a omega cos(omega t), and the reciprocals of the masses (the accelerations are the forces
+/// times them). The toolkit derives it whenever the parameters change.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Road<T> {
+    rate: Harmonic<T>,
+    inv_m_s: T,
+    inv_m_u: T,
 }
 
-impl Derived {
-    fn of(p: &QuarterCar) -> Derived {
-        let omega = p.road_frequency();
-        Derived { omega, rate_amplitude: p.road_amplitude * omega, inv_m_s: 1.0 / p.m_s, inv_m_u: 1.0 / p.m_u }
+impl<T: Scalar> Derived<QuarterCar<T>> for Road<T> {
+    fn of(car: &QuarterCar<T>) -> Self {
+        let omega = car.road_frequency();
+        Road { rate: Harmonic::new(car.road_amplitude * omega, omega), inv_m_s: car.m_s.recip(), inv_m_u: car.m_u.recip() }
     }
+}
 
-    /// The values' bits, for the debug check: a NaN (0 times an infinite frequency) still
-    /// equals itself there.
-    fn bits(&self) -> [u64; 4] {
-        [self.omega, self.rate_amplitude, self.inv_m_s, self.inv_m_u].map(f64::to_bits)
+impl<T: Scalar> Default for Road<T> {
+    fn default() -> Self {
+        Road { rate: Harmonic::default(), inv_m_s: T::zero(), inv_m_u: T::zero() }
     }
 }
 
 impl Default for QuarterCar {
     fn default() -> Self {
-        let mut car = QuarterCar {
+        QuarterCar {
             m_s: 200.0,
             m_u: 30.0,
             k_s: 18000.0,
@@ -121,38 +114,59 @@ impl Default for QuarterCar {
             z_s_ddot: 0.0,
             z_u_ddot: 0.0,
             z_r_dot: 0.0,
-            derived: Derived::default(),
-            road_cos: PhaseCosine::default(),
-        };
-        car.derived = Derived::of(&car);
-        car
+            road: Road::default(),
+        }
     }
 }
 
-impl QuarterCar {
+impl<T: Scalar> QuarterCar<T> {
     /// Road angular frequency omega = 2 pi speed / wavelength (rad/s).
-    pub fn road_frequency(&self) -> f64 {
-        2.0 * PI * self.speed / self.road_wavelength
+    pub fn road_frequency(&self) -> T {
+        self.speed * (2.0 * PI) / self.road_wavelength
     }
 
     /// The input u = z_r': the sinusoidal road's slope times the speed, plus the external rate.
     #[inline]
-    fn road_rate(&self, t: f64) -> f64 {
-        let Derived { omega, rate_amplitude, .. } = self.derived;
-        rate_amplitude * self.road_cos.cos(omega * t) + self.z_r_dot_ext
+    fn road_rate(&self, t: T) -> T {
+        self.road.rate.at(t) + self.z_r_dot_ext
     }
 
     /// Accelerations [z_s'', z_u''] from the two free-body diagrams, for road rate `u`.
     #[inline]
-    fn accelerations(&self, x: &[f64], u: f64) -> (f64, f64) {
+    fn accelerations(&self, x: &[T], u: T) -> (T, T) {
         use State as S;
         // The slice indexed in place (not State::load): the benchmark's right-hand side keeps
         // its machine code, bounds checks included.
         let suspension = self.k_s * (x[S::Z_S] - x[S::Z_U]) + self.b_s * (x[S::Z_S_DOT] - x[S::Z_U_DOT]);
         let tire = self.k_t * (x[S::Z_U] - x[S::Z_R]) + self.b_t * (x[S::Z_U_DOT] - u);
-        // Times the reciprocals: a division here would also sit on the chain from one solver
-        // stage to the next.
-        (-suspension * self.derived.inv_m_s, (suspension - tire) * self.derived.inv_m_u)
+        (-suspension * self.road.inv_m_s, (suspension - tire) * self.road.inv_m_u)
+    }
+}
+
+impl<T: Scalar> Equations<T> for QuarterCar<T> {
+    fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError> {
+        // At rest in static equilibrium on the road's zero crossing (z_r(0) = a sin 0 = 0).
+        x.fill(T::zero());
+        Ok(())
+    }
+
+    // Always inlined into the solver's stages: with the road's memoized cosine it is past the
+    // size LLVM inlines by itself, and a call per stage costs 16 % more instructions per run.
+    #[inline(always)]
+    fn derivatives(&self, t: T, x: &[T], dx: &mut [T]) {
+        let u = self.road_rate(t);
+        let (a_s, a_u) = self.accelerations(x, u);
+        use State as S;
+        dx[S::Z_S] = x[S::Z_S_DOT];
+        dx[S::Z_U] = x[S::Z_U_DOT];
+        dx[S::Z_R] = u;
+        dx[S::Z_S_DOT] = a_s;
+        dx[S::Z_U_DOT] = a_u;
+    }
+
+    fn outputs(&mut self, t: T, x: &[T]) {
+        self.z_r_dot = self.road_rate(t);
+        (self.z_s_ddot, self.z_u_ddot) = self.accelerations(x, self.z_r_dot);
     }
 }
 
@@ -169,33 +183,6 @@ impl Model for QuarterCar {
             documentation: include_str!("../derivation.md"),
         }
     }
-
-    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        self.derived = Derived::of(self);
-        // At rest in static equilibrium on the road's zero crossing (z_r(0) = a sin 0 = 0).
-        x.fill(0.0);
-        Ok(())
-    }
-
-    // Always inlined into the solver's stages: with the road's memoized cosine it is past the
-    // size LLVM inlines by itself, and a call per stage costs 16 % more instructions per run.
-    #[inline(always)]
-    fn derivatives(&self, t: f64, x: &[f64], dx: &mut [f64]) {
-        debug_assert_eq!(self.derived.bits(), Derived::of(self).bits(), "a parameter changed after initial_state");
-        let u = self.road_rate(t);
-        let (a_s, a_u) = self.accelerations(x, u);
-        use State as S;
-        dx[S::Z_S] = x[S::Z_S_DOT];
-        dx[S::Z_U] = x[S::Z_U_DOT];
-        dx[S::Z_R] = u;
-        dx[S::Z_S_DOT] = a_s;
-        dx[S::Z_U_DOT] = a_u;
-    }
-
-    fn outputs(&mut self, t: f64, x: &[f64]) {
-        self.z_r_dot = self.road_rate(t);
-        (self.z_s_ddot, self.z_u_ddot) = self.accelerations(x, self.z_r_dot);
-    }
 }
 
 fmu_export::export_fmu!(QuarterCar);
@@ -204,8 +191,9 @@ fmu_export::export_fmu!(QuarterCar);
 mod tests {
     use super::*;
     use fmu_export::harness::Harness;
+    use fmu_export::harness::{jacobian, Stage};
+    use formulas::References;
     use nalgebra::{Complex, SMatrix, SVector};
-    use runner_engine::references::References;
 
     type M8 = SMatrix<f64, 8, 8>;
     type V8 = SVector<f64, 8>;
@@ -336,7 +324,7 @@ mod tests {
 
     /// Parameters each valid alone whose road frequency overflows (with amplitude 0 the road
     /// rate is 0 times infinity, NaN) are refused when initialization ends, naming what is not
-    /// finite, rather than reaching the solver (or the debug check of the derived constants).
+    /// finite, rather than reaching the solver.
     #[test]
     fn an_overflowing_road_frequency_is_refused_at_initialization() {
         let err = Harness::<QuarterCar>::started(&[("speed", 1e308), ("road_wavelength", 1e-300), ("road_amplitude", 0.0)], None)
@@ -345,15 +333,18 @@ mod tests {
         assert!(err.contains("is not finite: check the parameters"), "{err}");
     }
 
-    /// Changing a parameter field directly and calling `derivatives` without `initial_state`
-    /// would use the old constants silently; debug builds (the test suite's) stop it.
+    /// Changing a parameter field directly and integrating without `Lift::refresh` would use
+    /// the old derived constants (the road's frequency) silently; debug builds (the test
+    /// suite's) stop it where the solver takes the model.
     #[test]
     #[cfg(debug_assertions)]
-    #[should_panic(expected = "a parameter changed after initial_state")]
-    fn derivatives_after_an_underived_parameter_change_are_caught() {
-        // The default's constants are derived for 30 m/s; the struct update keeps them.
-        let car = QuarterCar { speed: 12.0, ..Default::default() };
-        car.derivatives(0.0, &[0.0; 5], &mut [0.0; 5]);
+    #[should_panic(expected = "the derived constants are stale")]
+    fn integrating_after_an_underived_parameter_change_is_caught() {
+        let mut car = QuarterCar::default();
+        fmu_export::Lift::refresh(&mut car);
+        // Derived for 30 m/s; the field changes behind the toolkit's back.
+        car.speed = 12.0;
+        fmu_export::core::System::of(&car);
     }
 
     /// The steady-state frequency response |H(i omega)| of derivation.md: references.toml's
@@ -455,5 +446,43 @@ mod tests {
     #[test]
     fn catalogue_entry_is_current() {
         fmu_export::catalogue::check::<QuarterCar>(env!("CARGO_MANIFEST_DIR"));
+    }
+
+    /// The FMU's exact derivatives (dual numbers through the model's own equations) against
+    /// central differences of its f64 equations, along the default run and at initialization
+    /// (`check_derivatives` states the bound and why).
+    #[test]
+    fn exact_derivatives_match_central_differences() {
+        let report = fmu_export::harness::check_derivatives::<QuarterCar>().unwrap();
+        eprintln!("{report:?}");
+        assert!(report.points > 10, "{report:?}");
+    }
+
+    /// The exact Jacobians of the FMU's derivatives with respect to its five states and its
+    /// input are the blocks of references.toml's road system F written from the free-body
+    /// diagrams: the states' block F[0..5][0..5] and, as u = q + c, the external rate's column
+    /// c. The outputs z_s'' and z_u'' are F's rows of z_s' and z_u', and z_r' moves one to one
+    /// with the input. To rounding: a few ulps of each block's largest entry (F divides by the
+    /// masses where the model multiplies by their reciprocals).
+    #[test]
+    fn the_jacobians_are_the_road_systems_blocks() {
+        for speed in [12.0, 30.0] {
+            let mut p = QuarterCar { speed, z_r_dot_ext: 0.01, ..Default::default() };
+            fmu_export::Lift::refresh(&mut p);
+            let (f, _) = augmented(&p);
+            let j = jacobian(&p, 0.37, &[0.01, -0.02, 0.005, 0.3, -0.4], Stage::ContinuousTime);
+            let states = ["z_s", "z_u", "z_r", "z_s_dot", "z_u_dot"];
+            let derivatives = ["der(z_s)", "der(z_u)", "der(z_r)", "der(z_s_dot)", "der(z_u_dot)"];
+            let check = |got: Vec<Vec<f64>>, want: Vec<Vec<f64>>, what: &str| {
+                let scale = want.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (g, w) in got.iter().flatten().zip(want.iter().flatten()) {
+                    assert!((g - w).abs() <= 8.0 * f64::EPSILON * scale, "{what} at {speed} m/s: {got:?} vs {want:?}");
+                }
+            };
+            check(j.block(&derivatives, &states), (0..5).map(|r| (0..5).map(|c| f[(r, c)]).collect()).collect(), "A");
+            check(j.block(&derivatives, &["z_r_dot_ext"]), (0..5).map(|r| vec![f[(r, 7)]]).collect(), "B");
+            check(j.block(&["z_s_ddot", "z_u_ddot"], &states), [3, 4].iter().map(|&r| (0..5).map(|c| f[(r, c)]).collect()).collect(), "C");
+            check(j.block(&["z_s_ddot", "z_u_ddot", "z_r_dot"], &["z_r_dot_ext"]), vec![vec![f[(3, 7)]], vec![f[(4, 7)]], vec![1.0]], "D");
+        }
     }
 }

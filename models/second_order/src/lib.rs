@@ -1,40 +1,40 @@
 #![doc = include_str!("../derivation.md")]
 #![deny(unsafe_code)]
 
-use fmu_export::{Model, ModelError, ModelInfo, StateVector, Variables};
+use fmu_export::{Equations, Model, ModelError, ModelInfo, Scalar, StateVector, Variables};
 use serde::{Deserialize, Serialize};
 
 /// Ex. 1: `a2 q'' + a1 q' + a0 q = exp(-3t)`.
 #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
 #[variables(states = State)]
-pub struct SecondOrder {
+pub struct SecondOrder<T = f64> {
     /// Coefficient of q''
     #[parameter(finite)]
-    pub a2: f64,
+    pub a2: T,
     /// Coefficient of q'
     #[parameter(finite)]
-    pub a1: f64,
+    pub a1: T,
     /// Coefficient of q
     #[parameter(finite)]
-    pub a0: f64,
+    pub a0: T,
     /// Initial value q(0)
     #[parameter(finite)]
-    pub q0: f64,
+    pub q0: T,
     /// Initial rate q'(0)
     #[parameter(finite)]
-    pub q_dot0: f64,
+    pub q_dot0: T,
     /// Input u(t) = exp(-3t)
     #[output]
-    pub u: f64,
+    pub u: T,
 }
 
 /// The state vector.
 #[derive(StateVector)]
-pub struct State {
+pub struct State<T = f64> {
     /// Response q(t)
-    pub q: f64,
+    pub q: T,
     /// Rate q'(t)
-    pub q_dot: f64,
+    pub q_dot: T,
 }
 
 impl Default for SecondOrder {
@@ -44,8 +44,29 @@ impl Default for SecondOrder {
 }
 
 /// The forcing of Ex. 1.
-fn forcing(t: f64) -> f64 {
-    (-3.0 * t).exp()
+fn forcing<T: Scalar>(t: T) -> T {
+    (t * -3.0).exp()
+}
+
+impl<T: Scalar> Equations<T> for SecondOrder<T> {
+    fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError> {
+        if self.a2 == T::zero() {
+            return Err(ModelError("parameter a2 = 0 makes the equation first order: a2 must not be zero".into()));
+        }
+        State { q: self.q0, q_dot: self.q_dot0 }.store(x);
+        Ok(())
+    }
+
+    /// q' = q_dot, q'' = (u - a1 q' - a0 q) / a2.
+    #[inline]
+    fn derivatives(&self, t: T, x: &[T], dx: &mut [T]) {
+        let State { q, q_dot } = State::load(x);
+        State { q: q_dot, q_dot: (forcing(t) - self.a1 * q_dot - self.a0 * q) / self.a2 }.store(dx);
+    }
+
+    fn outputs(&mut self, t: T, _x: &[T]) {
+        self.u = forcing(t);
+    }
 }
 
 impl Model for SecondOrder {
@@ -61,25 +82,6 @@ impl Model for SecondOrder {
             documentation: include_str!("../derivation.md"),
         }
     }
-
-    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        if self.a2 == 0.0 {
-            return Err(ModelError("parameter a2 = 0 makes the equation first order: a2 must not be zero".into()));
-        }
-        State { q: self.q0, q_dot: self.q_dot0 }.store(x);
-        Ok(())
-    }
-
-    /// q' = q_dot, q'' = (u - a1 q' - a0 q) / a2.
-    #[inline]
-    fn derivatives(&self, t: f64, x: &[f64], dx: &mut [f64]) {
-        let State { q, q_dot } = State::load(x);
-        State { q: q_dot, q_dot: (forcing(t) - self.a1 * q_dot - self.a0 * q) / self.a2 }.store(dx);
-    }
-
-    fn outputs(&mut self, t: f64, _x: &[f64]) {
-        self.u = forcing(t);
-    }
 }
 
 fmu_export::export_fmu!(SecondOrder);
@@ -88,7 +90,9 @@ fmu_export::export_fmu!(SecondOrder);
 mod tests {
     use super::*;
     use fmu_export::harness::Harness;
-    use runner_engine::metrics::Formula;
+    use fmu_export::harness::{jacobian, Stage};
+    use formulas::Formula;
+    use formulas::References;
 
     /// A closed form of experiment.toml's `[compare.reference]` (derived in derivation.md, for
     /// the default parameters): the one `runner compare` and tests/fmpy evaluate too.
@@ -195,5 +199,48 @@ mod tests {
     #[test]
     fn catalogue_entry_is_current() {
         fmu_export::catalogue::check::<SecondOrder>(env!("CARGO_MANIFEST_DIR"));
+    }
+
+    /// The FMU's exact derivatives (dual numbers through the model's own equations) against
+    /// central differences of its f64 equations, along the default run and at initialization
+    /// (`check_derivatives` states the bound and why).
+    #[test]
+    fn exact_derivatives_match_central_differences() {
+        let report = fmu_export::harness::check_derivatives::<SecondOrder>().unwrap();
+        eprintln!("{report:?}");
+        assert!(report.points > 10, "{report:?}");
+    }
+
+    /// references.toml: the state-space form written from the equation (derivation.md).
+    fn references() -> References {
+        References::from_toml(include_str!("../references.toml")).expect("valid references")
+    }
+
+    /// The exact Jacobian of the FMU's derivatives with respect to its states is A of
+    /// references.toml, and with respect to time b u'(t), to rounding (a few ulps of the
+    /// largest entry: both sides evaluate the same quotients); its eigenvalues are the roots of
+    /// the handbook's characteristic polynomial 2 s^2 + 10 s + 12, -2 and -3, to 1e-14.
+    #[test]
+    fn the_jacobian_is_the_state_matrix_and_its_eigenvalues_the_handbook_roots() {
+        let p = SecondOrder::default();
+        let values = [("a2", p.a2), ("a1", p.a1), ("a0", p.a0), ("t", 0.7)];
+        let j = jacobian(&p, 0.7, &[0.3, -1.1], Stage::ContinuousTime);
+        let a = references().matrix("A", &values).unwrap();
+        let dfdt = references().matrix("dfdt", &values).unwrap();
+        let exact = j.block(&["der(q)", "der(q_dot)"], &["q", "q_dot"]);
+        let time = j.block(&["der(q)", "der(q_dot)"], &["time"]);
+        for (got, want) in [(&exact, &a), (&time, &dfdt)] {
+            let scale = want.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (g, w) in got.iter().flatten().zip(want.iter().flatten()) {
+                assert!((g - w).abs() <= 4.0 * f64::EPSILON * scale, "{got:?} vs {want:?}");
+            }
+        }
+        // The eigenvalues of a 2x2 matrix: trace/2 ± sqrt((trace/2)^2 - det).
+        let (tr, det) = (exact[0][0] + exact[1][1], exact[0][0] * exact[1][1] - exact[0][1] * exact[1][0]);
+        let root = ((tr / 2.0).powi(2) - det).sqrt();
+        let (fast, slow) = (tr / 2.0 - root, tr / 2.0 + root);
+        let (want_fast, want_slow) = (references().value("s_fast", &values).unwrap(), references().value("s_slow", &values).unwrap());
+        assert!((fast - want_fast).abs() < 1e-14 && (slow - want_slow).abs() < 1e-14, "{fast} {slow}");
+        assert_eq!((want_fast, want_slow), (-3.0, -2.0));
     }
 }

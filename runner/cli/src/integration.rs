@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use fmi_importer::exchange::Counters;
 use fmi_importer::{Description, Fmu, Interface, Method, Solver};
 
 /// The interface and integrator options of `simulate`, `sweep` and `compare`.
@@ -11,7 +12,8 @@ use fmi_importer::{Description, Fmu, Interface, Method, Solver};
 pub struct Integration {
     /// The interface to drive (`None`: Co-Simulation when the FMU offers it, else Model Exchange).
     pub interface: Option<Interface>,
-    /// The runner's integration method for Model Exchange: euler, rk4, dopri5, bs23 or dop853.
+    /// The runner's integration method for Model Exchange: euler, rk4, dopri5, bs23, dop853,
+    /// bdf or esdirk.
     pub solver: Option<String>,
     /// The step of Euler and RK4 (s).
     pub fixed_step: Option<f64>,
@@ -83,6 +85,21 @@ impl Integration {
         }
         Ok(solver)
     }
+}
+
+/// What the runner's integrator did in a Model Exchange run, for a line on stderr: steps,
+/// derivative evaluations and, for the implicit methods, Jacobians and Newton failures.
+pub fn work(c: &Counters, method: Method) -> String {
+    let mut text = format!("the runner's {} integration took {} steps and {} derivative evaluations", method.name(), c.n_steps, c.n_rhs);
+    if method.is_implicit() {
+        let how = if c.n_directional > 0 {
+            format!("{} directional-derivative calls", c.n_directional)
+        } else {
+            format!("{} of the evaluations", c.n_jacobian_columns)
+        };
+        text.push_str(&format!(", {} Jacobians ({how}), {} Newton failures", c.n_jacobians, c.n_newton_failures));
+    }
+    text
 }
 
 #[cfg(test)]

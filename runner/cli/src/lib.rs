@@ -6,7 +6,7 @@ pub mod commands;
 pub mod experiment;
 pub mod integration;
 pub mod interrupt;
+pub mod reference;
 pub mod report;
-pub mod trace;
 pub mod workers;
 pub mod workspace;

@@ -6,11 +6,11 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
-use runner::commands::{animate, build, compare, handbook, info, simulate, sweep, validate};
+use plots::Format;
+use runner::commands::{animate, build, compare, handbook, info, linearize, new, simulate, sweep, validate};
 use runner::experiment::{self, RunDefaults};
 use runner::integration::{self, Integration};
 use runner::interrupt;
-use runner::report::figure::Format;
 use runner::report::progress;
 
 /// Build and run FMUs (FMI 2.0 and 3.0; Co-Simulation, and Model Exchange with the runner's
@@ -56,6 +56,53 @@ struct InputArgs {
     /// gauss-seidel (components step in data-flow order).
     #[arg(long, value_name = "ALGORITHM")]
     master: Option<String>,
+    /// For a system: how connections pass Real values over a step, hold (the value at the
+    /// step's start, as libcosim and fmpy) or polynomial (the source's output derivatives given
+    /// to an input that interpolates; Gauss-Seidel interpolates between both ends of the step).
+    /// Default: polynomial where both ends of a connection allow it, hold elsewhere.
+    #[arg(long, value_name = "hold|polynomial")]
+    coupling: Option<String>,
+}
+
+/// `runner simulate`'s options named as fmusim names them (fmpy's spelling accepted too).
+#[derive(Args)]
+struct SimulateParity {
+    /// Start time in seconds (default: the FMU's DefaultExperiment, else 0).
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    start_time: Option<f64>,
+    /// Record exactly this variable, of any causality (parameters and locals too); repeatable,
+    /// in the CSV's column order. Default: the outputs. fmpy's `--output-variables A B` works
+    /// too.
+    #[arg(long = "output-variable", visible_alias = "output-variables", value_name = "NAME", num_args = 1..)]
+    output_variables: Vec<String>,
+    /// Communication points on a logarithmic time scale, as fmusim's: point i at
+    /// start * F^i, F the --output-interval (a factor above 1; default: 500 points from
+    /// start to stop), the start time above 0.
+    #[arg(long)]
+    log_time_scale: bool,
+    /// Check the run against reference results, a CSV in fmusim's and fmpy's layout (arrays as
+    /// NAME[k] columns or as fmusim's space-separated cells); without FILE, the results the FMU
+    /// ships under FMI-LS-REF. Every shared column is compared at every reference time within
+    /// |y - ref| <= rtol*|ref| + atol; the first violation fails the command, named by column,
+    /// time, value and bound.
+    #[arg(long, value_name = "REF.csv", num_args = 0..=1, default_missing_value = "")]
+    reference_file: Option<String>,
+    /// Go on from the FMU state saved in FILE by --final-fmu-state-file (of the same FMU,
+    /// through the same interface): the FMU is initialized as usual, then set to that state, and
+    /// the run starts at the state's time.
+    #[arg(long, value_name = "FILE")]
+    initial_fmu_state_file: Option<PathBuf>,
+    /// Save the FMU's serialized state at the stop time into FILE, with the FMU's identity (its
+    /// instantiation token or GUID, model name and interface), for --initial-fmu-state-file.
+    #[arg(long, value_name = "FILE")]
+    final_fmu_state_file: Option<PathBuf>,
+    /// The reference check's relative tolerance (default 1e-3).
+    #[arg(long, value_name = "R", allow_negative_numbers = true)]
+    rtol: Option<f64>,
+    /// The reference check's absolute tolerance (default: rtol times each column's largest
+    /// |ref|).
+    #[arg(long, value_name = "A", allow_negative_numbers = true)]
+    atol: Option<f64>,
 }
 
 impl RunArgs {
@@ -76,8 +123,9 @@ struct InterfaceArgs {
 /// The runner's integrator for a Model Exchange run.
 #[derive(Args)]
 struct SolverArgs {
-    /// Model Exchange: the runner's integration method, euler, rk4, dopri5, bs23 or dop853
-    /// (default dopri5, with --tolerance as its relative tolerance).
+    /// Model Exchange: the runner's integration method, euler, rk4, dopri5, bs23, dop853, or
+    /// for stiff models the implicit bdf and esdirk (default dopri5, with --tolerance as its
+    /// relative tolerance).
     #[arg(long, value_name = "METHOD")]
     solver: Option<String>,
     /// Model Exchange: the step of euler and rk4 in seconds (default 1e-3).
@@ -106,9 +154,32 @@ enum Cmd {
     ///
     /// Example: `runner build quarter_car pendulum` (no name: every crate under models/ and
     /// every system under systems/).
+    ///
+    /// Example: `runner build --manifest-path my_model/Cargo.toml` (a model crate anywhere, such
+    /// as one `runner new` made: my_model/target/fmu/my_model.fmu and fmu3/my_model.fmu).
     Build {
         /// Model identifiers (crate names under models/).
+        #[arg(conflicts_with = "manifest_path")]
         models: Vec<String>,
+        /// Build the model crate of this Cargo.toml instead, wherever it is.
+        #[arg(long, value_name = "DIR/Cargo.toml")]
+        manifest_path: Option<PathBuf>,
+        /// With --manifest-path: write OUT/fmu/<id>.fmu and OUT/fmu3/<id>.fmu (default: the
+        /// crate's target directory).
+        #[arg(long, value_name = "OUT", requires = "manifest_path")]
+        out_dir: Option<PathBuf>,
+    },
+    /// Create a model crate of your own: one parameter, one state, one output, its test against
+    /// the closed form and derivation.md, depending on this checkout's export toolkit by path.
+    ///
+    /// Example: `runner new my_model --path ~/models/my_model`, then `cargo test` in it and
+    /// `runner build --manifest-path ~/models/my_model/Cargo.toml`.
+    New {
+        /// The model's name: its crate, struct (in CamelCase) and FMU modelIdentifier.
+        name: String,
+        /// The directory to create (default: ./NAME); it must not exist or be empty.
+        #[arg(long, value_name = "DIR")]
+        path: Option<PathBuf>,
     },
     /// Show an FMU's variables (causality, type, unit, start value) and capabilities.
     ///
@@ -163,14 +234,21 @@ enum Cmd {
         isolation: SimulateIsolation,
         #[command(flatten)]
         inputs: InputArgs,
+        #[command(flatten)]
+        parity: SimulateParity,
     },
     /// Run a parameter sweep: one FMU instance per point, in parallel; metrics per point as CSV.
     ///
     /// Every --param adds a dimension; the points are the cartesian product (the last --param
     /// varies fastest). A metric is NAME=EXPR over per-run summaries (max, min, final, mean,
-    /// peak_to_peak, rms) of any variable, optionally from a time on as in max(x, 5), combined
-    /// with the operators `+ - * / ^`, parentheses and the functions exp, log, sqrt, sin, cos,
-    /// tan, atan, abs. The CSV has one row per point: parameters,
+    /// peak_to_peak, rms) of any variable, optionally from a time on as in max(x, 5), and
+    /// amplitude(x, 5, W), the amplitude at angular frequency W (rad/s, an expression of
+    /// parameters such as 2*pi*speed/road_wavelength) fitted to the samples from t = 5 on, combined
+    /// with the operators `+ - * / ^`, parentheses, the constant pi and the functions exp, log,
+    /// sqrt, sin, cos, tan, asin, acos, atan, atan2(y, x), hypot(x, y), abs and ellipk(m) (the
+    /// complete elliptic integral of the first kind, m = k^2); natural_frequency(N) and
+    /// damping(N) read mode N of the point linearized at its initial state (through Model
+    /// Exchange). The CSV has one row per point: parameters,
     /// metrics, status (`ok` or the error). Failed points are recorded and the others still
     /// run; the exit code is 1 if any failed. With a model name and no options, the model's
     /// experiment.toml gives the sweep. Points run in worker processes, so a crash or hang of the
@@ -202,9 +280,9 @@ enum Cmd {
         /// Write the CSV here (default: experiment.toml's, else stdout).
         #[arg(long, value_name = "FILE.csv")]
         out: Option<PathBuf>,
-        /// Plot each metric against the first parameter into this SVG file, peaks marked
-        /// (default: experiment.toml's, unless --out names the CSV).
-        #[arg(long, value_name = "FILE.svg")]
+        /// Plot each metric against the first parameter into this file, peaks marked: SVG, or
+        /// PNG for a name ending in .png (default: experiment.toml's, unless --out names the CSV).
+        #[arg(long, value_name = "FILE.svg|FILE.png")]
         plot: Option<PathBuf>,
         #[command(flatten)]
         isolation: SweepIsolation,
@@ -252,6 +330,19 @@ enum Cmd {
         #[arg(long)]
         strict: bool,
     },
+    /// Linearize a Model Exchange FMU at its initial state or at a time of a simulation.
+    ///
+    /// x' = A x + B u, y = C x + D u over its states, continuous Real inputs and outputs, from
+    /// the FMU's directional derivatives when it provides them, else central finite
+    /// differences (the first line says which). Prints the eigenvalues with each mode's
+    /// natural frequency and damping ratio, and the matrices; --out writes them as JSON;
+    /// --bode INPUT:OUTPUT writes the frequency response's magnitude and phase as CSV. The FMU
+    /// runs in a worker process, so a crash is reported with its signal and FMI call.
+    ///
+    /// Example: `runner linearize quarter_car --bode z_r_dot_ext:z_s --plot qc_bode.svg`
+    ///
+    /// Example: `runner linearize pendulum --set theta0=30deg --out pendulum.json`
+    Linearize(LinearizeArgs),
     /// Animate an FMU whose outputs include point coordinates (<P>_x, <P>_y) into a GIF.
     ///
     /// Drawn to scale (equal axis scales) with a time stamp. The links, trails, ground lines and
@@ -281,7 +372,7 @@ enum Cmd {
         #[arg(long, value_name = "N")]
         threads: Option<usize>,
     },
-    /// A worker process of sweep, simulate and compare (started by the runner itself).
+    /// A worker process of sweep, simulate, compare and linearize (started by the runner itself).
     #[command(hide = true)]
     Worker,
 }
@@ -305,7 +396,7 @@ struct SweepIsolation {
     resume: bool,
 }
 
-/// How `runner simulate` isolates its run.
+/// How `runner simulate` and `runner linearize` isolate their run.
 #[derive(Args)]
 struct SimulateIsolation {
     /// Stop the run (and fail) if it takes longer than this.
@@ -341,6 +432,47 @@ struct AnimateArgs {
     experiment: Option<PathBuf>,
 }
 
+/// Arguments of `runner linearize`.
+#[derive(clap::Args)]
+struct LinearizeArgs {
+    /// Model name or path to a .fmu file that offers Model Exchange.
+    fmu: String,
+    #[command(flatten)]
+    run: RunArgs,
+    #[command(flatten)]
+    solver: SolverArgs,
+    /// Simulate to this time (s) and linearize there (default: at the initial state, after
+    /// initialization).
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    at: Option<f64>,
+    /// Use central finite differences even when the FMU provides directional derivatives.
+    #[arg(long)]
+    finite_differences: bool,
+    /// Write states, inputs, outputs, A, B, C, D, eigenvalues ({re, im}), modes and source as
+    /// JSON here.
+    #[arg(long, value_name = "FILE.json")]
+    out: Option<PathBuf>,
+    /// A frequency response to write, from a continuous Real input to a continuous Real
+    /// output; repeatable.
+    #[arg(long, value_name = "INPUT:OUTPUT")]
+    bode: Vec<String>,
+    /// The frequencies of --bode in Hz: F1,F2,... or FROM:TO:COUNT spaced evenly in log
+    /// (default: from a decade below the slowest mode to a decade above the fastest, 50 per
+    /// decade).
+    #[arg(long, value_name = "HZ")]
+    frequencies: Option<String>,
+    /// The CSV of --bode (default <MODEL>_bode.csv): frequency_hz, omega_rad_s, then
+    /// magnitude(OUTPUT/INPUT) and phase_deg(OUTPUT/INPUT) per pair.
+    #[arg(long, value_name = "FILE.csv")]
+    bode_out: Option<PathBuf>,
+    /// Plot the --bode responses (magnitude and phase against frequency) into this file, SVG or
+    /// PNG by its extension.
+    #[arg(long, value_name = "FILE.svg|FILE.png")]
+    plot: Option<PathBuf>,
+    #[command(flatten)]
+    isolation: SimulateIsolation,
+}
+
 /// Arguments of `runner compare`.
 #[derive(clap::Args)]
 struct CompareArgs {
@@ -349,7 +481,7 @@ struct CompareArgs {
     #[arg(required = true, value_name = "MODEL")]
     models: Vec<String>,
     /// Solvers to compare, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "euler,rk4,dopri5,bs23,dop853")]
+    #[arg(long, value_delimiter = ',', default_value = "euler,rk4,dopri5,bs23,dop853,bdf,esdirk")]
     solvers: Vec<String>,
     /// Error to reach: max over outputs of |y - y_ref| / max|y_ref|.
     #[arg(long, value_name = "E", default_value_t = 1e-6, allow_negative_numbers = true)]
@@ -361,8 +493,9 @@ struct CompareArgs {
     /// Work-precision table of a single model (default <MODEL>_compare.csv for each).
     #[arg(long, value_name = "FILE.csv")]
     out: Option<PathBuf>,
-    /// Work-precision plot of a single model (default <MODEL>_compare.svg for each).
-    #[arg(long, value_name = "FILE.svg")]
+    /// Work-precision plot of a single model, SVG or PNG by its extension (default
+    /// <MODEL>_compare.svg for each).
+    #[arg(long, value_name = "FILE.svg|FILE.png")]
     plot: Option<PathBuf>,
     /// Run in this process instead of a worker process (for trusted FMUs).
     #[arg(long)]
@@ -373,14 +506,15 @@ struct CompareArgs {
 }
 
 fn main() {
-    // A probe process of `runner validate`: no argument parsing, no handlers, just the probe.
-    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
-    if args.get(1).is_some_and(|a| a == validate::PROBE_COMMAND) {
-        std::process::exit(fmi_validate::probe_main(&args[2..]));
+    // A probe process of `runner validate`: no argument parsing, no handlers, just the probes.
+    if std::env::args_os().nth(1).is_some_and(|a| a == validate::PROBE_COMMAND) {
+        std::process::exit(fmi_validate::probe_worker());
     }
+    // The runner ends after its runs: an FMU's code stays loaded for what runs at exit.
+    fmi_importer::keep_binaries_loaded();
     let cli = Cli::parse();
     if let Cmd::Worker = cli.command {
-        if let Err(e) = runner_engine::worker::serve() {
+        if let Err(e) = runner_engine::isolated::serve() {
             eprintln!("runner worker: {e}");
             std::process::exit(1);
         }
@@ -390,7 +524,15 @@ fn main() {
     // FMU log lines go above the progress bar, when one is drawn.
     fmi_importer::set_log_printer(progress::eprint_line);
     let result = match cli.command {
-        Cmd::Build { models } => build::build(&models).map(|paths| {
+        Cmd::Build { manifest_path: Some(manifest), out_dir, .. } => build::build_manifest(&manifest, out_dir.as_deref()).map(|paths| {
+            for p in paths {
+                println!("{}", p.display());
+            }
+        }),
+        Cmd::New { name, path } => new::new(&name, path.as_deref()).map(|dir| {
+            println!("created model crate {name} in {}", dir.display());
+        }),
+        Cmd::Build { models, .. } => build::build(&models).map(|paths| {
             for p in paths {
                 println!("{}", p.display());
             }
@@ -398,24 +540,46 @@ fn main() {
         Cmd::Info { fmu } => {
             experiment::resolve(&fmu).and_then(|t| fmi_importer::Fmu::load(&t.path)).map(|f| print!("{}", info::report(&f.description)))
         }
-        Cmd::Simulate { fmu, run, interface, solver, out, plot, log, plot_vars, plot_x, overlay, record_events, isolation, inputs } => {
-            simulate::run(&simulate::Options {
-                fmu,
-                run: run.defaults(),
-                out,
-                plot,
-                log,
-                plot_vars,
-                plot_x,
-                overlay,
-                record_events,
-                integration: integration(interface, Some(solver)),
-                timeout: isolation.timeout,
-                in_process: isolation.in_process,
-                input_file: inputs.input_file,
-                master: inputs.master,
-            })
-        }
+        Cmd::Simulate {
+            fmu,
+            run,
+            interface,
+            solver,
+            out,
+            plot,
+            log,
+            plot_vars,
+            plot_x,
+            overlay,
+            record_events,
+            isolation,
+            inputs,
+            parity,
+        } => simulate::run(&simulate::Options {
+            fmu,
+            run: run.defaults(),
+            out,
+            plot,
+            log,
+            plot_vars,
+            plot_x,
+            overlay,
+            record_events,
+            integration: integration(interface, Some(solver)),
+            timeout: isolation.timeout,
+            in_process: isolation.in_process,
+            input_file: inputs.input_file,
+            master: inputs.master,
+            coupling: inputs.coupling,
+            start_time: parity.start_time,
+            output_variables: parity.output_variables,
+            log_time_scale: parity.log_time_scale,
+            reference_file: parity.reference_file.map(|f| Some(PathBuf::from(f)).filter(|f| !f.as_os_str().is_empty())),
+            rtol: parity.rtol,
+            atol: parity.atol,
+            initial_fmu_state_file: parity.initial_fmu_state_file,
+            final_fmu_state_file: parity.final_fmu_state_file,
+        }),
         Cmd::Sweep { fmu, params, metrics, threads, run, interface, solver, out, plot, isolation, inputs } => {
             match sweep::run(&sweep::Options {
                 fmu,
@@ -433,6 +597,7 @@ fn main() {
                 command_line: std::env::args().collect(),
                 input_file: inputs.input_file,
                 master: inputs.master,
+                coupling: inputs.coupling,
             }) {
                 Ok(s) if s.failed == 0 => Ok(()),
                 Ok(s) => Err(format!("{} of {} sweep point(s) failed; see the status column", s.failed, s.points)),
@@ -454,6 +619,21 @@ fn main() {
             point_timeout: a.point_timeout,
         })
         .map(|_| ()),
+        Cmd::Linearize(a) => linearize::run(&linearize::Options {
+            fmu: a.fmu,
+            run: a.run.defaults(),
+            integration: integration(InterfaceArgs { interface: Some(fmi_importer::Interface::ModelExchange) }, Some(a.solver)),
+            at: a.at,
+            finite_differences: a.finite_differences,
+            out: a.out,
+            bode: a.bode,
+            frequencies: a.frequencies,
+            bode_out: a.bode_out,
+            plot: a.plot,
+            timeout: a.isolation.timeout,
+            in_process: a.isolation.in_process,
+        })
+        .map(|_| ()),
         Cmd::Animate(a) => animate::run(&animate::Options {
             fmu: a.fmu,
             run: a.run.defaults(),
@@ -464,16 +644,32 @@ fn main() {
             experiment: a.experiment,
         })
         .map(|_| ()),
-        Cmd::Handbook { out, format, threads } => match format.as_str() {
-            "svg" => Ok(Format::Svg),
-            "png" => Ok(Format::Png),
-            other => Err(format!("--format {other}: use svg or png")),
-        }
-        .and_then(|format| handbook::run(&handbook::Options { out, format, threads }).map(|_| ())),
+        Cmd::Handbook { out, format, threads } => Format::named(&format)
+            .map_err(|e| format!("--format: {e}"))
+            .and_then(|format| handbook::run(&handbook::Options { out, format, threads }).map(|_| ())),
         Cmd::Worker => unreachable!("served above"),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");
         std::process::exit(if interrupt::requested() { interrupt::EXIT_CODE } else { 1 });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    /// `runner sweep --help` names every function and constant a metric may use (the formulas
+    /// crate's tables), so the help cannot fall behind the grammar.
+    #[test]
+    fn the_sweep_help_names_every_metric_function() {
+        let mut cli = super::Cli::command();
+        let help = cli.find_subcommand_mut("sweep").expect("a sweep command").render_long_help().to_string();
+        for (name, _) in formulas::metrics::FUNCTIONS {
+            assert!(help.contains(&format!(" {name}")), "sweep --help does not name {name}");
+        }
+        for (name, _) in formulas::metrics::CONSTANTS {
+            assert!(help.contains(&format!("constant {name}")), "sweep --help does not name {name}");
+        }
     }
 }

@@ -246,3 +246,100 @@ fn a_sweep_to_stdout_is_pure_csv() {
     }
     assert!(err.contains("end: peak"), "{err}");
 }
+
+/// A binary the loader cannot load says why and what to do: a dependency it cannot find is
+/// named (a library linked in, then removed), and a libpython symbol left undefined (as
+/// PythonFMU's binaries leave them) suggests preloading libpython. Both in a worker and in this
+/// process, and from `info`.
+#[test]
+fn loading_errors_name_the_missing_library_or_suggest_libpython() {
+    let dir = tempfile::tempdir().unwrap();
+    let lib = dir.path().join("libgone_dependency.so");
+    let status = std::process::Command::new("cc")
+        .args(["-shared", "-fPIC", "-x", "c", "-", "-o"])
+        .arg(&lib)
+        .stdin(std::process::Stdio::piped())
+        .spawn()
+        .and_then(|mut c| {
+            use std::io::Write;
+            c.stdin.take().unwrap().write_all(b"int gone_dependency(void) { return 1; }\n")?;
+            c.wait()
+        });
+    assert!(status.unwrap().success(), "cc builds the dependency");
+    let lib_dir = format!("-L{}", dir.path().display());
+    let gone = faulty_fmu(dir.path(), "gone.fmu", false, &["-Wl,--no-as-needed", &lib_dir, "-lgone_dependency"]);
+    std::fs::remove_file(&lib).unwrap();
+    let python = faulty_fmu(dir.path(), "python.fmu", false, &["-DNEEDS_PYTHON"]);
+    for mode in [&[][..], &["--in-process"][..]] {
+        let mut args = vec!["simulate", gone.to_str().unwrap()];
+        args.extend(mode);
+        let err = fails(runner(dir.path(), &args));
+        assert!(err.contains("the binary needs the library libgone_dependency.so") && err.contains("LD_LIBRARY_PATH"), "{mode:?}: {err}");
+        let mut args = vec!["simulate", python.to_str().unwrap()];
+        args.extend(mode);
+        let err = fails(runner(dir.path(), &args));
+        assert!(err.contains("_Py_NoneStruct is Python's") && err.contains("LD_PRELOAD=") && err.contains("libpython3"), "{mode:?}: {err}");
+    }
+    let err = fails(runner(dir.path(), &["info", python.to_str().unwrap()]));
+    assert!(err.contains("LD_PRELOAD="), "{err}");
+}
+
+/// One CSV convention for both FMI versions: the Reference FMU Feedthrough (FMI 2.0 and 3.0,
+/// outputs copied from inputs) writes its shared outputs as the same text in both, integers,
+/// enumerations and Booleans as integers, String outputs included; in a worker and in this
+/// process. (tests/fmpy/test_csv_convention.py checks the same columns against fmpy's CSV.)
+#[test]
+fn both_fmi_versions_write_one_csv_convention() {
+    let reference = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference-fmus");
+    let dir = tempfile::tempdir().unwrap();
+    let sets = ["Int32_input=-7", "Boolean_input=true", "String_input=hello, world", "Enumeration_input=2", "Float64_continuous_input=1.5"];
+    let mut tables = Vec::new();
+    for (version, mode) in [("fmi2", None), ("fmi2", Some("--in-process")), ("fmi3", None)] {
+        let fmu = reference.join(version).join("Feedthrough.fmu");
+        let mut args = vec!["simulate", fmu.to_str().unwrap(), "--stop-time", "0.02", "--output-interval", "0.01", "--out", "f.csv"];
+        for set in &sets {
+            args.extend(["--set", set]);
+        }
+        args.extend(mode);
+        ok(runner(dir.path(), &args));
+        tables.push(read_csv(&dir.path().join("f.csv")));
+    }
+    let shared = ["time", "Float64_continuous_output", "Int32_output", "Boolean_output", "String_output", "Enumeration_output"];
+    let pick = |(header, rows): &(Vec<String>, Vec<Vec<String>>)| -> Vec<Vec<String>> {
+        let at: Vec<usize> =
+            shared.iter().map(|n| header.iter().position(|h| h == n).unwrap_or_else(|| panic!("no {n} in {header:?}"))).collect();
+        rows.iter().map(|r| at.iter().map(|&i| r[i].clone()).collect()).collect()
+    };
+    let fmi2 = pick(&tables[0]);
+    assert_eq!(fmi2[0], ["0.0", "1.5", "-7", "1", "hello, world", "2"], "integers as integers, the String as it is");
+    assert_eq!(fmi2.len(), 3);
+    assert_eq!(pick(&tables[1]), fmi2, "in this process as in a worker");
+    assert_eq!(pick(&tables[2]), fmi2, "FMI 3.0 as FMI 2.0");
+}
+
+/// `simulate` runs a description that breaks the standard (faulty.xml with `pid` left out of
+/// ModelStructure/Outputs, which fmpy and `runner validate` refuse) but says so in one line
+/// pointing at `runner validate`; the same FMU with its description intact gets no warning.
+#[test]
+fn simulate_warns_in_one_line_when_the_description_breaks_the_standard() {
+    let dir = tempfile::tempdir().unwrap();
+    let clean = faulty_fmu(dir.path(), "clean.fmu", false, &[]);
+    let o = runner(dir.path(), &["simulate", clean.to_str().unwrap(), "--out", "clean.csv"]);
+    assert!(o.status.success() && !stderr(&o).contains("breaks the FMI standard"), "{}", stderr(&o));
+    let xml = std::fs::read_to_string(c_fmu_dir().join("faulty.xml")).unwrap();
+    let broken =
+        xml.replacen("<Outputs>\n      <Unknown index=\"1\"/>\n      <Unknown index=\"7\"/>", "<Outputs>\n      <Unknown index=\"1\"/>", 1);
+    assert_ne!(broken, xml, "the edit applies");
+    let binary = std::fs::read(dir.path().join("clean.fmu.so")).unwrap();
+    let fmu = dir.path().join("broken.fmu");
+    write_zip(&fmu, &[ZipItem::File("modelDescription.xml", broken.as_bytes()), ZipItem::File("binaries/linux64/faulty.so", &binary)]);
+    let o = runner(dir.path(), &["simulate", fmu.to_str().unwrap(), "--out", "broken.csv"]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "the run still runs: {err}");
+    let warnings: Vec<&str> = err.lines().filter(|l| l.contains("breaks the FMI standard")).collect();
+    assert_eq!(warnings.len(), 1, "one line: {err}");
+    assert!(warnings[0].contains("ModelStructure/Outputs is missing pid") && warnings[0].contains("runner validate"), "{err}");
+    let (h1, a) = read_csv(&dir.path().join("clean.csv"));
+    let (h2, b) = read_csv(&dir.path().join("broken.csv"));
+    assert_eq!(column(&h1, &a, "x"), column(&h2, &b, "x"), "the same run");
+}

@@ -126,6 +126,25 @@ fn leaking_points_get_fresh_workers_and_a_runaway_leak_fails_its_point_only() {
     assert!(rows[1].1[1].starts_with("crashed: SIGSEGV in fmi2DoStep at t = "), "{rows:?}");
 }
 
+/// After fmi2Fatal the standard trusts no instance of the FMU in that process: the point that
+/// returned it fails with the FMU's reason, and the next point runs in a fresh worker (on one
+/// thread it would otherwise reuse the first one, as the point before the fatal one did).
+#[test]
+fn a_worker_whose_fmu_returned_fatal_runs_no_more_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "faulty.fmu", false, &[]);
+    let f = fmu.to_str().unwrap();
+    let args = ["sweep", f, "--param", "fault=0,0,8,0", "--metric", "pid=final(pid)", "--threads", "1", "--out", "fatal.csv"];
+    let o = runner(dir.path(), &args);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let rows = rows_by_point(&dir.path().join("fatal.csv"), 1);
+    let pid = |i: usize| rows[i].1[0].clone();
+    assert_eq!(pid(0), pid(1), "one worker runs the points before the fatal one: {rows:?}");
+    assert!(rows[2].1[1].contains("fmi2DoStep at t = 0.31 returned fmi2Fatal: fault 8: the model is corrupted"), "{rows:?}");
+    assert_eq!(rows[3].1[1], "ok");
+    assert_ne!(pid(3), pid(1), "a fresh worker after the fatal point: {rows:?}");
+}
+
 /// canBeInstantiatedOnlyOncePerProcess: every point gets a process of its own (the FMU refuses a
 /// second instance in a process, so sharing one would fail points), and --in-process is refused.
 /// The same binary with the flag left false shows that the check can fail.
@@ -189,7 +208,10 @@ fn simulate_reports_the_signal_and_the_call_and_takes_a_timeout() {
     let o = runner(dir.path(), &["simulate", f, "--set", "fault=1", "--out", "crash.csv"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("faulty: crashed: SIGSEGV in fmi2DoStep at t = 0.31"), "{}", stderr(&o));
-    assert!(!dir.path().join("crash.csv").exists(), "no result file from a crashed run");
+    // The rows the worker sent before it died are kept: a prefix of the clean run's, all
+    // before the crash at the first step from t >= 0.31.
+    let (_, kept) = read_csv(&dir.path().join("crash.csv"));
+    assert!(kept.len() <= 32 && kept.iter().zip(&a).all(|(k, r)| k[x] == r[x]), "{kept:?}");
     let o = runner(dir.path(), &["simulate", f, "--set", "fault=3", "--timeout", "0.5"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("faulty: timed out after 0.5 s in fmi2DoStep at t = 0.31"), "{}", stderr(&o));
@@ -408,4 +430,65 @@ fn a_sweeps_unpacked_copy_is_removed_before_it_exits_in_both_modes() {
         assert_eq!(seen.len(), 1, "one unpacked copy while the sweep {mode:?} ran: {seen:?}");
         assert_eq!(unpacked_copies(&token, &old), Vec::<std::path::PathBuf>::new(), "the sweep {mode:?} left its copy behind");
     }
+}
+
+/// A run that fails (fmi2DoStep returns fmi2Error at the first step from t = 0.5) keeps in its
+/// --out file every row before the failure, the same rows standard output gets (t = 0 to 0.5
+/// every 0.01 s: 51 rows), in a worker and in this process; the error names the time, the call
+/// and the FMU's reason, also when the FMU logged it as information (fault 9), and the exit code
+/// is 1.
+#[test]
+fn a_failed_run_keeps_its_rows_in_the_out_file_and_says_when_and_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "faulty.fmu", false, &[]);
+    let f = fmu.to_str().unwrap();
+    let to_stdout = runner(dir.path(), &["simulate", f, "--set", "fault=7", "--set", "fault_time=0.5"]);
+    assert_eq!(to_stdout.status.code(), Some(1));
+    std::fs::write(dir.path().join("stdout.csv"), &to_stdout.stdout).unwrap();
+    let (header, streamed) = read_csv(&dir.path().join("stdout.csv"));
+    assert_eq!(streamed.len(), 51, "t = 0 to 0.5 on standard output");
+    let x = header.iter().position(|h| h == "x").unwrap();
+    for (fault, reason) in [("7", "fault 7: this step is refused"), ("9", "fault 9: the step size is too large for the table")] {
+        for mode in [&[][..], &["--in-process"][..]] {
+            let out = format!("fault{fault}{}.csv", mode.len());
+            let set_fault = format!("fault={fault}");
+            let mut args = vec!["simulate", f, "--set", &set_fault, "--set", "fault_time=0.5", "--out", &out];
+            args.extend(mode);
+            let o = runner(dir.path(), &args);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(1), "{err}");
+            assert!(err.contains(&format!("fmi2DoStep at t = 0.5 returned fmi2Error: {reason}")), "{mode:?}: {err}");
+            assert!(err.contains(&format!("{out} keeps the 51 row(s) before the failure, up to t = 0.5")), "{mode:?}: {err}");
+            let (h, kept) = read_csv(&dir.path().join(&out));
+            assert_eq!(h, header);
+            assert_eq!(kept.iter().map(|r| &r[x]).collect::<Vec<_>>(), streamed.iter().map(|r| &r[x]).collect::<Vec<_>>(), "{mode:?}");
+        }
+    }
+    // Fault 10 logs its reason only with debug logging on: without --log the error says so,
+    // with --log it carries the reason.
+    let args = ["simulate", f, "--set", "fault=10", "--set", "fault_time=0.5", "--out", "quiet.csv"];
+    let err = fails(runner(dir.path(), &args));
+    assert!(
+        err.contains("fmi2DoStep at t = 0.5 returned fmi2Error (the FMU logged no reason; with debug logging on (the runner's --log)"),
+        "{err}"
+    );
+    let err = fails(runner(dir.path(), &[&args[..], &["--log"]].concat()));
+    assert!(err.contains("fmi2DoStep at t = 0.5 returned fmi2Error: fault 10: said with debug logging only"), "{err}");
+}
+
+/// An FMU that leaves code to run at process exit (-DEXIT_HANDLER: an exit handler registered
+/// for the whole process, as a PythonFMU's libpython does) needs its binary loaded until the
+/// process exits: unloaded earlier, the exit jumps into unmapped memory (SIGSEGV, exit code
+/// 139 from a shell). Each command ends cleanly, in this process and in a worker.
+#[test]
+fn an_fmus_binary_stays_loaded_until_the_process_exits() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "atexit.fmu", false, &["-DEXIT_HANDLER"]);
+    let f = fmu.to_str().unwrap();
+    for args in [&["simulate", f, "--in-process", "--out", "a.csv"][..], &["simulate", f, "--out", "b.csv"], &["info", f]] {
+        let o = runner(dir.path(), args);
+        assert_eq!(o.status.code(), Some(0), "{args:?} ended by {:?}: {}", o.status, stderr(&o));
+    }
+    let (_, rows) = read_csv(&dir.path().join("a.csv"));
+    assert_eq!(rows.len(), 101, "the run itself is unchanged");
 }

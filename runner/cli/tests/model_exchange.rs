@@ -51,7 +51,7 @@ fn the_dahlquist_solution_and_its_time_events() {
 }
 
 /// An fmi2Error from fmi2GetDerivatives stops the run with the call, the time and the FMU's
-/// own reason, and nothing is written.
+/// own reason; x.csv keeps the rows before the failure (every 0.01 s up to the end of the last step accepted before t = 1, a few points before it).
 #[test]
 fn an_error_from_the_derivatives_names_the_call_and_the_time() {
     let dir = tempfile::tempdir().unwrap();
@@ -61,7 +61,10 @@ fn an_error_from_the_derivatives_names_the_call_and_the_time() {
     // DOPRI5 steps across communication points, so the first evaluation at or after t = 1 (where
     // the fault starts) is a stage of the step covering it, at some t in [1, 1.1).
     assert!(err.contains("the derivative cannot be evaluated at t = 1") && err.contains("(fault 1)"), "the FMU's reason: {err}");
-    assert!(!dir.path().join("x.csv").exists());
+    let (header, rows) = read_csv(&dir.path().join("x.csv"));
+    let t = column(&header, &rows, "time");
+    assert!(err.contains(&format!("x.csv keeps the {} row(s) before the failure", rows.len())), "{err}");
+    assert!(*t.last().unwrap() <= 1.0 + 1e-12 && t.len() >= 90, "the rows up to the fault: {t:?}");
 }
 
 /// NaN derivatives with fmi2OK: each method stops (DOPRI5 after trying smaller steps) and the
@@ -126,13 +129,14 @@ fn a_sweep_runs_model_exchange_points() {
 
 /// `compare` on a Model Exchange FMU without solver controls: the runner's own methods and
 /// counters, against its DOPRI5 at rtol 1e-12. Each method reaches 1e-6 on x' = -x (Euler needs
-/// h ~ 1e-6 / (t e^-t / 2) ~ 5e-6 s, the smallest step tried is 0.01 / 4^7 = 6e-7 s).
+/// h ~ 1e-6 / (t e^-t / 2) ~ 5e-6 s, the smallest step tried is 0.01 / 4^7 = 6e-7 s; the
+/// implicit methods' tolerances go down to 1e-10).
 #[test]
 fn compare_uses_the_runners_solvers_and_counters() {
     let dir = tempfile::tempdir().unwrap();
     let fmu = me_fmu(dir.path());
     let out = ok(runner(dir.path(), &["compare", fmu.to_str().unwrap(), "--interface", "model-exchange", "--target-error", "1e-6"]));
-    for solver in ["euler", "rk4", "dopri5"] {
+    for solver in ["euler", "rk4", "dopri5", "bdf", "esdirk"] {
         let line = out.lines().find(|l| l.starts_with(solver)).unwrap_or_else(|| panic!("{out}"));
         assert!(!line.contains("not reached"), "{line}");
     }

@@ -149,7 +149,7 @@ fn second_order_simulation_matches_the_closed_form() {
     let (t, q) = (column(&header, &rows, "time"), column(&header, &rows, "q"));
     assert_eq!(rows.len(), 1001, "10 s every 0.01 s");
     let experiment: toml::Table = include_str!("../../../models/second_order/experiment.toml").parse().unwrap();
-    let closed_form = runner_engine::metrics::Formula::parse(experiment["compare"]["reference"]["q"].as_str().unwrap()).unwrap();
+    let closed_form = formulas::Formula::parse(experiment["compare"]["reference"]["q"].as_str().unwrap()).unwrap();
     assert_eq!(closed_form.names, ["t"]);
     for (t, q) in t.iter().zip(&q) {
         let exact = closed_form.evaluate(&[*t]);

@@ -204,6 +204,12 @@ fn a_failing_component_stops_the_system_and_keeps_the_rows() {
     assert!(rows[0][status].contains("failed: component 'bad' at t = 0.5"), "{:?}", rows[0]);
     assert_eq!(rows[1][status], "ok");
     assert!((rows[1][1].parse::<f64>().unwrap() - (-1.0f64).exp()).abs() < 1e-12, "x = exp(-k t) at t = 1: {:?}", rows[1]);
+    // Metrics that need one FMU (a frequency from its parameters, its linearized modes) are
+    // refused by name before any point runs.
+    for (metric, why) in [("a=amplitude(good.x, 0.5, 2*pi*k)", "amplitude(...)"), ("z=damping(1)", "damping(N)")] {
+        let err = fails(runner(dir.path(), &["sweep", root.to_str().unwrap(), "--param", "bad.fault_time=2", "--metric", metric]));
+        assert!(err.contains(why) && err.contains("not of a system"), "{err}");
+    }
 }
 
 /// Bad systems are refused with the file, the line and what is wrong.
@@ -235,6 +241,13 @@ fn bad_systems_are_explained() {
     assert!(err.contains("'zz.x' names no component of the system"), "{err}");
     let err = fails(runner(dir.path(), &["simulate", root.to_str().unwrap(), "--master", "newton"]));
     assert!(err.contains("choose jacobi or gauss-seidel"), "{err}");
+    // The Reference FMUs' Feedthrough gives no output derivatives: asked for polynomials, the
+    // runner says every input holds, and runs.
+    let held = runner(dir.path(), &["simulate", root.to_str().unwrap(), "--coupling", "polynomial", "--stop-time", "0.1"]);
+    assert!(held.status.success(), "{}", String::from_utf8_lossy(&held.stderr));
+    assert!(String::from_utf8_lossy(&held.stderr).contains("no connection of the system can pass a polynomial"));
+    let err = fails(runner(dir.path(), &["simulate", root.to_str().unwrap(), "--coupling", "spline"]));
+    assert!(err.contains("--coupling 'spline': choose hold or polynomial"), "{err}");
 }
 
 /// A sweep reads only its metrics' columns and the outputs that feed connections (the

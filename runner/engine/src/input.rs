@@ -3,12 +3,15 @@
 //! (the first row is the value just before it, the second the value from it on). Continuous
 //! Reals are interpolated linearly between rows, Integers, Booleans and discrete Reals are held
 //! from their row until the next; before the first row and after the last the end values hold.
+//! An FMI 3.0 array input is given by its elements, as the runner writes arrays (`u[1]`, `u[2]`,
+//! ..., or `u[1,1]`, ... one index per dimension) or as fmusim writes them (one column `u`
+//! whose cells list the elements separated by spaces, row-major).
 //!
 //! An [`InputTable`] is plain data (from CSV text or from columns); [`InputTable::bind`] checks
 //! it against an FMU's description and gives the [`Inputs`] a run applies before each step
-//! ([`crate::run::run_with_inputs`]), with the times a step must land on.
+//! ([`crate::run::Run`]), with the times a step must land on.
 
-use fmi_importer::{Causality, Description, FmiVersion, Instance, Interface, Kind, Variability, Variable};
+use fmi_importer::{Causality, Description, FmiVersion, Instance, Interface, Kind, Value, Variability, Variable};
 use serde::{Deserialize, Serialize};
 
 use crate::variables;
@@ -29,7 +32,7 @@ pub struct InputTable {
 /// compares them): a discontinuity written as 0.5 and 0.5000000000001 is one instant.
 const SAME_TIME: f64 = 1e-9;
 
-/// True when `a` and `b` are the same instant (relative tolerance [`SAME_TIME`]).
+/// True when `a` and `b` are the same instant (relative tolerance `SAME_TIME`).
 pub fn same_time(a: f64, b: f64) -> bool {
     a == b || (a - b).abs() <= SAME_TIME * a.abs().max(b.abs())
 }
@@ -87,8 +90,7 @@ impl InputTable {
             None => return Err("the input file is empty: its first line must be 'time,NAME,...'".to_owned()),
         }
         let names = names[1..].to_vec();
-        let mut time = Vec::new();
-        let mut values = vec![Vec::new(); names.len()];
+        let mut rows = Vec::new();
         for record in reader.records() {
             let record = record.map_err(|e| format!("the input file cannot be read: {e}"))?;
             let line = record.position().map_or(0, |p| p.line());
@@ -99,50 +101,118 @@ impl InputTable {
                     names.len() + 1
                 ));
             }
-            let number = |cell: &str, column: &str| -> Result<f64, String> {
-                match cell {
-                    "true" => Ok(1.0),
-                    "false" => Ok(0.0),
-                    _ => cell
-                        .parse::<f64>()
-                        .ok()
-                        .filter(|x| x.is_finite())
-                        .ok_or_else(|| format!("line {line} of the input file, column '{column}': '{cell}' is not a finite number")),
-                }
-            };
-            time.push(number(&record[0], "time")?);
-            for (k, column) in values.iter_mut().enumerate() {
-                column.push(number(&record[k + 1], &names[k])?);
-            }
+            rows.push((line, record));
         }
-        if time.is_empty() {
+        if rows.is_empty() {
             return Err("the input file has a header but no rows".to_owned());
         }
-        InputTable::from_columns(names, time, values)
+        let number = |cell: &str, column: &str, line: u64| -> Result<f64, String> {
+            match cell {
+                "true" => Ok(1.0),
+                "false" => Ok(0.0),
+                _ => cell
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| format!("line {line} of the input file, column '{column}': '{cell}' is not a finite number")),
+            }
+        };
+        let time: Vec<f64> = rows.iter().map(|(line, r)| number(&r[0], "time", *line)).collect::<Result<_, _>>()?;
+        // An array as fmusim writes it: one column, its elements in each cell separated by
+        // spaces (row-major), read as the columns NAME[1], NAME[2], ... (flat, 1-based).
+        let mut columns = Vec::new();
+        let mut values = Vec::new();
+        for (k, name) in names.iter().enumerate() {
+            let width = rows.iter().map(|(_, r)| r[k + 1].split_whitespace().count()).max().unwrap_or(1);
+            if width <= 1 {
+                columns.push(name.clone());
+                values.push(rows.iter().map(|(line, r)| number(&r[k + 1], name, *line)).collect::<Result<Vec<f64>, _>>()?);
+                continue;
+            }
+            let mut elements = vec![Vec::with_capacity(rows.len()); width];
+            for (line, r) in &rows {
+                let cell: Vec<&str> = r[k + 1].split_whitespace().collect();
+                if cell.len() != width {
+                    return Err(format!(
+                        "line {line} of the input file, column '{name}': {} values where other rows have {width} (an array's elements, separated by spaces)",
+                        cell.len()
+                    ));
+                }
+                for (e, x) in cell.iter().enumerate() {
+                    elements[e].push(number(x, name, *line)?);
+                }
+            }
+            columns.extend((1..=width).map(|e| format!("{name}[{e}]")));
+            values.extend(elements);
+        }
+        InputTable::from_columns(columns, time, values)
     }
 
     /// Checks the table against the FMU `description` run through `interface`: every column
-    /// must be a scalar input of the FMU, and every value one of its type. An FMI 2.0
+    /// must be a scalar input of the FMU or an element of an array input (all of its elements
+    /// given, in order), and every value one of its type. An FMI 2.0
     /// Co-Simulation FMU that can interpolate inputs also gets their derivatives.
     pub fn bind<'a>(&self, description: &'a Description, interface: Interface) -> Result<Inputs<'a>, String> {
-        let mut signals = Vec::with_capacity(self.names.len());
+        let mut signals: Vec<Signal> = Vec::with_capacity(self.names.len());
         for (column, name) in self.names.iter().enumerate() {
-            let variable = variables::find(description, name).map_err(|e| format!("input file column '{name}': {e}"))?;
+            let (variable, index) = match description.variable(name) {
+                Some(v) => (v, None),
+                None => match element_name(name) {
+                    Some((base, index)) if description.variable(base).is_some_and(|v| v.is_array()) => {
+                        (description.variable(base).expect("looked up"), Some(index))
+                    }
+                    _ => (variables::find(description, name).map_err(|e| format!("input file column '{name}': {e}"))?, None),
+                },
+            };
             if variable.causality != Causality::Input {
                 return Err(format!(
-                    "input file column '{name}': '{name}' is {} ({}), not an input; set parameters with --set",
-                    variable.causality, variable.variability
+                    "input file column '{name}': '{}' is {} ({}), not an input; set parameters with --set",
+                    variable.name, variable.causality, variable.variability
                 ));
             }
-            if variable.is_array() || !variable.kind.is_numeric() {
-                let what = if variable.is_array() { "an array".to_owned() } else { format!("a {}", variable.kind) };
-                return Err(format!("input file column '{name}': '{name}' is {what}; input files drive numeric scalar inputs"));
+            if !variable.kind.is_numeric() {
+                return Err(format!(
+                    "input file column '{name}': '{}' is a {}; input files drive numeric inputs",
+                    variable.name, variable.kind
+                ));
             }
+            let element = Variable { dimensions: vec![], ..variable.clone() };
             for (row, &x) in self.values[column].iter().enumerate() {
-                variables::number_value(variable, x).map_err(|e| format!("input file column '{name}', time {}: {e}", self.time[row]))?;
+                variables::number_value(&element, x).map_err(|e| format!("input file column '{name}', time {}: {e}", self.time[row]))?;
             }
             let continuous = matches!(variable.kind, Kind::Real | Kind::Float32) && variable.variability == Variability::Continuous;
-            signals.push(Signal { variable, column, continuous });
+            match (variable.is_array(), index) {
+                (false, _) => signals.push(Signal { variable, element, columns: vec![column], continuous }),
+                (true, None) => {
+                    return Err(format!(
+                        "input file column '{name}': '{name}' is an array: give its elements as columns {name}[1], {name}[2], ... or as one column of values separated by spaces"
+                    ))
+                }
+                (true, Some(index)) => {
+                    let flat = flat_index(description, variable, &index).map_err(|e| format!("input file column '{name}': {e}"))?;
+                    match (signals.iter_mut().find(|s| s.variable.name == variable.name), flat) {
+                        (Some(signal), flat) if signal.columns.len() == flat => signal.columns.push(column),
+                        (None, 0) => signals.push(Signal { variable, element, columns: vec![column], continuous }),
+                        _ => {
+                            return Err(format!(
+                                "input file column '{name}': the elements of '{}' must be columns in order from the first, each once",
+                                variable.name
+                            ))
+                        }
+                    }
+                }
+            }
+        }
+        for signal in signals.iter().filter(|s| s.variable.is_array()) {
+            let shape = description.shape(signal.variable, &|_| None)?;
+            let size: u64 = shape.iter().product();
+            if signal.columns.len() as u64 != size {
+                return Err(format!(
+                    "the input file gives {} element(s) of '{}', which has {size} (by its dimensions' start values)",
+                    signal.columns.len(),
+                    signal.variable.name
+                ));
+            }
         }
         let derivatives = interface == Interface::CoSimulation
             && description.fmi_version == FmiVersion::Fmi2
@@ -160,8 +230,10 @@ impl InputTable {
         let t = &self.time;
         let mut events: Vec<f64> = (1..t.len()).filter(|&r| same_time(t[r], t[r - 1])).map(|r| t[r]).collect();
         for s in signals.iter().filter(|s| !s.continuous) {
-            let y = &self.values[s.column];
-            events.extend((1..t.len()).filter(|&r| y[r] != y[r - 1]).map(|r| t[r]));
+            for &column in &s.columns {
+                let y = &self.values[column];
+                events.extend((1..t.len()).filter(|&r| y[r] != y[r - 1]).map(|r| t[r]));
+            }
         }
         events.sort_by(f64::total_cmp);
         events.dedup_by(|a, b| same_time(*a, *b));
@@ -173,7 +245,10 @@ impl InputTable {
 #[derive(Debug, Clone)]
 struct Signal<'a> {
     variable: &'a Variable,
-    column: usize,
+    /// The variable as a scalar, for the type of each element.
+    element: Variable,
+    /// Its column, or an array's element columns in row-major order.
+    columns: Vec<usize>,
     /// Interpolated linearly (a continuous Real), else held.
     continuous: bool,
 }
@@ -221,7 +296,12 @@ impl Inputs<'_> {
     /// and the derivatives of the continuous ones where the FMU interpolates inputs.
     pub fn apply(&self, instance: &mut Instance, time: f64) -> Result<(), String> {
         for s in &self.signals {
-            let (x, slope) = self.value_at(s.column, s.continuous, time);
+            if s.variable.is_array() {
+                let elements = s.columns.iter().map(|&c| variables::number_value(&s.element, self.value_at(c, s.continuous, time).0));
+                instance.set(s.variable, &Value::List(elements.collect::<Result<_, _>>()?))?;
+                continue;
+            }
+            let (x, slope) = self.value_at(s.columns[0], s.continuous, time);
             let value = variables::number_value(s.variable, x)?;
             instance.set(s.variable, &value)?;
             if s.continuous && self.derivatives {
@@ -253,6 +333,34 @@ impl Inputs<'_> {
     pub fn variables(&self) -> impl Iterator<Item = &Variable> + '_ {
         self.signals.iter().map(|s| s.variable)
     }
+}
+
+/// `NAME[I]` or `NAME[I,J,...]`: the array's name and the 1-based indices.
+fn element_name(name: &str) -> Option<(&str, Vec<u64>)> {
+    let (base, rest) = name.strip_suffix(']')?.split_once('[')?;
+    let index: Option<Vec<u64>> = rest.split(',').map(|i| i.trim().parse::<u64>().ok().filter(|&i| i >= 1)).collect();
+    Some((base, index?))
+}
+
+/// The 0-based row-major position of the element at the 1-based `index` of `array`: one index
+/// is the flat position (as fmusim's cells list the elements), else one index per dimension.
+fn flat_index(description: &Description, array: &Variable, index: &[u64]) -> Result<usize, String> {
+    let shape = description.shape(array, &|_| None)?;
+    let size: u64 = shape.iter().product();
+    let flat = match index {
+        [k] => k - 1,
+        _ if index.len() == shape.len() => {
+            if let Some((i, n)) = index.iter().zip(&shape).find(|(i, n)| *i > *n) {
+                return Err(format!("index {i} is past the dimension of {n} elements of '{}'", array.name));
+            }
+            index.iter().zip(&shape).fold(0, |flat, (i, n)| flat * n + (i - 1))
+        }
+        _ => return Err(format!("'{}' has {} dimensions, not {}", array.name, shape.len(), index.len())),
+    };
+    if flat >= size {
+        return Err(format!("element {} is past the {size} elements of '{}'", flat + 1, array.name));
+    }
+    Ok(flat as usize)
 }
 
 #[cfg(test)]
@@ -398,7 +506,7 @@ mod runs {
     use fmi_importer::Fmu;
 
     use super::*;
-    use crate::run::{run_driven, Grid};
+    use crate::run::{Grid, Recording, Run, Texts};
 
     fn feedthrough() -> Option<Fmu> {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference-fmus/fmi2/Feedthrough.fmu");
@@ -420,8 +528,19 @@ mod runs {
         let grid = Grid::checked(0.0, 1.0, 0.1, None).unwrap();
         let recorded: Vec<&Variable> =
             ["Float64_continuous_output", "Int32_output", "Boolean_output"].iter().map(|n| d.variable(n).unwrap()).collect();
+        let recording = Recording::scalars(&recorded).unwrap();
+        let run = Run {
+            name: "feedthrough",
+            grid: &grid,
+            assignments: &[],
+            inputs: Some(&inputs),
+            recording: &recording,
+            debug_logging: false,
+            initial_state: None,
+            final_state: false,
+        };
         let mut rows = Vec::new();
-        run_driven(&fmu, "feedthrough", &grid, &[], Some(&inputs), &recorded, false, |t, v| {
+        run.execute(&fmu, |t: f64, v: &[f64], _: &dyn Texts| {
             rows.push((t, v.to_vec()));
             Ok(())
         })

@@ -2,6 +2,7 @@
 //! A Model Exchange FMU is integrated by the runner between the grid points, with the grid's
 //! solver; a Co-Simulation FMU integrates itself.
 
+use fmi_importer::state::SavedState;
 use fmi_importer::{Description, Fmu, Instance, Reader, Solver, Step, Value, Variable};
 
 use crate::input::Inputs;
@@ -24,12 +25,17 @@ pub struct Grid {
     pub tolerance: Option<f64>,
     /// The runner's integrator for Model Exchange (unused for Co-Simulation).
     pub solver: Solver,
+    /// Communication points on a logarithmic time scale (fmusim's `--log-time-scale`): point
+    /// `i` is `start * interval^i`, `interval` then a factor above 1 and `start` above 0.
+    #[serde(default)]
+    pub logarithmic: bool,
 }
 
 /// Grid settings from one source (the command line, an experiment file); `None` leaves the
 /// choice to the next source.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct GridSettings {
+    pub start_time: Option<f64>,
     pub stop_time: Option<f64>,
     pub output_interval: Option<f64>,
     pub tolerance: Option<f64>,
@@ -42,7 +48,7 @@ impl Grid {
     pub fn choose(description: &Description, sources: &[GridSettings]) -> Result<Grid, String> {
         let default = description.default_experiment.unwrap_or_default();
         let first = |pick: fn(&GridSettings) -> Option<f64>| sources.iter().find_map(pick);
-        let start = default.start_time.unwrap_or(0.0);
+        let start = first(|s| s.start_time).or(default.start_time).unwrap_or(0.0);
         let stop = first(|s| s.stop_time).or(default.stop_time).unwrap_or(start + 1.0);
         let interval = first(|s| s.output_interval).or(default.step_size).unwrap_or((stop - start) / 500.0);
         let tolerance = first(|s| s.tolerance).or(default.tolerance);
@@ -69,12 +75,50 @@ impl Grid {
                 return Err(format!("tolerance {t} must be a positive number"));
             }
         }
-        Ok(Grid { start, stop, interval, tolerance, solver: Solver::default() })
+        Ok(Grid { start, stop, interval, tolerance, solver: Solver::default(), logarithmic: false })
+    }
+
+    /// The grid of `start`, `stop` and `tolerance` of `description` and `sources` (as
+    /// [`Grid::choose`]) with its points on a logarithmic time scale, as fmusim's
+    /// `--log-time-scale`: point `i` is `start * factor^i`. The factor is the first source's
+    /// output interval (a DefaultExperiment's stepSize is a step, not a factor, so it is not
+    /// taken), else the one that gives 500 intervals from start to stop.
+    pub fn choose_logarithmic(description: &Description, sources: &[GridSettings]) -> Result<Grid, String> {
+        let default = description.default_experiment.unwrap_or_default();
+        let first = |pick: fn(&GridSettings) -> Option<f64>| sources.iter().find_map(pick);
+        let start = first(|s| s.start_time).or(default.start_time).unwrap_or(0.0);
+        let stop = first(|s| s.stop_time).or(default.stop_time).unwrap_or(start + 1.0);
+        let tolerance = first(|s| s.tolerance).or(default.tolerance);
+        if start <= 0.0 || !start.is_finite() {
+            return Err(format!(
+                "a logarithmic time scale starts above 0, not at start time {start}: give --start-time (the Reference FMU Roberts starts at 1e-5 s)"
+            ));
+        }
+        if stop <= start || !stop.is_finite() {
+            return Err(format!("stop time {stop} must be a number after the start time {start}"));
+        }
+        let factor = first(|s| s.output_interval).unwrap_or_else(|| (stop / start).powf(1.0 / 500.0));
+        if factor <= 1.0 || !factor.is_finite() {
+            return Err(format!(
+                "on a logarithmic time scale the output interval is the factor from one point to the next, a number above 1, not {factor}"
+            ));
+        }
+        let steps = (stop / start).ln() / factor.ln();
+        if steps > MAX_STEPS as f64 {
+            return Err(format!(
+                "a factor of {factor:?} from {start:?} s to {stop:?} s is {steps:.3e} communication steps, more than the {MAX_STEPS:.0e} a run may have (raise the factor)"
+            ));
+        }
+        let grid = Grid::checked(start, stop, 1.0, tolerance)?;
+        Ok(Grid { interval: factor, logarithmic: true, ..grid })
     }
 
     /// Number of communication steps; a last partial interval is kept (shortened to end at stop).
     pub fn steps(&self) -> usize {
-        let n = (self.stop - self.start) / self.interval;
+        let n = match self.logarithmic {
+            true => (self.stop / self.start).ln() / self.interval.ln(),
+            false => (self.stop - self.start) / self.interval,
+        };
         // Round away float noise such as 10 / 1e-3 = 9999.999999999998.
         if (n - n.round()).abs() < 1e-9 * n.max(1.0) {
             n.round() as usize
@@ -92,6 +136,10 @@ impl Grid {
     pub fn time_of(&self, i: usize, steps: usize) -> f64 {
         if i >= steps {
             self.stop
+        } else if self.logarithmic {
+            // As fmusim computes its points: from i, not accumulated (i < steps <= MAX_STEPS
+            // fits an i32).
+            self.start * self.interval.powi(i as i32)
         } else {
             // i < steps <= MAX_STEPS: as i64 it converts in one instruction (an unsigned one
             // takes five), to the same exact value.
@@ -105,9 +153,11 @@ pub struct Outcome {
     /// `Some(reason)` when the model stopped before the stop time (fmi2Discard + terminated,
     /// or terminateSimulation under Model Exchange).
     pub ended_early: Option<String>,
-    /// Model Exchange: the runner's integrator's accepted steps and right-hand-side
-    /// evaluations (`None` for Co-Simulation).
-    pub counters: Option<(u64, u64)>,
+    /// Model Exchange: the work of the runner's integrator (`None` for Co-Simulation).
+    pub counters: Option<fmi_importer::exchange::Counters>,
+    /// The state at the stop time, as bytes naming the FMU, when the run asked for it
+    /// ([`Run::final_state`]; not when the model ended the run early).
+    pub final_state: Option<Vec<u8>>,
 }
 
 /// The columns a run records: its variables, with each array expanded into its elements
@@ -174,19 +224,41 @@ impl<'a> Recording<'a> {
 /// Most elements a recorded array may have: one CSV column each.
 pub const MAX_ARRAY_ELEMENTS: u64 = 100_000;
 
-/// Runs one instance named `name`: sets `assignments` before initialization, then calls
-/// `sample(t, values)` at every communication point with the values of `recorded` in order
-/// (scalars only: arrays go through [`run_recording`]).
-pub fn run(
-    fmu: &Fmu,
-    name: &str,
-    grid: &Grid,
-    assignments: &[(&Variable, Value)],
-    recorded: &[&Variable],
-    debug_logging: bool,
-    sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
-) -> Result<Outcome, String> {
-    run_driven(fmu, name, grid, assignments, None, recorded, debug_logging, sample)
+/// One run of a loaded FMU, its names bound to the FMU's variables: the one argument of the
+/// run loop ([`Run::execute`]). It borrows what it names, so a sweep point, a
+/// [`crate::request::RunRequest`] bound to an FMU and a trace all make one without copying.
+pub struct Run<'r, 'a> {
+    /// The instance name.
+    pub name: &'r str,
+    /// The time grid, tolerance and (Model Exchange) solver.
+    pub grid: &'r Grid,
+    /// Set before initialization, in order (a later one wins).
+    pub assignments: &'r [(&'a Variable, Value)],
+    /// Set before initialization ends and before every step, each step ending on the inputs'
+    /// next discontinuity where it would cross one.
+    pub inputs: Option<&'r Inputs<'a>>,
+    /// The columns sampled.
+    pub recording: &'r Recording<'a>,
+    /// Turns the FMU's debug logging on.
+    pub debug_logging: bool,
+    /// Restored after initialization: the run goes on from this state (taken at the grid's
+    /// start time).
+    pub initial_state: Option<&'r SavedState>,
+    /// Save the state reached at the stop time ([`Outcome::final_state`]).
+    pub final_state: bool,
+}
+
+impl Run<'_, '_> {
+    /// Runs one instance of `fmu` (the FMU the run's variables are of): instantiate, set,
+    /// initialize, step on the grid, calling `sampler` at every communication point (and at
+    /// every event a step stops at, when the recording asks).
+    pub fn execute(&self, fmu: &Fmu, sampler: impl Sampler) -> Result<Outcome, String> {
+        // Two copies of the loop: the one without inputs is the sweep's hot path, unchanged.
+        match self.inputs {
+            None => drive(fmu, self, &Constant, sampler),
+            Some(inputs) => drive(fmu, self, inputs, sampler),
+        }
+    }
 }
 
 /// The exact text of each column of a sample (strings, binary, wide integers): the [`Reader`]
@@ -208,86 +280,17 @@ impl Texts for Reader {
     }
 }
 
-/// [`run`] for the columns of a [`Recording`], arrays included; `sample` also gets the texts
-/// that give each column exactly.
-pub fn run_recording(
-    fmu: &Fmu,
-    name: &str,
-    grid: &Grid,
-    assignments: &[(&Variable, Value)],
-    recording: &Recording,
-    debug_logging: bool,
-    sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
-) -> Result<Outcome, String> {
-    run_with_inputs(fmu, name, grid, assignments, None, recording, debug_logging, sample)
-}
-
-/// [`run`] with `inputs` (`None`: none) set before initialization ends and before every step,
-/// each step ending on the inputs' next discontinuity where it would cross one.
-#[allow(clippy::too_many_arguments)]
-pub fn run_driven(
-    fmu: &Fmu,
-    name: &str,
-    grid: &Grid,
-    assignments: &[(&Variable, Value)],
-    inputs: Option<&Inputs>,
-    recorded: &[&Variable],
-    debug_logging: bool,
-    mut sample: impl FnMut(f64, &[f64]) -> Result<(), String>,
-) -> Result<Outcome, String> {
-    let recording = Recording::scalars(recorded)?;
-    run_with_inputs(fmu, name, grid, assignments, inputs, &recording, debug_logging, |t, values, _| sample(t, values))
-}
-
-/// [`run_recording`] with `inputs` (`None`: none), as [`run_driven`] applies them.
-#[allow(clippy::too_many_arguments)]
-pub fn run_with_inputs(
-    fmu: &Fmu,
-    name: &str,
-    grid: &Grid,
-    assignments: &[(&Variable, Value)],
-    inputs: Option<&Inputs>,
-    recording: &Recording,
-    debug_logging: bool,
-    sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
-) -> Result<Outcome, String> {
-    run_sampled(fmu, name, grid, assignments, inputs, recording, debug_logging, Closure(sample))
-}
-
-/// What a run does with each sample. A closure `sample(t, values, texts)` is one (see
-/// [`run_with_inputs`]); a type of its own can have its method always inlined into the run's
-/// loop, which a closure called at the loop's several places is not (a call of its own cost
-/// a sweep about 20 instructions per sample).
+/// What a run does with each sample: any closure `sample(t, values, texts)` is one; a type of
+/// its own (a sweep's summaries) can have its method always inlined into the run's loop.
 pub trait Sampler {
     /// The values of the recorded columns at time `t`, and their exact texts.
     fn sample(&mut self, t: f64, values: &[f64], texts: &dyn Texts) -> Result<(), String>;
 }
 
-struct Closure<F>(F);
-
-impl<F: FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>> Sampler for Closure<F> {
+impl<F: FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>> Sampler for F {
     #[inline]
     fn sample(&mut self, t: f64, values: &[f64], texts: &dyn Texts) -> Result<(), String> {
-        (self.0)(t, values, texts)
-    }
-}
-
-/// [`run_with_inputs`] with a [`Sampler`].
-#[allow(clippy::too_many_arguments)]
-pub fn run_sampled(
-    fmu: &Fmu,
-    name: &str,
-    grid: &Grid,
-    assignments: &[(&Variable, Value)],
-    inputs: Option<&Inputs>,
-    recording: &Recording,
-    debug_logging: bool,
-    sampler: impl Sampler,
-) -> Result<Outcome, String> {
-    // Two copies of the loop: the one without inputs is the sweep's hot path, unchanged.
-    match inputs {
-        None => drive(fmu, name, grid, assignments, &Constant, recording, debug_logging, sampler),
-        Some(inputs) => drive(fmu, name, grid, assignments, inputs, recording, debug_logging, sampler),
+        self(t, values, texts)
     }
 }
 
@@ -326,29 +329,25 @@ impl Stimulus for Inputs<'_> {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn drive(
-    fmu: &Fmu,
-    name: &str,
-    grid: &Grid,
-    assignments: &[(&Variable, Value)],
-    inputs: &impl Stimulus,
-    recording: &Recording,
-    debug_logging: bool,
-    mut sampler: impl Sampler,
-) -> Result<Outcome, String> {
+fn drive(fmu: &Fmu, run: &Run, inputs: &impl Stimulus, mut sampler: impl Sampler) -> Result<Outcome, String> {
+    let (grid, recording) = (run.grid, run.recording);
     let mut reader = Reader::with_sizes(fmu.description.fmi_version, &recording.variables, &recording.sizes)?;
     let mut values = vec![0.0; reader.len()];
-    let mut instance = fmu.instantiate(name, debug_logging)?;
+    let mut instance = fmu.instantiate(run.name, run.debug_logging)?;
     instance.set_solver(grid.solver);
-    instance.setup_experiment(grid.tolerance, grid.start, grid.stop)?;
-    for (variable, value) in assignments {
+    // A state saved to be continued must not hold the stop time: the FMU is told none.
+    let stop = if run.final_state { f64::INFINITY } else { grid.stop };
+    instance.setup_experiment(grid.tolerance, grid.start, stop)?;
+    for (variable, value) in run.assignments {
         instance.set(variable, value)?;
     }
     instance.enter_initialization_mode()?;
     inputs.apply(&mut instance, grid.start)?;
     instance.exit_initialization_mode()?;
+    if let Some(state) = run.initial_state {
+        instance.restore_state(state)?;
+    }
     instance.read(&mut reader, &mut values)?;
     sampler.sample(grid.start, &values, &reader)?;
     let n = grid.steps();
@@ -376,7 +375,7 @@ fn drive(
                     if let Some(reason) = instance.handle_event(time)? {
                         instance.read(&mut reader, &mut values)?;
                         sampler.sample(time, &values, &reader)?;
-                        return Ok(Outcome { ended_early: Some(reason), counters: instance.counters() });
+                        return Ok(Outcome { ended_early: Some(reason), counters: instance.counters(), final_state: None });
                     }
                     if time >= t_next {
                         break;
@@ -389,7 +388,7 @@ fn drive(
                         instance.read(&mut reader, &mut values)?;
                         sampler.sample(last, &values, &reader)?;
                     }
-                    return Ok(Outcome { ended_early: Some(reason), counters: instance.counters() });
+                    return Ok(Outcome { ended_early: Some(reason), counters: instance.counters(), final_state: None });
                 }
             }
         }
@@ -397,7 +396,11 @@ fn drive(
         sampler.sample(t_next, &values, &reader)?;
         t = t_next;
     }
-    Ok(Outcome { ended_early: None, counters: instance.counters() })
+    let final_state = match run.final_state {
+        true => Some(instance.save_state(grid.stop)?.to_bytes(fmu.state_identity())),
+        false => None,
+    };
+    Ok(Outcome { ended_early: None, counters: instance.counters(), final_state })
 }
 
 #[cfg(test)]
@@ -421,14 +424,9 @@ mod tests {
         }
     }
 
-    /// A 2 x n matrix output, n a structural parameter with start 3: its columns are named
-    /// row-major, 1-based, and follow a value set for n.
-    #[test]
-    fn arrays_expand_to_row_major_columns_sized_by_structural_parameters() {
-        let n = variable("n", 1, Kind::UInt64, Causality::StructuralParameter, Some(Start::Integer(3)), vec![]);
-        let y = variable("y", 2, Kind::Real, Causality::Output, None, vec![Dimension::Fixed(2), Dimension::Variable(1)]);
-        let s = variable("s", 3, Kind::Real, Causality::Output, None, vec![]);
-        let description = Description {
+    /// An FMI 3.0 description of `variables`.
+    fn description(variables: Vec<Variable>) -> Description {
+        Description {
             fmi_version: FmiVersion::Fmi3,
             fmi_version_text: "3.0".into(),
             model_name: "m".into(),
@@ -439,10 +437,20 @@ mod tests {
             model_exchange: None,
             default_experiment: None,
             units: vec![],
-            variables: vec![n.clone(), y.clone(), s.clone()],
+            variables,
             number_of_continuous_states: 0,
             number_of_event_indicators: 0,
-        };
+        }
+    }
+
+    /// A 2 x n matrix output, n a structural parameter with start 3: its columns are named
+    /// row-major, 1-based, and follow a value set for n.
+    #[test]
+    fn arrays_expand_to_row_major_columns_sized_by_structural_parameters() {
+        let n = variable("n", 1, Kind::UInt64, Causality::StructuralParameter, Some(Start::Integer(3)), vec![]);
+        let y = variable("y", 2, Kind::Real, Causality::Output, None, vec![Dimension::Fixed(2), Dimension::Variable(1)]);
+        let s = variable("s", 3, Kind::Real, Causality::Output, None, vec![]);
+        let description = description(vec![n.clone(), y.clone(), s.clone()]);
         let r = Recording::new(&description, &[&s, &y], &[]).unwrap();
         assert_eq!(r.names, ["s", "y[1,1]", "y[1,2]", "y[1,3]", "y[2,1]", "y[2,2]", "y[2,3]"]);
         assert_eq!(r.sizes, [1, 6]);
@@ -451,6 +459,26 @@ mod tests {
         let no_size = Variable { start: None, ..n.clone() };
         let description = Description { variables: vec![no_size, y.clone()], ..description };
         assert!(Recording::new(&description, &[&y], &[]).err().unwrap().contains("the size of y is given by value reference 1"));
+    }
+
+    /// fmusim's logarithmic grid: point i is start·F^i, ending on the stop time (a last partial
+    /// step kept); float noise in ln(stop/start)/ln(F) does not add a step.
+    #[test]
+    fn logarithmic_grids_multiply_by_the_factor() {
+        let description = description(vec![]);
+        let settings = GridSettings { start_time: Some(1e-5), stop_time: Some(1e8), output_interval: Some(10.0), tolerance: None };
+        let grid = Grid::choose_logarithmic(&description, &[settings]).unwrap();
+        assert_eq!(grid.steps(), 13);
+        assert_eq!(grid.time(0), 1e-5);
+        assert_eq!(grid.time(3), 1e-5 * 1000.0);
+        assert_eq!(grid.time(13), 1e8);
+        let partial = GridSettings { stop_time: Some(5e-4), ..settings };
+        let grid = Grid::choose_logarithmic(&description, &[partial]).unwrap();
+        assert_eq!((grid.steps(), grid.time(1), grid.time(2)), (2, 1e-5 * 10.0, 5e-4), "the last step ends at stop");
+        let default = Grid::choose_logarithmic(&description, &[GridSettings { output_interval: None, ..settings }]).unwrap();
+        assert_eq!(default.steps(), 500, "500 intervals when no factor is given");
+        let at_zero = GridSettings { start_time: None, ..settings };
+        assert!(Grid::choose_logarithmic(&description, &[at_zero]).unwrap_err().contains("starts above 0"));
     }
 
     /// A typo such as an output interval of 1e-300 must be refused at once, not start a run

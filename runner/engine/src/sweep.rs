@@ -1,17 +1,21 @@
 //! Sweeps: the cartesian product of parameter ranges, one FMU instance per point, run in
 //! parallel on a rayon pool (one loaded FMU for the whole sweep), with metrics per point and
-//! the results handed back in point order as they finish. [`crate::isolation`] runs the same
-//! points in worker processes instead.
+//! the results handed back in point order as they finish. A [`Plan`] is a
+//! [`crate::request::SweepRequest`] bound to an FMU; [`crate::isolated`] runs the same points in
+//! worker processes instead.
 
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc;
 
-use fmi_importer::{Description, Fmu, Interface, Value, Variable};
+use fmi_importer::{Description, Fmu, Value, Variable};
 use serde::{Deserialize, Serialize};
 
-use crate::input::{InputTable, Inputs};
+use fmi_importer::exchange::JacobianSource;
+
+use crate::input::Inputs;
+use crate::linear;
 use crate::metrics::{Accumulator, Metrics};
 use crate::run::{self, Grid};
 use crate::variables;
@@ -58,6 +62,9 @@ impl run::Sampler for Summaries<'_> {
 fn interrupted() -> String {
     "interrupted".to_owned()
 }
+
+/// Each mode's natural frequency and damping ratio.
+type ModeList = Vec<(f64, f64)>;
 
 /// Samples between two checks of a run's `stop` (about 0.2 ms of the Ex. 4 sweep's run).
 const STOP_CHECK_SAMPLES: u32 = 128;
@@ -143,35 +150,6 @@ pub struct PointResult {
     pub status: String,
 }
 
-/// A sweep as data: what the command line asked for, before it is checked against an FMU.
-/// Worker processes receive it and build the same [`Plan`], so a point runs identically there.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct SweepSpec {
-    /// The grid of every run.
-    pub grid: Grid,
-    /// `NAME=VALUE` assignments common to every point, in order (a later one wins).
-    pub sets: Vec<String>,
-    /// Each swept parameter's name and values, in `--param` order.
-    pub ranges: Vec<(String, Vec<f64>)>,
-    /// `NAME=EXPR` metrics.
-    pub metrics: Vec<String>,
-    /// Inputs set before every step of every point (`--input-file`).
-    #[serde(default)]
-    pub inputs: Option<InputTable>,
-}
-
-impl SweepSpec {
-    /// The checked plan of this sweep over the FMU `description` (modelIdentifier `identifier`),
-    /// run through `interface`.
-    pub fn plan<'a>(&self, description: &'a Description, identifier: &'a str, interface: Interface) -> Result<Plan<'a>, String> {
-        let fixed = variables::parse_sets(description, &self.sets)?;
-        let metrics = Metrics::parse(&self.metrics)?;
-        let mut plan = Plan::new(description, identifier, self.grid, fixed, self.ranges.clone(), metrics)?;
-        plan.inputs = self.inputs.as_ref().map(|table| table.bind(description, interface)).transpose()?;
-        Ok(plan)
-    }
-}
-
 /// Everything a sweep runs, checked before the first point.
 pub struct Plan<'a> {
     /// The FMU's description (the plan's variables point into it).
@@ -189,6 +167,8 @@ pub struct Plan<'a> {
     pub sources: Vec<&'a Variable>,
     /// Inputs set before every step of every point.
     pub inputs: Option<Inputs<'a>>,
+    /// Per source, the variables its `amplitude` frequency names (in the formula's order).
+    frequency_names: Vec<Vec<&'a Variable>>,
 }
 
 impl<'a> Plan<'a> {
@@ -225,8 +205,51 @@ impl<'a> Plan<'a> {
                 Ok(v)
             })
             .collect::<Result<Vec<_>, String>>()?;
+        let frequency_names = metrics
+            .sources
+            .iter()
+            .map(|s| {
+                let Some(f) = &s.frequency else { return Ok(Vec::new()) };
+                f.names
+                    .iter()
+                    .map(|name| {
+                        let v = variables::find(d, name).map_err(|e| format!("amplitude's frequency {}: {e}", f.text))?;
+                        let given = swept.iter().any(|w| std::ptr::eq(*w, v)) || fixed.iter().any(|(w, _)| std::ptr::eq(*w, v));
+                        if !given && v.start.as_ref().and_then(|s| s.as_number()).is_none() {
+                            return Err(format!(
+                                "amplitude's frequency {} reads '{name}', which has no number before the run: give it with --set or --param, or use a parameter with a start value",
+                                f.text
+                            ));
+                        }
+                        Ok(v)
+                    })
+                    .collect::<Result<Vec<_>, String>>()
+            })
+            .collect::<Result<Vec<_>, String>>()?;
         let space = Space::new(ranges)?;
-        Ok(Plan { description, identifier, grid, fixed, swept, space, metrics, sources, inputs: None })
+        Ok(Plan { description, identifier, grid, fixed, swept, space, metrics, sources, inputs: None, frequency_names })
+    }
+
+    /// The accumulators of a run with `assignments`: `amplitude`'s frequency evaluated with the
+    /// values its names have in the run (the last assignment, else the start value).
+    fn accumulators(&self, assignments: &[(&Variable, Value)]) -> Result<Vec<Accumulator>, String> {
+        let mut acc = self.metrics.accumulators();
+        for ((a, source), variables) in acc.iter_mut().zip(&self.metrics.sources).zip(&self.frequency_names) {
+            let Some(formula) = &source.frequency else { continue };
+            let values: Vec<f64> = variables
+                .iter()
+                .map(|v| {
+                    let assigned = assignments.iter().rev().find(|(w, _)| std::ptr::eq(*w, *v)).map(|(_, x)| x.as_number());
+                    assigned.unwrap_or_else(|| v.start.as_ref().and_then(|s| s.as_number())).unwrap_or(f64::NAN)
+                })
+                .collect();
+            let omega = formula.evaluate(&values);
+            if !omega.is_finite() || omega <= 0.0 {
+                return Err(format!("amplitude's frequency {} is {omega} rad/s here; it must be a positive number", formula.text));
+            }
+            a.set_frequency(omega);
+        }
+        Ok(acc)
     }
 
     /// The instance name of point `i`, e.g. `quarter_car[speed=4.0]`.
@@ -246,11 +269,37 @@ impl<'a> Plan<'a> {
             assignments.push((*v, variables::number_value(v, x).expect("value checked before the sweep")));
         }
         let name = self.instance_name(point);
-        let mut acc = self.metrics.accumulators();
+        // Metrics of modes: the point linearized at its initial state, in an instance of its own.
+        let modes = match self.metrics.highest_mode() {
+            None => Vec::new(),
+            Some(highest) => match self.modes(fmu, &name, &assignments, highest) {
+                Ok(modes) => modes,
+                Err(e) => return PointResult { metrics: None, status: e },
+            },
+        };
+        let mut acc = match self.accumulators(&assignments) {
+            Ok(acc) => acc,
+            Err(e) => return PointResult { metrics: None, status: e },
+        };
         let counts_all = acc.iter().all(Accumulator::counts_all);
         let summaries = Summaries { acc: &mut acc, stop, until_check: 0, counts_all };
+        // Metrics of modes alone need no simulation.
+        let simulated = !self.sources.is_empty() || modes.is_empty();
         let result = run::Recording::scalars(&self.sources).and_then(|recording| {
-            run::run_sampled(fmu, &name, &self.grid, &assignments, self.inputs.as_ref(), &recording, false, summaries)
+            if !simulated {
+                return Ok(run::Outcome { ended_early: None, counters: None, final_state: None });
+            }
+            let run = run::Run {
+                name: &name,
+                grid: &self.grid,
+                assignments: &assignments,
+                inputs: self.inputs.as_ref(),
+                recording: &recording,
+                debug_logging: false,
+                initial_state: None,
+                final_state: false,
+            };
+            run.execute(fmu, summaries)
         });
         match result {
             Err(e) => PointResult { metrics: None, status: e },
@@ -258,7 +307,7 @@ impl<'a> Plan<'a> {
                 if let Some(reason) = outcome.ended_early {
                     crate::note(&format!("{name}: {reason}; metrics are over the samples up to there"));
                 }
-                let values = self.metrics.evaluate(&acc);
+                let values = self.metrics.evaluate_with_modes(&acc, &modes);
                 let bad: Vec<String> = self
                     .metrics
                     .metrics
@@ -271,6 +320,25 @@ impl<'a> Plan<'a> {
                 PointResult { metrics: Some(values), status }
             }
         }
+    }
+
+    /// The natural frequency and damping ratio (NaN for an integrator) of each mode of the
+    /// point linearized at its initial state, by rising natural frequency; an error when it has
+    /// fewer than `highest` modes, or the FMU was not loaded for Model Exchange.
+    fn modes(&self, fmu: &Fmu, name: &str, assignments: &[(&Variable, Value)], highest: usize) -> Result<ModeList, String> {
+        if fmu.interface != fmi_importer::Interface::ModelExchange {
+            return Err("the metrics read modes of the linearized model, which needs the FMU's Model Exchange interface (--interface model-exchange)".to_owned());
+        }
+        let request = linear::Request { name, grid: &self.grid, assignments, at: None, prefer: JacobianSource::DirectionalDerivatives };
+        let model = linear::linearize(fmu, &request)?;
+        let modes = linear::modes(&linear::eigenvalues(&model.a)?);
+        if modes.len() < highest {
+            return Err(format!(
+                "the metrics read mode {highest}, and the model linearized at its initial state has {} mode(s) (a real eigenvalue or a complex pair each)",
+                modes.len()
+            ));
+        }
+        Ok(modes.iter().map(|m| (m.natural_frequency, m.damping_ratio.unwrap_or(f64::NAN))).collect())
     }
 
     /// Runs every point on `threads` threads of this process and calls `deliver(i, result)` in

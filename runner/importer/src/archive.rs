@@ -102,9 +102,20 @@ pub struct Checked {
     plan: Vec<(usize, PathBuf, bool, u64)>,
     total: u64,
     at: String,
+    /// Entries listed again with the same contents (skipped), by name.
+    duplicates: Vec<String>,
 }
 
+/// Most bytes a repeated entry may have for its copies to be compared (they are read whole).
+const MOST_COMPARED: u64 = 1 << 28;
+
 impl Checked {
+    /// The files the archive lists more than once, each time with the same bytes: accepted
+    /// (the copies are one file), but a warning for `runner validate`.
+    pub fn duplicates(&self) -> &[String] {
+        &self.duplicates
+    }
+
     /// The bytes all files together declare: what extracting needs on disk.
     pub fn total_bytes(&self) -> u64 {
         self.total
@@ -148,17 +159,23 @@ pub fn check_zip(archive: &Path, limits: Limits) -> Result<Checked, String> {
     let file = std::fs::File::open(archive).map_err(|e| format!("cannot open {}: {e}", archive.display()))?;
     let mut zip = zip::ZipArchive::new(file).map_err(|e| format!("{} is not a zip archive (an .fmu is one): {e}", archive.display()))?;
     let at = archive.display();
-    // The zip crate keeps one entry per name, so a repeated name must be caught here: which copy
-    // counts would otherwise depend on the unzip tool, and a checker could see another file.
-    if zip.has_duplicate_names() {
-        return Err(format!("{at}: refusing the archive: it lists an entry name more than once"));
-    }
+    // The zip crate keeps one entry per name, so copies listed under one name are found in
+    // the central directory itself and compared there.
+    let mut duplicates = if zip.has_duplicate_names() {
+        let mut file = std::fs::File::open(archive).map_err(|e| format!("cannot open {}: {e}", archive.display()))?;
+        same_name_copies(&mut file).map_err(|why| format!("{at}: refusing the archive: {why}"))?
+    } else {
+        Vec::new()
+    };
     if zip.len() > limits.max_entries {
         return Err(format!("{at}: refusing the archive: it has {} entries, more than the limit of {}", zip.len(), limits.max_entries));
     }
     // First pass checks every name and size, so a bad archive leaves nothing behind.
     let mut plan: Vec<(usize, PathBuf, bool, u64)> = Vec::with_capacity(zip.len());
-    let mut seen = std::collections::HashSet::new();
+    // Each path and the entry first listed there: a path listed again (the same name twice,
+    // or names such as "a/b" and "a//b") is one file only if the copies are the same bytes;
+    // else which copy counts would depend on the unzip tool, and a checker could see another.
+    let mut seen: std::collections::HashMap<PathBuf, usize> = std::collections::HashMap::new();
     let mut total: u64 = 0;
     for i in 0..zip.len() {
         let entry = zip.by_index_raw(i).map_err(|e| format!("{at}: entry {i}: {e}"))?;
@@ -173,15 +190,26 @@ pub fn check_zip(archive: &Path, limits: Limits) -> Result<Checked, String> {
             return Err(format!("{at}: refusing entry '{}': it is a symbolic link", shown(&name)));
         }
         let relative: PathBuf = name.replace('\\', "/").split('/').filter(|c| !c.is_empty() && *c != ".").collect();
-        // Distinct names can still land on one path ("a/b", "a//b", "./a/b", a lossy non-UTF-8 name).
-        if !relative.as_os_str().is_empty() && !seen.insert(relative.clone()) {
-            return Err(format!(
-                "{at}: refusing entry '{}': an earlier entry has the same path ({}), so it would be extracted more than once",
-                shown(&name),
-                shown(&relative.to_string_lossy())
-            ));
+        let is_dir = entry.is_dir();
+        drop(entry);
+        if let Some(&first) = seen.get(&relative) {
+            if !relative.as_os_str().is_empty() {
+                same_contents(&mut zip, first, i).map_err(|why| {
+                    format!(
+                        "{at}: refusing entry '{}': an earlier entry has the same path ({}) {why}, so a tool that takes the first copy and one that takes the last would unpack different FMUs",
+                        shown(&name),
+                        shown(&relative.to_string_lossy())
+                    )
+                })?;
+                if !is_dir {
+                    duplicates.push(shown(&relative.to_string_lossy()));
+                }
+            }
+            continue;
         }
-        let size = if entry.is_dir() { 0 } else { entry.size() };
+        seen.insert(relative.clone(), i);
+        let entry = zip.by_index_raw(i).map_err(|e| format!("{at}: entry {i}: {e}"))?;
+        let size = if is_dir { 0 } else { entry.size() };
         total = total.saturating_add(size);
         if total > limits.max_total_bytes {
             return Err(format!(
@@ -193,7 +221,123 @@ pub fn check_zip(archive: &Path, limits: Limits) -> Result<Checked, String> {
         }
         plan.push((i, relative, entry.is_dir(), size));
     }
-    Ok(Checked { zip, plan, total, at: at.to_string() })
+    Ok(Checked { zip, plan, total, at: at.to_string(), duplicates })
+}
+
+/// The names the central directory lists more than once, each with copies of the same stored
+/// bytes (compression method and data, read from each copy's local header on); an error names
+/// one whose copies differ. Copies compressed differently count as different: an archive
+/// writer that repeats an entry repeats its bytes.
+fn same_name_copies(file: &mut std::fs::File) -> Result<Vec<String>, String> {
+    let records = central_directory(file)?;
+    let mut by_name: std::collections::BTreeMap<&[u8], Vec<(u64, u64)>> = std::collections::BTreeMap::new();
+    for (name, offset, compressed) in &records {
+        by_name.entry(name.as_slice()).or_default().push((*offset, *compressed));
+    }
+    let mut repeated = Vec::new();
+    for (name, copies) in by_name.into_iter().filter(|(_, c)| c.len() > 1) {
+        let shown_name = shown(&String::from_utf8_lossy(name));
+        let unreadable = |e: &dyn std::fmt::Display| format!("a copy of entry '{shown_name}' cannot be read: {e}");
+        let mut first: Option<(u16, Vec<u8>)> = None;
+        for (offset, compressed) in copies {
+            if compressed > MOST_COMPARED {
+                return Err(format!("entry '{shown_name}' is listed more than once and too large to compare the copies"));
+            }
+            // The local header: signature, ..., method at 8, name and extra lengths at 26 and 28.
+            let mut header = [0u8; 30];
+            file.seek(std::io::SeekFrom::Start(offset)).map_err(|e| unreadable(&e))?;
+            file.read_exact(&mut header).map_err(|e| unreadable(&e))?;
+            if header[..4] != [0x50, 0x4b, 0x03, 0x04] {
+                return Err(unreadable(&"no local header at its offset"));
+            }
+            let method = u16::from_le_bytes([header[8], header[9]]);
+            let skip = i64::from(u16::from_le_bytes([header[26], header[27]])) + i64::from(u16::from_le_bytes([header[28], header[29]]));
+            file.seek(std::io::SeekFrom::Current(skip)).map_err(|e| unreadable(&e))?;
+            let mut data = vec![0u8; compressed as usize];
+            file.read_exact(&mut data).map_err(|e| unreadable(&e))?;
+            match &first {
+                None => first = Some((method, data)),
+                Some(kept) if *kept == (method, data) => {}
+                Some(_) => {
+                    return Err(format!(
+                        "it lists entry '{shown_name}' more than once with different contents, so a tool that takes the first copy and one that takes the last would unpack different FMUs"
+                    ))
+                }
+            }
+        }
+        // Directories repeated are harmless: the files are named.
+        if !name.ends_with(b"/") {
+            repeated.push(shown_name);
+        }
+    }
+    Ok(repeated)
+}
+
+/// Every record of the zip's central directory: the raw name, the local header's offset and the
+/// compressed size. Zip64 archives (whose fields say 0xFFFFFFFF) are not read here.
+fn central_directory(file: &mut std::fs::File) -> Result<Vec<(Vec<u8>, u64, u64)>, String> {
+    let fail = |e: std::io::Error| format!("the central directory cannot be read: {e}");
+    let length = file.seek(std::io::SeekFrom::End(0)).map_err(fail)?;
+    // The end record: 22 bytes and a comment of at most 65,535, at the end.
+    let tail_length = length.min(22 + 65_535);
+    file.seek(std::io::SeekFrom::Start(length - tail_length)).map_err(fail)?;
+    let mut tail = vec![0u8; tail_length as usize];
+    file.read_exact(&mut tail).map_err(fail)?;
+    let end = (0..tail.len().saturating_sub(21))
+        .rev()
+        .find(|&i| tail[i..i + 4] == [0x50, 0x4b, 0x05, 0x06])
+        .ok_or("it has no end of central directory record")?;
+    let u16_at = |b: &[u8], i: usize| u16::from_le_bytes([b[i], b[i + 1]]) as usize;
+    let u32_at = |b: &[u8], i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+    let (count, size, start) = (u16_at(&tail, end + 10), u32_at(&tail, end + 12), u32_at(&tail, end + 16));
+    if size == u32::MAX || start == u32::MAX || count == 0xFFFF {
+        return Err("it lists an entry name more than once in a zip64 directory, whose copies the runner does not compare".to_owned());
+    }
+    if u64::from(start) + u64::from(size) > length {
+        return Err("its central directory lies past the end of the file".to_owned());
+    }
+    file.seek(std::io::SeekFrom::Start(u64::from(start))).map_err(fail)?;
+    let mut directory = vec![0u8; size as usize];
+    file.read_exact(&mut directory).map_err(fail)?;
+    let mut records = Vec::with_capacity(count);
+    let mut at = 0;
+    for _ in 0..count {
+        if at + 46 > directory.len() || directory[at..at + 4] != [0x50, 0x4b, 0x01, 0x02] {
+            return Err("its central directory is truncated".to_owned());
+        }
+        let (name_length, extra, comment) = (u16_at(&directory, at + 28), u16_at(&directory, at + 30), u16_at(&directory, at + 32));
+        let (compressed, offset) = (u32_at(&directory, at + 20), u32_at(&directory, at + 42));
+        if compressed == u32::MAX || offset == u32::MAX {
+            return Err("it lists an entry name more than once in a zip64 directory, whose copies the runner does not compare".to_owned());
+        }
+        let name = directory.get(at + 46..at + 46 + name_length).ok_or("its central directory is truncated")?;
+        records.push((name.to_vec(), u64::from(offset), u64::from(compressed)));
+        at += 46 + name_length + extra + comment;
+    }
+    Ok(records)
+}
+
+/// Whether entries `a` and `b` are the same: both directories, or files of the same bytes
+/// (read and compared, up to [`MOST_COMPARED`] bytes each); else why not.
+fn same_contents(zip: &mut zip::ZipArchive<std::fs::File>, a: usize, b: usize) -> Result<(), String> {
+    let mut read = |i: usize| -> Result<Option<Vec<u8>>, String> {
+        let mut entry = zip.by_index(i).map_err(|e| format!("and entry {i} cannot be read ({e})"))?;
+        if entry.is_dir() {
+            return Ok(None);
+        }
+        if entry.size() > MOST_COMPARED {
+            return Err(format!("and {} bytes, too many to compare", entry.size()));
+        }
+        let mut bytes = Vec::with_capacity(entry.size() as usize);
+        (&mut entry).take(MOST_COMPARED + 1).read_to_end(&mut bytes).map_err(|e| format!("and cannot be read ({e})"))?;
+        Ok(Some(bytes))
+    };
+    match (read(a)?, read(b)?) {
+        (None, None) => Ok(()),
+        (Some(x), Some(y)) if x == y => Ok(()),
+        (Some(_), Some(_)) => Err("with different contents".to_owned()),
+        _ => Err("but one is a directory and the other a file".to_owned()),
+    }
 }
 
 #[cfg(test)]
@@ -300,11 +444,61 @@ mod tests {
     }
 
     #[test]
-    fn names_that_land_on_one_path_are_refused() {
+    fn names_that_land_on_one_path_with_other_bytes_are_refused() {
         let dir = tempfile::tempdir().unwrap();
         let entries = [Entry { path: "a/b.txt", bytes: b"1" }, Entry { path: "a//./b.txt", bytes: b"2" }];
         let error = extract(dir.path(), "twice.zip", &entries, Limits::FMU).unwrap_err();
-        assert!(error.contains("'a//./b.txt'") && error.contains("extracted more than once"), "{error}");
+        assert!(error.contains("'a//./b.txt'") && error.contains("different contents"), "{error}");
+        let entries = [Entry { path: "a/b", bytes: b"1" }, Entry { path: "a/b/", bytes: b"" }];
+        let error = extract(dir.path(), "kinds.zip", &entries, Limits::FMU).unwrap_err();
+        assert!(error.contains("one is a directory and the other a file"), "{error}");
+    }
+
+    /// A zip listing one name twice: written with the names "x/a.txt" and "x/b.txt", then the
+    /// second renamed in its local header and its central directory record (the zip writer
+    /// refuses a repeated name).
+    fn same_name_twice(dir: &Path, first: &[u8], second: &[u8]) -> PathBuf {
+        let archive = dir.join("twice.zip");
+        write_file(&archive, &[Entry { path: "x/a.txt", bytes: first }, Entry { path: "x/b.txt", bytes: second }]);
+        let mut bytes = std::fs::read(&archive).unwrap();
+        for at in (0..bytes.len() - 7).filter(|&i| &bytes[i..i + 7] == b"x/b.txt").collect::<Vec<_>>() {
+            bytes[at..at + 7].copy_from_slice(b"x/a.txt");
+        }
+        std::fs::write(&archive, &bytes).unwrap();
+        archive
+    }
+
+    /// The same name listed twice: the copies' bytes decide (the zip crate itself keeps one).
+    #[test]
+    fn a_name_listed_twice_is_one_file_only_with_the_same_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        let archive = same_name_twice(dir.path(), b"same bytes", b"same bytes");
+        let checked = check_zip(&archive, Limits::FMU).unwrap();
+        assert_eq!(checked.duplicates(), ["x/a.txt"]);
+        let archive = same_name_twice(dir.path(), b"first copy", b"other copy");
+        let error = check_zip(&archive, Limits::FMU).err().unwrap();
+        assert!(error.contains("lists entry 'x/a.txt' more than once with different contents"), "{error}");
+    }
+
+    /// Issue 33: the Reference FMUs' Roberts.fmu lists its `extra/` entries twice, the same
+    /// bytes each time. Such copies are one file: extracted once, and named for a warning.
+    #[test]
+    fn an_entry_listed_twice_with_the_same_bytes_is_extracted_once_and_reported() {
+        let dir = tempfile::tempdir().unwrap();
+        let entries = [
+            Entry { path: "extra/", bytes: b"" },
+            Entry { path: "extra/a.csv", bytes: b"t,x\n0,1\n" },
+            Entry { path: "extra//", bytes: b"" },
+            Entry { path: "extra/./a.csv", bytes: b"t,x\n0,1\n" },
+        ];
+        let archive = dir.path().join("same.zip");
+        write_file(&archive, &entries);
+        let checked = check_zip(&archive, Limits::FMU).unwrap();
+        assert_eq!(checked.duplicates(), ["extra/a.csv"]);
+        let out = dir.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        checked.extract(&out).unwrap();
+        assert_eq!(std::fs::read(out.join("extra/a.csv")).unwrap(), b"t,x\n0,1\n");
     }
 
     #[test]

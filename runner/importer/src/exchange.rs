@@ -1,5 +1,7 @@
 //! The runner's integration of a Model Exchange FMU, the same for FMI 2.0 and 3.0: the FMU
-//! supplies derivatives and event indicators, the runner's integrator (crate `solvers`) steps
+//! supplies derivatives and event indicators (and, for the implicit methods, directional
+//! derivatives when it declares them, and the ModelStructure's dependencies of the
+//! derivatives on the states, which group the Jacobian's columns), the runner's integrator (crate `solvers`) steps
 //! through each communication interval and locates state events on its dense output by the sign
 //! changes of the indicators, and the FMU's event machinery runs at every state event, time
 //! event (`nextEventTime`) and step event (`CompletedIntegratorStep`): event mode, the discrete
@@ -10,6 +12,10 @@
 //! What differs between the versions (the functions' names and arguments, how the instance is
 //! made and initialized, the sizes) is the [`Exchange`] trait, which each binding implements
 //! over its raw calls.
+
+mod linear;
+
+pub use linear::{JacobianSource, Jacobians, Ports};
 
 use std::cell::{Cell, RefCell};
 use std::ffi::c_int;
@@ -34,7 +40,7 @@ const DEFAULT_TOLERANCE: f64 = 1e-6;
 const OK: c_int = 0;
 const WARNING: c_int = 1;
 const DISCARD: c_int = 2;
-const ERROR: c_int = 3;
+pub(crate) const ERROR: c_int = 3;
 const FATAL: c_int = 4;
 
 /// What one discrete update (`fmi2NewDiscreteStates`, `fmi3UpdateDiscreteStates`) returned.
@@ -51,6 +57,38 @@ pub struct EventUpdate {
 /// A call's trace code and its C name, for the supervisor and the messages.
 pub type Named = (Call, &'static str);
 
+/// The continuous states as the ModelStructure declares them, for the implicit methods'
+/// Jacobian: value references of the states and of their derivatives, in state order, and the
+/// states each derivative depends on.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StateStructure {
+    /// The states' value references.
+    pub states: Vec<u32>,
+    /// The derivatives' value references (the unknowns of a directional derivative).
+    pub derivatives: Vec<u32>,
+    /// Per derivative, the indices (into `states`) of the states it depends on; `None` when
+    /// some derivative declares no dependencies (it may then depend on every state).
+    pub pattern: Option<Vec<Vec<usize>>>,
+}
+
+/// The work of the runner's integrator in a Model Exchange run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Counters {
+    /// Accepted steps.
+    pub n_steps: u64,
+    /// Derivative evaluations, those for finite-difference Jacobian columns included.
+    pub n_rhs: u64,
+    /// Jacobian evaluations of the implicit methods.
+    pub n_jacobians: u64,
+    /// Jacobian columns (or groups of columns sharing no row) evaluated, by differences or by
+    /// directional derivatives.
+    pub n_jacobian_columns: u64,
+    /// Directional-derivative calls (not counted in `n_rhs`).
+    pub n_directional: u64,
+    /// Step attempts whose Newton iteration did not converge.
+    pub n_newton_failures: u64,
+}
+
 /// The names of the calls the integration makes, in one FMI version.
 pub struct Names {
     pub set_time: Named,
@@ -62,6 +100,7 @@ pub struct Names {
     pub update_discrete_states: Named,
     pub enter_continuous_time_mode: Named,
     pub completed_integrator_step: Named,
+    pub get_directional_derivative: Named,
     /// The update's flag that asks for another iteration.
     pub again_flag: &'static str,
 }
@@ -121,11 +160,22 @@ pub trait Exchange {
     fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String>;
     /// Sets Real scalars, `values[k]` to `vrs[k]`, in one call.
     fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String>;
+    /// Reset: back to the state right after instantiation.
+    fn reset(&mut self) -> Result<(), String>;
+    /// The FMU's state, serialized.
+    fn get_state(&mut self) -> Result<Vec<u8>, String>;
+    /// Sets the FMU's state from bytes of [`Exchange::get_state`].
+    fn set_state(&mut self, bytes: &[u8]) -> Result<(), String>;
     /// The numbers of states and event indicators after initialization, given the
     /// description's (FMI 3.0 asks the FMU: structural parameters may change them).
     fn sizes(&mut self, nx: usize, nz: usize) -> Result<(usize, usize), String> {
         Ok((nx, nz))
     }
+    /// Whether the FMU declares directional derivatives and exports the function.
+    fn provides_directional_derivative(&self) -> bool;
+    /// The directional derivative of `unknowns` with respect to `knowns` along `seed`, into
+    /// `out` (only called when [`Exchange::provides_directional_derivative`]).
+    fn directional_derivative(&self, unknowns: &[u32], knowns: &[u32], seed: &[f64], out: &mut [f64]) -> c_int;
 }
 
 /// What went wrong inside the integrator's calls of the FMU, for the error message.
@@ -149,6 +199,11 @@ struct System<'s, C, const N: usize> {
     calls: &'s C,
     nx: usize,
     nz: usize,
+    /// The states and derivatives for the implicit methods' Jacobian (`None`: unknown, then
+    /// differences column by column).
+    structure: Option<&'s StateStructure>,
+    /// Directional derivatives are used for the Jacobian.
+    directional: bool,
     /// The time last set.
     time_set: Cell<f64>,
     /// Set with the first Error or Fatal, or a non-finite event indicator: no further call.
@@ -192,7 +247,7 @@ impl<C: Exchange, const N: usize> System<'_, C, N> {
     #[cold]
     #[inline(never)]
     fn trouble(&self, call: &str, t: f64, status: c_int, discard_stops: bool) {
-        let reason = self.calls.log().take_problem().unwrap_or_else(|| "the FMU logged no reason".to_owned());
+        let reason = self.calls.log().take_reason().unwrap_or_else(|| crate::logging::NO_REASON.to_owned());
         let trouble = Trouble { status, message: format!("{call} at t = {t} returned {}: {reason}", C::status_name(status)) };
         if status == DISCARD && !discard_stops {
             *self.last_discard.borrow_mut() = Some(trouble);
@@ -253,6 +308,37 @@ impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
         self.nz
     }
 
+    fn jacobian_pattern(&self) -> Option<&[Vec<usize>]> {
+        self.structure.and_then(|s| s.pattern.as_deref())
+    }
+
+    fn provides_directional_derivative(&self) -> bool {
+        self.directional
+    }
+
+    /// One `GetDirectionalDerivative` of every derivative with respect to the states seeded
+    /// in `v` (a group of Jacobian columns); a failure is recorded as for the derivatives.
+    fn directional_derivative(&self, t: f64, x: &[f64], v: &[f64], out: &mut [f64]) {
+        let Some(structure) = self.structure.filter(|_| self.directional) else {
+            out.fill(f64::NAN);
+            return;
+        };
+        if !self.place(t, x) {
+            out.fill(f64::NAN);
+            return;
+        }
+        let (knowns, seed): (Vec<u32>, Vec<f64>) =
+            structure.states.iter().zip(v).filter(|(_, s)| **s != 0.0).map(|(vr, s)| (*vr, *s)).unzip();
+        trace::enter(C::NAMES.get_directional_derivative.0, t);
+        let status = self.calls.directional_derivative(&structure.derivatives, &knowns, &seed, out);
+        if !accepted(status) {
+            self.trouble(C::NAMES.get_directional_derivative.1, t, status, false);
+            out.fill(f64::NAN);
+        } else if !out.iter().all(|v| v.is_finite()) {
+            self.non_finite(C::NAMES.get_directional_derivative.1, t, "sensitivity", out, false);
+        }
+    }
+
     fn event_indicators(&self, t: f64, x: &[f64], z: &mut [f64]) {
         if !self.place(t, x) {
             z.fill(f64::NAN);
@@ -276,6 +362,9 @@ pub struct ModelExchange<C> {
     component: C,
     nx: usize,
     nz: usize,
+    /// The ModelStructure's states, when the description gives them (scalars, as many as the
+    /// instance has).
+    structure: Option<StateStructure>,
     solver: Solver,
     tolerance: Option<f64>,
     /// The experiment's stop time: no step of the integrator goes past it.
@@ -291,15 +380,18 @@ pub struct ModelExchange<C> {
 fn integrate<C: Exchange, const N: usize>(
     integrator: &mut Integrator,
     calls: &C,
-    nz: usize,
+    (nz, structure): (usize, Option<&StateStructure>),
     t: &mut f64,
     x: &mut [f64],
     target: f64,
 ) -> (Result<Advance, solvers::SolverError>, Option<Trouble>, Option<Trouble>) {
+    let structure = structure.filter(|s| s.states.len() == x.len());
     let system = System::<C, N> {
         calls,
         nx: x.len(),
         nz,
+        structure,
+        directional: structure.is_some() && calls.provides_directional_derivative(),
         time_set: Cell::new(f64::NAN),
         stopped: Cell::new(false),
         poisoned: RefCell::new(None),
@@ -318,11 +410,12 @@ fn near(a: f64, b: f64) -> bool {
 impl<C: Exchange> ModelExchange<C> {
     /// The integration of `component`, an instance with `nx` states and `nz` event indicators
     /// as its description declares them.
-    pub(crate) fn new(component: C, nx: usize, nz: usize) -> ModelExchange<C> {
+    pub(crate) fn new(component: C, nx: usize, nz: usize, structure: Option<StateStructure>) -> ModelExchange<C> {
         ModelExchange {
             component,
             nx,
             nz,
+            structure,
             solver: Solver::default(),
             tolerance: None,
             stop: f64::INFINITY,
@@ -405,9 +498,84 @@ impl<C: Exchange> ModelExchange<C> {
         self.component.set_reals(vrs, values)
     }
 
+    /// Sets a variable between steps (stepping from outside): a tunable parameter in event mode
+    /// (entered, iterated and left again, as the standard wants), an input directly. The
+    /// integrator restarts from the current point either way: the step it had taken ahead
+    /// assumed the old value.
+    pub fn set_between_steps(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
+        if variable.causality == crate::Causality::Parameter {
+            trace::enter(C::NAMES.enter_event_mode.0, self.t);
+            let status = self.component.enter_event_mode();
+            self.component.check(C::NAMES.enter_event_mode.1, status)?;
+            self.component.set(variable, value)?;
+            if let Some(reason) = self.event_iteration()? {
+                return Err(format!(
+                    "{}: the model ended the simulation at t = {} after {} was set: {reason}",
+                    self.component.name(),
+                    self.t,
+                    variable.name
+                ));
+            }
+        } else {
+            self.component.set(variable, value)?;
+        }
+        if let Some(integrator) = self.integrator.as_mut() {
+            integrator.invalidate();
+        }
+        Ok(())
+    }
+
+    /// Reset: back to the state right after instantiation; the integrator is made again when
+    /// initialization ends.
+    pub fn reset(&mut self) -> Result<(), String> {
+        self.component.reset()?;
+        self.integrator = None;
+        self.next_event_time = None;
+        Ok(())
+    }
+
+    /// The FMU's state, serialized, with the time the integration reached and the next time
+    /// event the FMU announced.
+    pub fn get_state(&mut self) -> Result<(f64, Option<f64>, Vec<u8>), String> {
+        Ok((self.t, self.next_event_time, self.component.get_state()?))
+    }
+
+    /// Sets the FMU's state from bytes of [`ModelExchange::get_state`] taken at `t` with the next
+    /// time event `next_event_time`; the integration goes on from the states read back.
+    pub fn set_state(&mut self, t: f64, next_event_time: Option<f64>, bytes: &[u8]) -> Result<(), String> {
+        if self.integrator.is_none() {
+            return Err(format!("{}: a state is set after initialization", self.component.name()));
+        }
+        self.component.set_state(bytes)?;
+        self.t = t;
+        self.next_event_time = next_event_time;
+        if self.nx > 0 {
+            let names = &C::NAMES;
+            trace::enter(names.get_continuous_states.0, t);
+            let status = self.component.get_continuous_states(&mut self.x);
+            self.component.check(names.get_continuous_states.1, status)?;
+        }
+        if let Some(integrator) = self.integrator.as_mut() {
+            integrator.invalidate();
+        }
+        Ok(())
+    }
+
     /// Accepted steps and right-hand-side evaluations of the runner's integrator so far.
     pub fn counters(&self) -> (u64, u64) {
         self.integrator.as_ref().map_or((0, 0), |i| (i.n_steps(), i.n_rhs()))
+    }
+
+    /// The work of the runner's integrator so far, the implicit methods' included.
+    pub fn solver_counters(&self) -> Counters {
+        self.integrator.as_ref().map_or(Counters::default(), |i| Counters {
+            n_steps: i.n_steps(),
+            n_rhs: i.n_rhs(),
+            n_jacobians: i.n_jacobians(),
+            n_jacobian_columns: i.n_jacobian_columns(),
+            n_directional: i.n_directional(),
+            n_newton_failures: i.n_newton_failures(),
+        })
     }
 
     /// Gives the FMU the time and states the integrator reached.
@@ -550,16 +718,17 @@ impl<C: Exchange> ModelExchange<C> {
         let t0 = self.t;
         let (outcome, poisoned, discard) = if target > self.t {
             let (calls, t, x) = (&self.component, &mut self.t, &mut self.x[..]);
+            let layout = (self.nz, self.structure.as_ref());
             // The sizes of the lab's models and of most small FMUs get a solver with loops of
             // constant length; any other size the general one.
             match self.nx {
-                1 => integrate::<C, 1>(integrator, calls, self.nz, t, x, target),
-                2 => integrate::<C, 2>(integrator, calls, self.nz, t, x, target),
-                3 => integrate::<C, 3>(integrator, calls, self.nz, t, x, target),
-                4 => integrate::<C, 4>(integrator, calls, self.nz, t, x, target),
-                5 => integrate::<C, 5>(integrator, calls, self.nz, t, x, target),
-                6 => integrate::<C, 6>(integrator, calls, self.nz, t, x, target),
-                _ => integrate::<C, 0>(integrator, calls, self.nz, t, x, target),
+                1 => integrate::<C, 1>(integrator, calls, layout, t, x, target),
+                2 => integrate::<C, 2>(integrator, calls, layout, t, x, target),
+                3 => integrate::<C, 3>(integrator, calls, layout, t, x, target),
+                4 => integrate::<C, 4>(integrator, calls, layout, t, x, target),
+                5 => integrate::<C, 5>(integrator, calls, layout, t, x, target),
+                6 => integrate::<C, 6>(integrator, calls, layout, t, x, target),
+                _ => integrate::<C, 0>(integrator, calls, layout, t, x, target),
             }
         } else {
             (Ok(Advance::Reached), None, None)

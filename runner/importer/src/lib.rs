@@ -4,6 +4,34 @@
 //! version with the toolkit's solvers ([`exchange`]). One [`Instance`] type runs an FMU whatever
 //! its version and interface. It depends on the FMI C interface and schema only, never on our
 //! exporter.
+//!
+//! # Example
+//!
+//! Load an FMU (any FMI 2.0 or 3.0 FMU; Co-Simulation when it offers it, else Model Exchange,
+//! which the toolkit's solvers integrate), run it on a grid and read a variable:
+//!
+//! ```no_run
+//! use std::path::Path;
+//! use fmi_importer::{Fmu, Reader, Step};
+//!
+//! let fmu = Fmu::load(Path::new("target/fmu/pendulum.fmu"))?;
+//! let theta = fmu.description.variable("theta").ok_or("no variable theta")?;
+//! let mut reader = Reader::new(fmu.description.fmi_version, &[theta])?;
+//! let mut instance = fmu.instantiate("pendulum", false)?;
+//! instance.setup_experiment(Some(1e-8), 0.0, 5.0)?;
+//! instance.enter_initialization_mode()?;
+//! instance.exit_initialization_mode()?;
+//! let (h, mut value) = (0.01, [0.0]);
+//! for k in 0..500 {
+//!     if let Step::Ended { reason, .. } = instance.do_step(k as f64 * h, h)? {
+//!         println!("the FMU ended the run: {reason}");
+//!         break;
+//!     }
+//!     instance.read(&mut reader, &mut value)?;
+//! }
+//! println!("theta(5 s) = {} rad", value[0]);
+//! # Ok::<(), String>(())
+//! ```
 
 pub mod archive;
 pub mod exchange;
@@ -13,12 +41,71 @@ mod logging;
 pub mod model;
 mod reader;
 pub mod scratch;
+pub mod state;
 pub mod trace;
 
 use std::ffi::CString;
 use std::path::{Path, PathBuf};
 
 pub use logging::{print_line, set_log_printer};
+
+/// Whether binaries loaded from now on stay loaded until the process ends ([`keep_binaries_loaded`]).
+static RESIDENT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// From now on, FMU binaries are never unloaded: dropping an [`Fmu`] leaves its binary in the
+/// process until it exits. For a process that ends after its runs (the runner's commands and
+/// workers): an FMU may leave code behind that runs at exit (an exit handler registered for the
+/// whole process, threads of a library it brought, as a PythonFMU's libpython and numpy do),
+/// and unloading its binary first makes the exit crash. A long-lived process that loads many
+/// FMUs (the Python package) unloads them, as fmpy does.
+pub fn keep_binaries_loaded() {
+    RESIDENT.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Opens an FMU's binary, resident if [`keep_binaries_loaded`] was called.
+///
+/// # Safety
+/// As [`fmi_c::Library::open`].
+unsafe fn open_binary(path: &Path) -> Result<fmi_c::Library, String> {
+    let opened = match RESIDENT.load(std::sync::atomic::Ordering::Relaxed) {
+        true => fmi_c::Library::open_resident(path),
+        false => fmi_c::Library::open(path),
+    };
+    opened.map_err(|e| explain_load_error(e, &LIBRARY_DIRS))
+}
+
+/// Where [`explain_load_error`] looks for a libpython to suggest.
+const LIBRARY_DIRS: [&str; 4] = ["/usr/lib/x86_64-linux-gnu", "/usr/lib64", "/usr/lib", "/usr/local/lib"];
+
+/// The loader's message, with what to do about the usual causes: a dependency the system cannot
+/// find (named), or Python's symbols undefined (an FMU made with PythonFMU expects the host to
+/// have loaded libpython: preload one, found in `dirs` when there is one).
+fn explain_load_error(error: String, dirs: &[&str]) -> String {
+    if let Some(i) = error.find(": cannot open shared object file") {
+        let needed = error[..i].rsplit(": ").next().unwrap_or("");
+        if !needed.is_empty() && !needed.contains('/') {
+            return format!(
+                "{error}\nthe binary needs the library {needed}, which this system does not have where the loader looks: install it, or add its directory to LD_LIBRARY_PATH"
+            );
+        }
+    }
+    if let Some(i) = error.find("undefined symbol: _Py") {
+        let symbol = error[i + "undefined symbol: ".len()..].split_whitespace().next().unwrap_or("");
+        let libpython = dirs
+            .iter()
+            .filter_map(|d| std::fs::read_dir(d).ok())
+            .flat_map(|entries| entries.flatten())
+            .map(|e| e.path())
+            .filter(|p| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with("libpython3") && n.ends_with(".so")))
+            .min()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| "libpython3.X.so".to_owned());
+        return format!(
+            "{error}\n{symbol} is Python's: the FMU (made with PythonFMU?) expects the program that loads it to have loaded libpython; run with LD_PRELOAD={libpython} (the Python version the FMU was built for)"
+        );
+    }
+    error
+}
 pub use model::{Causality, Description, FmiVersion, Interface, Kind, Variability, Variable};
 pub use reader::Reader;
 pub use solvers::Method;
@@ -60,6 +147,8 @@ pub struct Unpacked {
     pub binary: PathBuf,
     /// The directory the archive was extracted into (deleted on drop): see [`scratch`].
     pub dir: tempfile::TempDir,
+    /// The ModelStructure's continuous states (Model Exchange's implicit methods use them).
+    pub states: Option<exchange::StateStructure>,
 }
 
 impl Unpacked {
@@ -89,12 +178,14 @@ impl Unpacked {
             identifier: found.identifier,
             binary: found.binary,
             dir,
+            states: found.states,
         })
     }
 }
 
 /// What [`inspect`] reads of an unpacked FMU.
 struct Inspected {
+    states: Option<exchange::StateStructure>,
     description: Description,
     fmi2: Option<fmi_schema::fmi2::ModelDescription>,
     fmi3: Option<fmi_schema::fmi3::ModelDescription>,
@@ -157,7 +248,12 @@ fn inspect(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Insp
             platforms(&dir.join("binaries"))
         ));
     }
-    Ok(Inspected { description, fmi2, fmi3, interface, identifier, binary })
+    let states = match (&fmi2, &fmi3) {
+        (Some(md), _) => fmi2::state_structure(md),
+        (_, Some(md)) => fmi3::state_structure(md),
+        _ => None,
+    };
+    Ok(Inspected { states, description, fmi2, fmi3, interface, identifier, binary })
 }
 
 /// Refuses the FMI 3.0 features the runner does not simulate, naming them: Scheduled Execution
@@ -175,9 +271,10 @@ fn refuse_unsupported_fmi3(md: &fmi_schema::fmi3::ModelDescription) -> Result<()
     Ok(())
 }
 
-fn platforms(binaries: &Path) -> String {
+/// The platform folders in an FMU's `binaries` folder, for messages (`none` if there are none).
+pub fn platforms(binaries: &Path) -> String {
     let mut found: Vec<String> = std::fs::read_dir(binaries)
-        .map(|d| d.filter_map(|e| e.ok()).filter_map(|e| e.file_name().to_str().map(str::to_owned)).collect())
+        .map(|d| d.filter_map(|e| e.ok()).map(|e| e.file_name().to_string_lossy().into_owned()).collect())
         .unwrap_or_default();
     found.sort();
     if found.is_empty() {
@@ -187,10 +284,11 @@ fn platforms(binaries: &Path) -> String {
     }
 }
 
-/// The loaded binary of an FMU, by FMI version.
+/// The loaded binary of an FMU, by FMI version (boxed: each holds its version's whole table of
+/// functions).
 enum Binding {
-    Fmi2(fmi2::Binary),
-    Fmi3(fmi3::Binary),
+    Fmi2(Box<fmi2::Binary>),
+    Fmi3(Box<fmi3::Binary>),
 }
 
 /// A loaded FMU: its description, its open binary and the directory it was unpacked into
@@ -208,6 +306,8 @@ pub struct Fmu {
     pub(crate) resource_uri: CString,
     /// GUID (FMI 2.0) or instantiation token (FMI 3.0), as instantiation wants it.
     pub(crate) token: CString,
+    /// The ModelStructure's continuous states, for the implicit methods' Jacobian.
+    pub(crate) states: Option<exchange::StateStructure>,
     // Field order is drop order: close the library before deleting the files it came from.
     binding: Binding,
     _dir: Option<tempfile::TempDir>,
@@ -222,9 +322,9 @@ impl Fmu {
     /// Unpacks and loads the `.fmu` at `path` for `interface` (`None`: Co-Simulation when
     /// offered, else Model Exchange).
     pub fn load_as(path: &Path, interface: Option<Interface>) -> Result<Fmu, String> {
-        let Unpacked { description, interface, identifier, binary, dir, .. } = Unpacked::open_as(path, interface)?;
+        let Unpacked { description, interface, identifier, binary, dir, states, .. } = Unpacked::open_as(path, interface)?;
         let root = dir.path().to_path_buf();
-        Fmu::assemble(path, description, interface, identifier, &binary, &root, Some(dir))
+        Fmu::assemble(path, (description, states), interface, identifier, &binary, &root, Some(dir))
     }
 
     /// Loads the FMU `path` from `dir`, where [`Unpacked::open_as`] unpacked it (possibly in
@@ -233,13 +333,13 @@ impl Fmu {
     /// it dies, leaves nothing behind.
     pub fn load_unpacked(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Fmu, String> {
         let found = inspect(path, dir, interface)?;
-        Fmu::assemble(path, found.description, found.interface, found.identifier, &found.binary, dir, None)
+        Fmu::assemble(path, (found.description, found.states), found.interface, found.identifier, &found.binary, dir, None)
     }
 
     /// Loads `binary` of the FMU `path` unpacked in `dir` (deleted with the `Fmu` if `owned`).
     fn assemble(
         path: &Path,
-        description: Description,
+        (description, states): (Description, Option<exchange::StateStructure>),
         interface: Interface,
         identifier: String,
         binary: &Path,
@@ -247,8 +347,12 @@ impl Fmu {
         owned: Option<tempfile::TempDir>,
     ) -> Result<Fmu, String> {
         let loaded = match description.fmi_version {
-            FmiVersion::Fmi2 => Binding::Fmi2(fmi2::Binary::load(binary, interface).map_err(|e| format!("{}: {e}", path.display()))?),
-            FmiVersion::Fmi3 => Binding::Fmi3(fmi3::Binary::load(binary, interface).map_err(|e| format!("{}: {e}", path.display()))?),
+            FmiVersion::Fmi2 => {
+                Binding::Fmi2(Box::new(fmi2::Binary::load(binary, interface).map_err(|e| format!("{}: {e}", path.display()))?))
+            }
+            FmiVersion::Fmi3 => {
+                Binding::Fmi3(Box::new(fmi3::Binary::load(binary, interface).map_err(|e| format!("{}: {e}", path.display()))?))
+            }
         };
         let resources = dir.join("resources");
         let resource_uri = match description.fmi_version {
@@ -258,7 +362,12 @@ impl Fmu {
         let resource_uri = CString::new(resource_uri).map_err(|_| "temporary path contains a NUL byte".to_owned())?;
         let token = CString::new(description.instantiation_token.clone())
             .map_err(|_| format!("{}: the GUID contains a NUL byte", path.display()))?;
-        Ok(Fmu { description, identifier, interface, resource_uri, token, binding: loaded, _dir: owned })
+        Ok(Fmu { description, identifier, interface, resource_uri, token, states, binding: loaded, _dir: owned })
+    }
+
+    /// Who this FMU's saved states belong to ([`state::SavedState::to_bytes`]).
+    pub fn state_identity(&self) -> state::Identity<'_> {
+        state::Identity::of(&self.description, self.interface)
     }
 
     /// A new instance named `name`; `debug_logging` turns the FMU's debug logging on.
@@ -408,6 +517,27 @@ impl Instance<'_> {
         }
     }
 
+    /// Sets time derivatives of Real inputs, `values[k]` the `orders[k]`-th of `vrs[k]` (FMI 2.0
+    /// Co-Simulation FMUs that declare `canInterpolateInputs`; FMI 3.0 has no such call).
+    pub fn set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64]) -> Result<(), String> {
+        match self {
+            Instance::Fmi2Cs(i) => i.set_input_derivatives(vrs, orders, values),
+            Instance::Fmi2Me(_) | Instance::Fmi3Cs(_) | Instance::Fmi3Me(_) => {
+                Err("input derivatives are passed to FMI 2.0 Co-Simulation FMUs only".to_owned())
+            }
+        }
+    }
+
+    /// Reads time derivatives of Real outputs, `out[k]` the `orders[k]`-th of `vrs[k]`
+    /// (Co-Simulation FMUs that declare `maxOutputDerivativeOrder`).
+    pub fn get_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], out: &mut [f64]) -> Result<(), String> {
+        match self {
+            Instance::Fmi2Cs(i) => i.get_output_derivatives(vrs, orders, out),
+            Instance::Fmi3Cs(i) => i.get_output_derivatives(vrs, orders, out),
+            Instance::Fmi2Me(_) | Instance::Fmi3Me(_) => Err("output derivatives come from Co-Simulation FMUs only".to_owned()),
+        }
+    }
+
     /// Reads the variables of `reader` into `out`, one f64 per variable (Booleans as 0/1).
     /// Always inlined, like [`Instance::do_step`]: a run calls both at every communication
     /// point, and as calls of their own they cost a frame each (about 20 instructions).
@@ -444,13 +574,70 @@ impl Instance<'_> {
         }
     }
 
-    /// Accepted steps and right-hand-side evaluations of the runner's integrator, for a Model
-    /// Exchange instance (`None` for Co-Simulation, whose FMU does the integration).
-    pub fn counters(&self) -> Option<(u64, u64)> {
+    /// The work of the runner's integrator (steps, evaluations, the implicit methods'
+    /// Jacobians and Newton failures), for a Model Exchange instance (`None` for
+    /// Co-Simulation, whose FMU does the integration).
+    pub fn counters(&self) -> Option<exchange::Counters> {
         match self {
             Instance::Fmi2Cs(_) | Instance::Fmi3Cs(_) => None,
-            Instance::Fmi2Me(i) => Some(i.counters()),
-            Instance::Fmi3Me(i) => Some(i.counters()),
+            Instance::Fmi2Me(i) => Some(i.solver_counters()),
+            Instance::Fmi3Me(i) => Some(i.solver_counters()),
+        }
+    }
+
+    /// Sets an input or a tunable parameter between steps, where the interface wants it (Model
+    /// Exchange: a parameter in event mode, and the integrator restarted).
+    pub fn set_between_steps(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
+        match self {
+            Instance::Fmi2Cs(i) => i.set(variable, value),
+            Instance::Fmi3Cs(i) => i.set(variable, value),
+            Instance::Fmi2Me(i) => i.set_between_steps(variable, value),
+            Instance::Fmi3Me(i) => i.set_between_steps(variable, value),
+        }
+    }
+
+    /// Reset (fmi2Reset, fmi3Reset): back to the state right after instantiation, to set up and
+    /// initialize again without a new instance.
+    pub fn reset(&mut self) -> Result<(), String> {
+        match self {
+            Instance::Fmi2Cs(i) => i.reset(),
+            Instance::Fmi3Cs(i) => i.reset(),
+            Instance::Fmi2Me(i) => i.reset(),
+            Instance::Fmi3Me(i) => i.reset(),
+        }
+    }
+
+    /// The instance's state at `time` (the time a Co-Simulation instance reached; a Model
+    /// Exchange instance knows its own): the FMU's serialized state and what the runner keeps.
+    pub fn save_state(&mut self, time: f64) -> Result<state::SavedState, String> {
+        let (time, next_event_time, fmu) = match self {
+            Instance::Fmi2Cs(i) => (time, None, i.get_state()?),
+            Instance::Fmi3Cs(i) => (time, None, i.get_state()?),
+            Instance::Fmi2Me(i) => i.get_state()?,
+            Instance::Fmi3Me(i) => i.get_state()?,
+        };
+        Ok(state::SavedState { time, next_event_time, fmu })
+    }
+
+    /// Restores a state of [`Instance::save_state`] taken from an instance of the same FMU.
+    pub fn restore_state(&mut self, saved: &state::SavedState) -> Result<(), String> {
+        match self {
+            Instance::Fmi2Cs(i) => i.set_state(&saved.fmu),
+            Instance::Fmi3Cs(i) => i.set_state(&saved.fmu),
+            Instance::Fmi2Me(i) => i.set_state(saved.time, saved.next_event_time, &saved.fmu),
+            Instance::Fmi3Me(i) => i.set_state(saved.time, saved.next_event_time, &saved.fmu),
+        }
+    }
+
+    /// The linearization at the instance's current time and states over `ports` (see
+    /// [`exchange::Jacobians`]): a Model Exchange instance only.
+    pub fn linearize(&mut self, ports: exchange::Ports, prefer: exchange::JacobianSource) -> Result<exchange::Jacobians, String> {
+        match self {
+            Instance::Fmi2Me(i) => i.linearize(ports, prefer),
+            Instance::Fmi3Me(i) => i.linearize(ports, prefer),
+            Instance::Fmi2Cs(_) | Instance::Fmi3Cs(_) => {
+                Err("linearization needs the FMU's Model Exchange interface (the states and their derivatives)".to_owned())
+            }
         }
     }
 
@@ -481,8 +668,65 @@ pub(crate) unsafe fn text_of(p: *const std::ffi::c_char, name: &str, call: &str)
 
 #[cfg(test)]
 mod tests {
+    /// dlopen's messages as glibc words them, each with its advice.
+    #[test]
+    fn loading_errors_say_what_to_do() {
+        let missing =
+            explain_load_error("cannot load /x/f.so: libfoo.so.2: cannot open shared object file: No such file or directory".into(), &[]);
+        assert!(missing.contains("needs the library libfoo.so.2") && missing.contains("LD_LIBRARY_PATH"), "{missing}");
+        let python = explain_load_error("cannot load /x/f.so: /x/f.so: undefined symbol: _Py_NoneStruct".into(), &[]);
+        assert!(python.contains("_Py_NoneStruct is Python's") && python.contains("LD_PRELOAD=libpython3.X.so"), "{python}");
+        let other = "cannot load /x/f.so: /x/f.so: undefined symbol: my_helper";
+        assert_eq!(explain_load_error(other.into(), &[]), other, "other messages stay as they are");
+    }
+
     use super::*;
     use crate::archive::{write_zip, Entry};
+
+    /// The implicit methods' finite-difference Jacobian groups the columns that share no row of
+    /// the ModelStructure `Derivatives` dependencies (issue 33): the description's 1-based
+    /// variable indices become state indices, dependencies on other variables (a parameter)
+    /// drop out, and a derivative without `dependencies` (it may depend on every state) makes
+    /// the pattern dense. Here der(x1) <- x1, k; der(x2) <- x1, x2; der(x3) <- x3: columns x1
+    /// and x3 share no row, so two evaluations give the three columns.
+    #[test]
+    fn model_structure_dependencies_group_the_jacobian_columns() {
+        let xml = |x3_dependencies: &str| {
+            format!(
+                r#"<fmiModelDescription fmiVersion="2.0" modelName="m" guid="g">
+  <ModelExchange modelIdentifier="m"/>
+  <ModelVariables>
+    <ScalarVariable name="x1" valueReference="10" causality="local" variability="continuous" initial="exact"><Real start="1"/></ScalarVariable>
+    <ScalarVariable name="der(x1)" valueReference="11" causality="local" variability="continuous"><Real derivative="1"/></ScalarVariable>
+    <ScalarVariable name="x2" valueReference="12" causality="local" variability="continuous" initial="exact"><Real start="1"/></ScalarVariable>
+    <ScalarVariable name="der(x2)" valueReference="13" causality="local" variability="continuous"><Real derivative="3"/></ScalarVariable>
+    <ScalarVariable name="x3" valueReference="14" causality="local" variability="continuous" initial="exact"><Real start="1"/></ScalarVariable>
+    <ScalarVariable name="der(x3)" valueReference="15" causality="local" variability="continuous"><Real derivative="5"/></ScalarVariable>
+    <ScalarVariable name="k" valueReference="16" causality="parameter" variability="fixed"><Real start="1"/></ScalarVariable>
+  </ModelVariables>
+  <ModelStructure>
+    <Derivatives>
+      <Unknown index="2" dependencies="1 7"/>
+      <Unknown index="4" dependencies="1 3"/>
+      <Unknown index="6" {x3_dependencies}/>
+    </Derivatives>
+  </ModelStructure>
+</fmiModelDescription>"#
+            )
+        };
+        let md = fmi_schema::fmi2::ModelDescription::from_xml(&xml(r#"dependencies="5""#)).unwrap();
+        let structure = fmi2::state_structure(&md).unwrap();
+        assert_eq!((structure.states.as_slice(), structure.derivatives.as_slice()), ([10, 12, 14].as_slice(), [11, 13, 15].as_slice()));
+        let pattern = structure.pattern.expect("every derivative declares its dependencies");
+        assert_eq!(pattern, [vec![0], vec![0, 1], vec![2]]);
+        let (groups, _) = solvers::implicit::column_groups(3, Some(&pattern));
+        assert_eq!(groups, [vec![0, 2], vec![1]]);
+        // der(x3) without dependencies: it may depend on every state, so one column a call.
+        let md = fmi_schema::fmi2::ModelDescription::from_xml(&xml("")).unwrap();
+        let pattern = fmi2::state_structure(&md).unwrap().pattern;
+        assert_eq!(pattern, None);
+        assert_eq!(solvers::implicit::column_groups(3, pattern.as_deref()).0.len(), 3);
+    }
 
     #[test]
     fn a_model_identifier_with_a_path_is_refused() {

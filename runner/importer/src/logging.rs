@@ -25,6 +25,9 @@ pub fn print_line(line: &str) {
     let _ = std::panic::catch_unwind(|| printer(line));
 }
 
+/// What an error says when the FMU logged nothing: many FMUs log only with debug logging on.
+pub(crate) const NO_REASON: &str = "the FMU logged no reason; with debug logging on (the runner's --log) it may say more";
+
 /// The word for a status code in a log line.
 pub(crate) fn level(status: i32) -> &'static str {
     match status {
@@ -64,8 +67,8 @@ impl LogContext {
         self.last_problem.lock().ok().and_then(|mut l| l.take())
     }
 
-    /// Why the model ended the simulation: the last problem, else the last message (an FMU
-    /// may log its reason as information), since the previous call.
+    /// Why a call failed or the model ended the simulation: the last problem, else the last
+    /// message (an FMU may log its reason as information), since the previous call.
     pub fn take_reason(&self) -> Option<String> {
         let message = self.last_message.lock().ok().and_then(|mut l| l.take());
         self.take_problem().or(message)

@@ -4,43 +4,7 @@
 
 use std::fmt;
 
-/// The FMI version of an FMU.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum FmiVersion {
-    Fmi2,
-    Fmi3,
-}
-
-/// An FMI interface.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-pub enum Interface {
-    CoSimulation,
-    ModelExchange,
-}
-
-impl Interface {
-    /// The command-line spelling: `co-simulation`, `model-exchange`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Interface::CoSimulation => "co-simulation",
-            Interface::ModelExchange => "model-exchange",
-        }
-    }
-
-    /// The interface for its command-line spelling.
-    pub fn from_name(name: &str) -> Option<Interface> {
-        [Interface::CoSimulation, Interface::ModelExchange].into_iter().find(|i| i.name() == name.trim())
-    }
-}
-
-impl fmt::Display for Interface {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Interface::CoSimulation => "Co-Simulation",
-            Interface::ModelExchange => "Model Exchange",
-        })
-    }
-}
+pub use fmi_c::{FmiVersion, Interface};
 
 /// The type of a variable's values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -89,14 +89,13 @@ impl Buffer {
     }
 
     /// The text of an element whose number is `x`, for the kinds a number gives exactly:
-    /// integers in full, Float32 in its own shortest form, Float64 as its f64 is printed, and
-    /// with `as_f64` (FMI 2.0's result files, as they always were) Int32 and Booleans too.
-    fn text_of_number(&self, x: f64, as_f64: bool) -> String {
+    /// integers (Integers, Enumerations and Booleans of either version) in full, as fmpy writes
+    /// them, Float32 in its own shortest form, Float64 as its f64 is printed.
+    fn text_of_number(&self, x: f64) -> String {
         match self {
-            Buffer::I32(_) | Buffer::Bool(_) if !as_f64 => (x as i64).to_string(),
             Buffer::F32(_) => format!("{:?}", x as f32),
-            Buffer::I8(_) | Buffer::U8(_) | Buffer::I16(_) | Buffer::U16(_) | Buffer::U32(_) => (x as i64).to_string(),
-            _ => format!("{x:?}"),
+            Buffer::F64(_) => format!("{x:?}"),
+            _ => (x as i64).to_string(),
         }
     }
 }
@@ -117,8 +116,6 @@ pub struct Reader {
     columns: Vec<(usize, usize)>,
     /// Only scalar Float64s, in column order: the binding reads straight into the output.
     pub(crate) direct: bool,
-    /// FMI 2.0: every number prints as an f64 (`3.0`), as result files always had it.
-    integers_as_f64: bool,
 }
 
 impl Reader {
@@ -136,9 +133,6 @@ impl Reader {
         for (v, &n) in variables.iter().zip(sizes) {
             if v.kind == Kind::Clock {
                 return Err(format!("{} is a Clock; clocks cannot be recorded", v.name));
-            }
-            if version == FmiVersion::Fmi2 && matches!(v.kind, Kind::String) {
-                return Err(format!("{} is a String variable; only numbers can be recorded", v.name));
             }
             let g = match groups.iter().position(|g| g.kind == v.kind) {
                 Some(g) => g,
@@ -159,7 +153,7 @@ impl Reader {
         }
         let direct = groups.len() <= 1
             && groups.first().is_none_or(|g| g.kind == Kind::Real && matches!(&g.buffer, Buffer::F64(b) if b.len() == g.vrs.len()));
-        Ok(Reader { groups, columns, direct, integers_as_f64: version == FmiVersion::Fmi2 })
+        Ok(Reader { groups, columns, direct })
     }
 
     /// Number of columns (array elements count one each).
@@ -204,6 +198,6 @@ impl Reader {
             // Read straight into `values`, not into the buffers.
             return format!("{x:?}");
         }
-        self.groups[self.columns[c].0].buffer.text_of_number(x, self.integers_as_f64)
+        self.groups[self.columns[c].0].buffer.text_of_number(x)
     }
 }

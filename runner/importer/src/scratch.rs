@@ -51,7 +51,7 @@ fn usable_memory_dir(dir: &Path, bytes: u64) -> bool {
 }
 
 /// The directory to unpack an FMU of `bytes` (all its files together) in: the temporary
-/// directory when TMPDIR names one or it is in memory already, else [`MEMORY`] when usable.
+/// directory when TMPDIR names one or it is in memory already, else `MEMORY` when usable.
 pub fn parent_for(bytes: u64) -> PathBuf {
     let temp = std::env::temp_dir();
     let chosen = std::env::var_os("TMPDIR").is_some_and(|t| !t.is_empty());

@@ -3,7 +3,7 @@
 //! share with their parent, which reads it after the worker died or was killed. Without a slot
 //! (in-process runs) each call costs one load of a pointer that nobody writes.
 
-use std::sync::atomic::{AtomicPtr, AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicU32, AtomicU64, Ordering};
 
 /// An FMI function the importer calls (or the loading of the binary, which runs its
 /// initializers). Codes are stable within one build, which is all a worker and its parent share.
@@ -65,9 +65,18 @@ pub enum Call {
     Fmi3GetNumberOfContinuousStates,
     // Last, so the numbers of the calls before stay as they were.
     GetString,
+    GetDirectionalDerivative,
+    Fmi3GetDirectionalDerivative,
+    // Stepping (fmurunner.Simulation): reset and the FMU state, serialized and back.
+    Reset,
+    GetFmuState,
+    SetFmuState,
+    Fmi3Reset,
+    Fmi3GetFmuState,
+    Fmi3SetFmuState,
 }
 
-const ALL: [Call; 50] = [
+const ALL: [Call; 58] = [
     Call::None,
     Call::Load,
     Call::Instantiate,
@@ -118,6 +127,14 @@ const ALL: [Call; 50] = [
     Call::Fmi3GetContinuousStates,
     Call::Fmi3GetNumberOfContinuousStates,
     Call::GetString,
+    Call::GetDirectionalDerivative,
+    Call::Fmi3GetDirectionalDerivative,
+    Call::Reset,
+    Call::GetFmuState,
+    Call::SetFmuState,
+    Call::Fmi3Reset,
+    Call::Fmi3GetFmuState,
+    Call::Fmi3SetFmuState,
 ];
 
 impl Call {
@@ -174,6 +191,14 @@ impl Call {
             Call::Fmi3GetContinuousStates => "fmi3GetContinuousStates",
             Call::Fmi3GetNumberOfContinuousStates => "fmi3GetNumberOfContinuousStates (and EventIndicators)",
             Call::GetString => "fmi2GetString",
+            Call::GetDirectionalDerivative => "fmi2GetDirectionalDerivative",
+            Call::Fmi3GetDirectionalDerivative => "fmi3GetDirectionalDerivative",
+            Call::Reset => "fmi2Reset",
+            Call::GetFmuState => "fmi2GetFMUstate (and its serialization)",
+            Call::SetFmuState => "fmi2SetFMUstate (from a serialized state)",
+            Call::Fmi3Reset => "fmi3Reset",
+            Call::Fmi3GetFmuState => "fmi3GetFMUState (and its serialization)",
+            Call::Fmi3SetFmuState => "fmi3SetFMUState (from a serialized state)",
         }
     }
 
@@ -222,6 +247,22 @@ pub(crate) fn enter(call: Call, time: f64) {
         slot.call.store(call as u32, Ordering::Relaxed);
         slot.time.store(time.to_bits(), Ordering::Relaxed);
     }
+}
+
+/// Set when a call of any FMU in this process returned fmiFatal.
+static FATAL: AtomicBool = AtomicBool::new(false);
+
+/// Notes that a call returned fmiFatal: the standard then trusts no instance of the FMU in this
+/// process ("the model computations are irreparably corrupted for all FMU instances").
+#[cold]
+pub(crate) fn note_fatal() {
+    FATAL.store(true, Ordering::Relaxed);
+}
+
+/// True once any FMU call of this process returned fmiFatal: a worker process then runs no
+/// more jobs.
+pub fn fatal_seen() -> bool {
+    FATAL.load(Ordering::Relaxed)
 }
 
 #[cfg(test)]

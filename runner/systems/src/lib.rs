@@ -6,7 +6,7 @@
 pub mod master;
 pub mod ssd;
 mod system;
-mod xml;
+pub mod xml;
 
-pub use master::{Bound, Failure, Master, Outcome};
+pub use master::{Bound, Coupling, Failure, Master, Outcome};
 pub use system::{is_system, Component, System};

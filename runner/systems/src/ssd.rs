@@ -104,6 +104,9 @@ type Mapping = HashMap<String, (String, Option<Transformation>)>;
 struct Reader<'a> {
     /// The SSD's directory: sources are relative to it.
     base: &'a Path,
+    /// Where every file the SSD names must lie (an extracted `.ssp` archive), and the SSD
+    /// itself; `None` for an SSD the user keeps in a folder, which may name any file.
+    confined: Option<(&'a Path, &'a Path)>,
     file: String,
     components: Vec<ComponentSpec>,
     /// Connector node ("path.connector") of each FMU component's connectors.
@@ -116,15 +119,33 @@ struct Reader<'a> {
 }
 
 impl Structure {
-    /// Reads the SSD at `path` and the files it references.
+    /// Reads the SSD at `path` and the files it references (relative to its folder; an SSD the
+    /// user keeps in a folder may also name files elsewhere on the machine).
     pub fn read(path: &Path) -> Result<Structure, String> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
         let base = path.parent().unwrap_or(Path::new("."));
-        Structure::parse(&text, base, &path.display().to_string())
+        Structure::parse_with(&text, base, &path.display().to_string(), None)
+    }
+
+    /// Reads the SSD at `path` in an extracted archive `root`: every FMU, parameter file and
+    /// mapping it names must be a path inside `root`. An archive is what someone sends, and an
+    /// FMU is code: an absolute path, a URI (`file:` or any other scheme), a `..` that leaves
+    /// the archive or a link that points out of it is refused, naming the component or file.
+    pub fn read_in_archive(path: &Path, root: &Path) -> Result<Structure, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        let name = path.strip_prefix(root).unwrap_or(path).display().to_string();
+        Structure::parse_with(&text, base, &name, Some((root, path)))
     }
 
     /// Reads SSD `text` (the file `file`, its references relative to `base`).
     pub fn parse(text: &str, base: &Path, file: &str) -> Result<Structure, String> {
+        Structure::parse_with(text, base, file, None)
+    }
+
+    /// [`Structure::parse`], the references confined to `confined`'s root (see
+    /// [`Structure::read_in_archive`]; its second path is the SSD itself).
+    fn parse_with(text: &str, base: &Path, file: &str, confined: Option<(&Path, &Path)>) -> Result<Structure, String> {
         let root = xml::parse(text, file)?;
         if root.name != "SystemStructureDescription" {
             return Err(format!("{file}: the root element is <{}>, not <ssd:SystemStructureDescription>", root.name));
@@ -135,6 +156,7 @@ impl Structure {
         }
         let mut reader = Reader {
             base,
+            confined,
             file: file.to_owned(),
             components: Vec::new(),
             fmu_nodes: HashMap::new(),
@@ -293,11 +315,26 @@ impl Reader<'_> {
             ));
         }
         let source = element.required("source", file)?;
-        let relative = source.strip_prefix("file:").unwrap_or(source);
-        if relative.contains("://") || relative.starts_with('/') && source.starts_with("file:") && relative.starts_with("//") {
-            return Err(format!("{file}, line {}: component '{path}': source '{source}' must be a path relative to the SSD", element.line));
+        let at = || format!("{file}, line {}: component '{path}'", element.line);
+        let source = match self.confined {
+            Some(_) => self.inside(source, &at)?,
+            None => {
+                let relative = source.strip_prefix("file:").unwrap_or(source);
+                if relative.contains("://") || relative.starts_with('/') && source.starts_with("file:") && relative.starts_with("//") {
+                    return Err(format!("{}: source '{source}' must be a path relative to the SSD", at()));
+                }
+                self.base.join(relative)
+            }
+        };
+        if let Some((_, ssd)) = self.confined {
+            if source == ssd {
+                return Err(format!(
+                    "{}: its source '{}' is the system structure itself, not an FMU",
+                    at(),
+                    element.required("source", file)?
+                ));
+            }
         }
-        let source = self.base.join(relative);
         let implementation = match element.attribute("implementation").unwrap_or("any") {
             "any" => None,
             "CoSimulation" => Some(Interface::CoSimulation),
@@ -332,6 +369,58 @@ impl Reader<'_> {
         Ok(())
     }
 
+    /// The file a parameter binding or mapping names: beside the SSD, and inside the archive
+    /// when the SSD is in one.
+    fn reference(&self, source: &str, at: &dyn Fn() -> String) -> Result<PathBuf, String> {
+        match self.confined {
+            Some(_) => self.inside(source, at),
+            None => Ok(self.base.join(source)),
+        }
+    }
+
+    /// `source` resolved inside the archive (`self.confined`), or why it is refused: `at`
+    /// names what refers to it (the component, or the file and line of a binding).
+    fn inside(&self, source: &str, at: &dyn Fn() -> String) -> Result<PathBuf, String> {
+        let (root, _) = self.confined.expect("only for an SSD in an archive");
+        let refuse = |why: &str| Err(format!("{}: source '{source}' {why}; a system archive may only use the files it holds", at()));
+        // A URI scheme: letters, digits, '+', '-', '.', then ':' (RFC 3986), before any '/'.
+        let scheme = source.split_once(':').is_some_and(|(s, _)| {
+            s.starts_with(|c: char| c.is_ascii_alphabetic()) && s.chars().all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
+        });
+        if scheme {
+            return refuse("is a URI, not a path inside the archive");
+        }
+        if source.starts_with('/') || source.starts_with('\\') {
+            return refuse("is an absolute path, outside the archive");
+        }
+        // Resolved by its words first, from the SSD's folder: a `..` may step back inside the
+        // archive, never out of it.
+        let mut inside = self.base.strip_prefix(root).map_or_else(|_| PathBuf::new(), Path::to_path_buf);
+        for part in Path::new(source).components() {
+            match part {
+                std::path::Component::Normal(p) => inside.push(p),
+                std::path::Component::CurDir => {}
+                std::path::Component::ParentDir => {
+                    if !inside.pop() {
+                        return refuse("leaves the archive through '..'");
+                    }
+                }
+                std::path::Component::RootDir | std::path::Component::Prefix(_) => {
+                    return refuse("is an absolute path, outside the archive")
+                }
+            }
+        }
+        let path = root.join(&inside);
+        // Then by the file system: the archive reader refuses links, but the check holds even
+        // if one got there (a link resolved to somewhere outside the extracted folder).
+        if let (Ok(real), Ok(real_root)) = (path.canonicalize(), root.canonicalize()) {
+            if !real.starts_with(&real_root) {
+                return refuse("leads out of the archive through a symbolic link");
+            }
+        }
+        Ok(path)
+    }
+
     /// The assignments of every ParameterBinding in `bindings`, names relative to the element.
     fn read_bindings(&mut self, bindings: &Element, file: &str) -> Result<Vec<Assignment>, String> {
         let mut out = Vec::new();
@@ -339,7 +428,7 @@ impl Reader<'_> {
             let prefix = binding.attribute("prefix").unwrap_or("");
             let (set, set_file) = match binding.attribute("source") {
                 Some(source) => {
-                    let path = self.base.join(source);
+                    let path = self.reference(source, &|| format!("{file}, line {}: the parameter file", binding.line))?;
                     let text = std::fs::read_to_string(&path)
                         .map_err(|e| format!("{file}, line {}: cannot read the parameter file {source}: {e}", binding.line))?;
                     (xml::parse(&text, source)?, source.to_owned())
@@ -388,7 +477,7 @@ impl Reader<'_> {
     fn read_mapping(&mut self, m: &Element, file: &str) -> Result<Mapping, String> {
         let (root, mapping_file) = match m.attribute("source") {
             Some(source) => {
-                let path = self.base.join(source);
+                let path = self.reference(source, &|| format!("{file}, line {}: the parameter mapping", m.line))?;
                 let text = std::fs::read_to_string(&path)
                     .map_err(|e| format!("{file}, line {}: cannot read the parameter mapping {source}: {e}", m.line))?;
                 (xml::parse(&text, source)?, source.to_owned())

@@ -42,7 +42,7 @@ pub fn is_system(path: &Path) -> bool {
 impl System {
     /// Reads the system at `path` (`.ssp`, `.ssd` or a folder) and loads its FMUs.
     pub fn open(path: &Path) -> Result<System, String> {
-        let (ssd, archive) = match path.extension().and_then(|e| e.to_str()) {
+        let (ssd, archive): (PathBuf, Option<tempfile::TempDir>) = match path.extension().and_then(|e| e.to_str()) {
             Some("ssp") => {
                 if !path.is_file() {
                     return Err(format!("system file {} does not exist", path.display()));
@@ -73,7 +73,11 @@ impl System {
                 ))
             }
         };
-        let structure = Structure::read(&ssd)?;
+        // What an archive names must be inside it; a folder's SSD may name files anywhere.
+        let structure = match &archive {
+            Some(dir) => Structure::read_in_archive(&ssd, dir.path()).map_err(|e| format!("{}: {e}", path.display()))?,
+            None => Structure::read(&ssd)?,
+        };
         let mut components = Vec::with_capacity(structure.components.len());
         for spec in &structure.components {
             let at = |e: String| format!("component '{}': {e}", spec.name);
@@ -129,4 +133,174 @@ fn feedthrough(unpacked: &Unpacked) -> HashMap<String, Vec<String>> {
         out.entry(v.name.clone()).or_insert_with(|| inputs.clone());
     }
     out
+}
+
+/// Hostile archives: a system someone sends may only use the files it holds. Each archive
+/// below would make the runner load or read a file from elsewhere on the machine; each must
+/// be refused before anything is loaded, with a message that names the component or file.
+#[cfg(test)]
+mod hostile_archives {
+    use std::io::Write;
+
+    use super::*;
+
+    const HEAD: &str = r#"<?xml version="1.0"?><ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" xmlns:ssm="http://ssp-standard.org/SSP1/SystemStructureParameterMapping" version="1.0" name="hostile">"#;
+
+    /// An SSD with one component `a` whose source is `source` and whose element holds `inner`.
+    fn ssd(source: &str, inner: &str) -> String {
+        format!(
+            r#"{HEAD}<ssd:System name="s"><ssd:Elements><ssd:Component name="a" source="{source}">{inner}</ssd:Component></ssd:Elements></ssd:System></ssd:SystemStructureDescription>"#
+        )
+    }
+
+    fn binding(source: &str) -> String {
+        format!(r#"<ssd:ParameterBindings><ssd:ParameterBinding source="{source}"/></ssd:ParameterBindings>"#)
+    }
+
+    /// Writes an .ssp holding `files` (name, bytes) and `links` (name, target) into `dir`.
+    fn archive(dir: &Path, files: &[(&str, &[u8])], links: &[(&str, &str)]) -> PathBuf {
+        let path = dir.join("hostile.ssp");
+        let mut zip = zip::ZipWriter::new(std::fs::File::create(&path).unwrap());
+        let options = zip::write::SimpleFileOptions::default();
+        for (name, bytes) in files {
+            zip.start_file(*name, options).unwrap();
+            zip.write_all(bytes).unwrap();
+        }
+        for (name, target) in links {
+            zip.add_symlink(*name, *target, options).unwrap();
+        }
+        zip.finish().unwrap();
+        path
+    }
+
+    /// A file outside the archive that a hostile SSD points at (it must never be opened).
+    fn outside(dir: &Path, name: &str) -> PathBuf {
+        let path = dir.join(name);
+        std::fs::write(&path, b"not to be read").unwrap();
+        path
+    }
+
+    fn refusal(files: &[(&str, &[u8])], links: &[(&str, &str)]) -> String {
+        let dir = tempfile::tempdir().unwrap();
+        match System::open(&archive(dir.path(), files, links)) {
+            Ok(_) => panic!("a hostile archive was opened"),
+            Err(e) => e,
+        }
+    }
+
+    fn assert_names(e: &str, parts: &[&str]) {
+        for part in parts {
+            assert!(e.contains(part), "the refusal should say {part:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn an_absolute_source_is_refused_by_component() {
+        let dir = tempfile::tempdir().unwrap();
+        let evil = outside(dir.path(), "evil.fmu");
+        let e = refusal(&[("SystemStructure.ssd", ssd(&evil.display().to_string(), "").as_bytes())], &[]);
+        assert_names(&e, &["component 'a'", "absolute path", "hostile.ssp"]);
+    }
+
+    #[test]
+    fn a_file_uri_or_any_scheme_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let evil = outside(dir.path(), "evil.fmu");
+        for source in [
+            format!("file://{}", evil.display()),
+            format!("file:{}", evil.display()),
+            "file:resources/a.fmu".into(),
+            "https://example.org/a.fmu".into(),
+        ] {
+            let e = refusal(&[("SystemStructure.ssd", ssd(&source, "").as_bytes())], &[]);
+            assert_names(&e, &["component 'a'", "is a URI"]);
+        }
+    }
+
+    #[test]
+    fn dot_dot_out_of_the_archive_is_refused_in_sources_parameter_files_and_mappings() {
+        let e = refusal(&[("SystemStructure.ssd", ssd("resources/../../a.fmu", "").as_bytes())], &[]);
+        assert_names(&e, &["component 'a'", "leaves the archive"]);
+        let e = refusal(&[("SystemStructure.ssd", ssd("a.fmu", &binding("../../../etc/passwd")).as_bytes()), ("a.fmu", b"x")], &[]);
+        assert_names(&e, &["the parameter file", "leaves the archive"]);
+        let mapping = r#"<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="p"><ssv:Parameters/></ssv:ParameterSet></ssd:ParameterValues><ssd:ParameterMapping source="/etc/passwd"/></ssd:ParameterBinding></ssd:ParameterBindings>"#;
+        let e = refusal(&[("SystemStructure.ssd", ssd("a.fmu", mapping).as_bytes()), ("a.fmu", b"x")], &[]);
+        assert_names(&e, &["the parameter mapping", "absolute path"]);
+    }
+
+    #[test]
+    fn an_absolute_parameter_file_is_refused_even_when_it_exists() {
+        let dir = tempfile::tempdir().unwrap();
+        let ssv = outside(dir.path(), "p.ssv");
+        let e = refusal(&[("SystemStructure.ssd", ssd("a.fmu", &binding(&ssv.display().to_string())).as_bytes()), ("a.fmu", b"x")], &[]);
+        assert_names(&e, &["the parameter file", "absolute path"]);
+    }
+
+    /// Parameter files and mappings follow the components' rule: a `file:` URI or any other
+    /// scheme is refused naming the binding, even when the file it names exists.
+    #[test]
+    fn a_uri_for_a_parameter_file_or_mapping_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let ssv = outside(dir.path(), "p.ssv");
+        for source in [format!("file://{}", ssv.display()), format!("file:{}", ssv.display()), "https://example.org/p.ssv".into()] {
+            let e = refusal(&[("SystemStructure.ssd", ssd("a.fmu", &binding(&source)).as_bytes()), ("a.fmu", b"x")], &[]);
+            assert_names(&e, &["the parameter file", "is a URI"]);
+            let mapping = format!(
+                r#"<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="p"><ssv:Parameters/></ssv:ParameterSet></ssd:ParameterValues><ssd:ParameterMapping source="{source}"/></ssd:ParameterBinding></ssd:ParameterBindings>"#
+            );
+            let e = refusal(&[("SystemStructure.ssd", ssd("a.fmu", &mapping).as_bytes()), ("a.fmu", b"x")], &[]);
+            assert_names(&e, &["the parameter mapping", "is a URI"]);
+        }
+    }
+
+    /// A parameter file that is a symbolic link to a file outside is refused like a linked FMU.
+    #[test]
+    fn a_symbolic_link_as_a_parameter_file_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let ssv = outside(dir.path(), "p.ssv");
+        let e = refusal(
+            &[("SystemStructure.ssd", ssd("a.fmu", &binding("resources/p.ssv")).as_bytes()), ("a.fmu", b"x")],
+            &[("resources/p.ssv", &ssv.display().to_string())],
+        );
+        assert_names(&e, &["symbolic link"]);
+    }
+
+    #[test]
+    fn a_symbolic_link_in_the_archive_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let evil = outside(dir.path(), "evil.fmu");
+        let e =
+            refusal(&[("SystemStructure.ssd", ssd("resources/a.fmu", "").as_bytes())], &[("resources/a.fmu", &evil.display().to_string())]);
+        assert_names(&e, &["symbolic link"]);
+    }
+
+    #[test]
+    fn an_ssd_that_names_itself_is_refused() {
+        let e = refusal(&[("SystemStructure.ssd", ssd("SystemStructure.ssd", "").as_bytes())], &[]);
+        assert_names(&e, &["component 'a'", "is the system structure itself"]);
+        let e = refusal(&[("SystemStructure.ssd", ssd("./resources/../SystemStructure.ssd", "").as_bytes())], &[]);
+        assert_names(&e, &["component 'a'", "is the system structure itself"]);
+        // As its own parameter file: read, and refused for what it is.
+        let e = refusal(&[("SystemStructure.ssd", ssd("a.fmu", &binding("SystemStructure.ssd")).as_bytes()), ("a.fmu", b"x")], &[]);
+        assert_names(&e, &["SystemStructure.ssd", "not <ssv:ParameterSet>"]);
+    }
+
+    /// The rule's other side: what the archive holds resolves inside it, `..` that stays
+    /// inside included; a folder's SSD still names files beside it (or anywhere: the user's own).
+    #[test]
+    fn files_inside_the_archive_and_beside_a_folder_ssd_resolve() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path();
+        std::fs::create_dir(root.join("resources")).unwrap();
+        std::fs::write(root.join("resources/p.ssv"), r#"<ssv:ParameterSet xmlns:ssv="v" version="1.0" name="p"><ssv:Parameters><ssv:Parameter name="k"><ssv:Real value="2"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>"#).unwrap();
+        let path = root.join("SystemStructure.ssd");
+        std::fs::write(&path, ssd("resources/../resources/a.fmu", &binding("./resources/p.ssv"))).unwrap();
+        let s = Structure::read_in_archive(&path, root).unwrap();
+        assert_eq!(s.components[0].source, root.join("resources/a.fmu"));
+        assert_eq!(s.components[0].parameters[0].variable, "k");
+        let elsewhere = tempfile::tempdir().unwrap();
+        let fmu = outside(elsewhere.path(), "b.fmu");
+        std::fs::write(&path, ssd(&fmu.display().to_string(), "")).unwrap();
+        assert_eq!(Structure::read(&path).unwrap().components[0].source, fmu);
+    }
 }

@@ -1,4 +1,5 @@
-//! A small element tree over quick-xml: SSP files are small, and walking a tree keeps the
+//! A small element tree over quick-xml (SSP files, and the LS-REF manifests `runner simulate
+//! --reference-file` reads): SSP files are small, and walking a tree keeps the
 //! reader's rules (which child, which attribute) next to each other. Names are local names: the
 //! prefixes (`ssd:`, `ssc:`, `ssv:`, `ssm:`) differ between tools, the local names do not.
 

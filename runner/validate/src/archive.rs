@@ -119,7 +119,21 @@ pub(crate) fn check_and_extract(fmu: &Path, dest: &Path, findings: &mut Vec<Find
         ));
     }
     drop(zip);
-    if let Err(e) = fmi_importer::archive::extract_zip(fmu, dest) {
+    let unpacked = fmi_importer::archive::check_zip(fmu, fmi_importer::archive::Limits::FMU).and_then(|checked| {
+        // Copies of one entry with the same bytes unpack as one file (issue 33), but a tool
+        // that refuses repeated names refuses the FMU.
+        if !checked.duplicates().is_empty() {
+            findings.push(Finding::warning(
+                "archive.zip",
+                format!(
+                    "the archive lists {} more than once with the same bytes: unpacked once, but some tools refuse repeated entries",
+                    checked.duplicates().iter().map(|d| format!("'{d}'")).collect::<Vec<_>>().join(", ")
+                ),
+            ));
+        }
+        checked.extract(dest)
+    });
+    if let Err(e) = unpacked {
         findings.push(Finding::error("archive.zip", format!("the archive cannot be unpacked safely: {e}")));
         return None;
     }

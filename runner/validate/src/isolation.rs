@@ -1,56 +1,82 @@
-//! Every probe of an FMU's binary runs in a child process, so a crash or a hang in the FMU is a
-//! finding, never the validator's own death.
+//! Every probe of an FMU's binary runs in a worker process of the runner's sandbox (crate
+//! `runner-sandbox`), so a crash or a hang in the FMU is a finding, never the validator's own
+//! death: a fresh worker for every probe, as a real importer would load the FMU. This is the
+//! validator's service of it: the jobs (one probe), the messages they stream (cells and
+//! findings), their outcomes, and what the probes record in the memory each worker shares with
+//! its supervisor ([`Progress`]).
 //!
-//! The child is the validator's own program started again with a probe's arguments (see
-//! [`Launcher`]): a fresh process, as a real importer would load the FMU, with nothing shared
-//! but two channels. Findings come back as JSON lines on a pipe. Before each FMI call the child
-//! writes the call (function, state, variable, value) and a deadline into a small shared
-//! memory file ([`Progress`]); the parent watches the deadlines, kills a child whose call
-//! overran `--timeout`, and after a crash or a kill reads which call was running. Writing that
-//! record costs no system call, so a run of 100,000 steps stays fast.
-//!
-//! fork() without exec was the alternative: cheaper by a few milliseconds, but the child of a
-//! multi-threaded parent (a test harness, the progress thread) inherits every lock another
-//! thread held at the fork, and one held allocator or stdio lock hangs the child in the
-//! validator's own code, which would then read as the FMU's hang.
+//! Before each FMI call the probe writes the call (function, state, variable, value) and a
+//! deadline into its thread's slot of the shared memory; the validator's watchdog kills a
+//! worker whose call overran `--timeout` (or that stopped calling at all), and after a crash or
+//! a kill reads which call was running. Writing that record costs no system call, so a run of
+//! 100,000 steps stays fast. What the FMU prints goes to a log file, whose lines since the
+//! crashed cell began a death's finding quotes.
 
-use std::ffi::OsString;
-use std::io::{BufRead, BufReader, Write};
+use std::io::{Read, Seek, SeekFrom};
+use std::marker::PhantomData;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::mpsc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
+use runner_sandbox::{Config, Failure, Service, Session, SharedMemory, WorkerCommand};
 use serde::{Deserialize, Serialize};
 
+use crate::fmi::{Fmi, Interface};
 use crate::report::{Finding, Severity};
 
-/// How to start a probe child: a program and the arguments that put it in probe mode (for the
-/// `runner` binary: itself and its hidden `__validate-probe` command); the probe's own
-/// arguments follow.
-#[derive(Debug, Clone)]
-pub struct Launcher {
-    pub program: PathBuf,
-    pub args: Vec<OsString>,
+/// One probe of one binary: what the probe process needs besides the FMU unpacked in `dir`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct Job {
+    pub fmi: Fmi,
+    pub dir: PathBuf,
+    /// Where the lifecycle probe keeps its reference run for the others.
+    pub runs: PathBuf,
+    pub binary: PathBuf,
+    pub interfaces: Vec<Interface>,
+    /// The longest one FMI call may take.
+    pub timeout: Duration,
+    pub probe: String,
+    /// The cell to start at (after one that crashed).
+    pub resume: usize,
 }
 
-/// What a child sends back, one JSON object per line.
+/// What a probe sends while it runs.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub(crate) enum Message {
     /// The probe starts its cell `index` (the unit a crashed probe resumes after), which
     /// belongs to check `check`; a crash in it is a finding of severity `crash`.
     Cell { check: String, index: usize, crash: Severity },
-    /// A finding.
-    Finding(Finding),
-    /// The probe finished all its cells.
-    Done,
-    /// The validator itself failed in the child (a bug, or a broken installation).
-    Internal(String),
+    /// A finding, as JSON: the report's absent fields are left out of it, which a frame of the
+    /// sandbox (not self-describing) could not carry.
+    Finding(String),
 }
 
-/// The call a child was in (or last made), as it recorded it.
-#[derive(Debug, Clone, Default, PartialEq)]
+impl Message {
+    /// The message of `finding`.
+    pub(crate) fn finding(finding: &Finding) -> Message {
+        Message::Finding(serde_json::to_string(finding).expect("findings are plain data"))
+    }
+}
+
+/// Where a probe's messages go (to the supervisor, through the worker's reply pipe): sent at
+/// once, so that a crash right after loses none.
+pub(crate) struct Out<'a> {
+    send: Box<dyn Fn(&Message) + Sync + 'a>,
+}
+
+impl<'a> Out<'a> {
+    /// Messages handed to `send`.
+    pub(crate) fn new(send: impl Fn(&Message) + Sync + 'a) -> Out<'a> {
+        Out { send: Box::new(send) }
+    }
+
+    pub(crate) fn send(&self, message: &Message) {
+        (self.send)(message)
+    }
+}
+
+/// The call a probe was in (or last made), as it recorded it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub(crate) struct CallRecord {
     pub call: String,
     pub state: String,
@@ -58,39 +84,74 @@ pub(crate) struct CallRecord {
     pub value: Option<String>,
 }
 
-/// How a child ended.
-#[derive(Debug, Clone, PartialEq)]
+/// How a probe process ended before it finished.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub(crate) enum End {
-    /// It sent `Done` and exited normally.
-    Finished,
     /// Killed by a signal it raised (SIGSEGV, SIGABRT, ...): its name.
     Crashed(String),
-    /// It exited with a code before finishing (the FMU called exit()).
+    /// It exited with a code (the FMU called exit()).
     Exited(i32),
-    /// A call did not return within the timeout; the child was killed.
+    /// A call did not return within the timeout, or it stopped calling; it was killed.
     TimedOut,
-    /// The user interrupted the validation.
-    Cancelled,
 }
 
-/// Everything one child run produced.
-pub(crate) struct ChildRun {
-    pub messages: Vec<Message>,
-    pub end: End,
-    /// The call in progress when the child ended, if it ended inside one.
-    pub in_call: Option<CallRecord>,
-    /// The last call it started, finished or not.
-    pub last_call: Option<CallRecord>,
-    /// The last lines the child wrote to stderr (the FMU's log and output).
-    pub log_tail: Option<String>,
+/// How a probe ended.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(crate) enum Outcome {
+    /// It ran all its cells.
+    Finished,
+    /// The validator itself failed in it (a bug, or a broken installation).
+    Internal(String),
+    /// Its process ended before it finished: how, the call in progress then (if it was inside
+    /// one) and the last call it started.
+    Died { end: End, in_call: Option<CallRecord>, last_call: Option<CallRecord> },
 }
 
-/// Threads of one child that may call the FMU at once, each with its own record.
+/// The validator's service of the sandbox.
+pub(crate) struct Probes;
+
+impl Service for Probes {
+    type Setup = ();
+    type Job = Job;
+    type Message = Message;
+    type Outcome = Outcome;
+
+    fn failed(_job: &Job, failure: &Failure, shared: &SharedMemory) -> Outcome {
+        use std::os::unix::process::ExitStatusExt;
+        let end = match failure {
+            Failure::Ended(status) => match (status.signal(), status.code()) {
+                (Some(signal), _) => End::Crashed(signal_name(signal)),
+                (None, code) => End::Exited(code.unwrap_or(-1)),
+            },
+            Failure::TimedOut(_) => End::TimedOut,
+        };
+        let progress = Progress::over(shared);
+        Outcome::Died {
+            end,
+            in_call: progress.earliest_deadline().and_then(|(slot, _)| progress.record(slot)),
+            last_call: progress.record(0),
+        }
+    }
+}
+
+/// The name of a signal, for messages.
+fn signal_name(signal: i32) -> String {
+    let what = match signal {
+        libc::SIGSEGV | libc::SIGBUS => " (invalid memory access)",
+        libc::SIGABRT => " (abort)",
+        libc::SIGFPE => " (arithmetic exception)",
+        libc::SIGILL => " (illegal instruction)",
+        _ => "",
+    };
+    format!("{}{what}", runner_sandbox::signal_name(signal))
+}
+
+/// Threads of one probe that may call the FMU at once, each with its own record.
 pub(crate) const SLOTS: usize = 8;
 const HEADER: usize = 64;
 const SLOT_SIZE: usize = 512;
-/// Size of the shared progress file.
-const PROGRESS_SIZE: usize = HEADER + SLOTS * SLOT_SIZE;
+/// Size of the shared progress record.
+pub(crate) const PROGRESS_SIZE: usize = HEADER + SLOTS * SLOT_SIZE;
 const RECORD_MAX: usize = SLOT_SIZE - 12;
 
 /// CLOCK_MONOTONIC in nanoseconds: the one clock both processes read alike.
@@ -101,43 +162,29 @@ fn monotonic_ns() -> u64 {
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
-/// The shared progress file mapped into this process.
-pub(crate) struct Progress {
+/// The calls a probe records, laid over the memory a worker shares with its supervisor: per
+/// slot a deadline and the call's record, and a counter of calls started.
+#[derive(Clone, Copy)]
+pub(crate) struct Progress<'a> {
     base: *mut u8,
+    _memory: PhantomData<&'a SharedMemory>,
 }
 
-// The mapping is only touched through atomics (deadlines, counter) and through a slot's own
+// The memory is only touched through atomics (deadlines, counter) and through a slot's own
 // thread (its record), so it may be shared between threads.
-unsafe impl Send for Progress {}
-unsafe impl Sync for Progress {}
+unsafe impl Send for Progress<'_> {}
+unsafe impl Sync for Progress<'_> {}
 
-impl Progress {
-    /// Maps the progress file at `path` (created with [`PROGRESS_SIZE`] bytes by the parent).
-    pub(crate) fn open(path: &Path) -> Result<Progress, String> {
-        let file = std::fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .open(path)
-            .map_err(|e| format!("cannot open the progress file {}: {e}", path.display()))?;
-        let len = file.metadata().map_err(|e| format!("{}: {e}", path.display()))?.len();
-        if len < PROGRESS_SIZE as u64 {
-            return Err(format!("the progress file {} is too short", path.display()));
-        }
-        use std::os::fd::AsRawFd;
-        // SAFETY: a shared read-write mapping of a file we opened read-write, at least as long
-        // as the mapping; the file may be closed afterwards.
-        let base = unsafe {
-            libc::mmap(std::ptr::null_mut(), PROGRESS_SIZE, libc::PROT_READ | libc::PROT_WRITE, libc::MAP_SHARED, file.as_raw_fd(), 0)
-        };
-        if base == libc::MAP_FAILED {
-            return Err(format!("cannot map the progress file {}: {}", path.display(), std::io::Error::last_os_error()));
-        }
-        Ok(Progress { base: base as *mut u8 })
+impl<'a> Progress<'a> {
+    /// The record in `shared` (of at least [`PROGRESS_SIZE`] bytes).
+    pub(crate) fn over(shared: &'a SharedMemory) -> Progress<'a> {
+        assert!(shared.len() >= PROGRESS_SIZE, "the memory shared with a probe holds its progress record");
+        Progress { base: shared.as_ptr(), _memory: PhantomData }
     }
 
     fn atomic(&self, offset: usize) -> &AtomicU64 {
-        // SAFETY: offset is 8-aligned inside the mapping (page-aligned base), which lives as
-        // long as self; AtomicU64 has the layout of u64.
+        // SAFETY: offset is 8-aligned inside the region (page-aligned base), which lives as
+        // long as 'a; AtomicU64 has the layout of u64.
         unsafe { &*(self.base.add(offset) as *const AtomicU64) }
     }
 
@@ -145,7 +192,7 @@ impl Progress {
         self.atomic(HEADER + slot * SLOT_SIZE)
     }
 
-    /// Counts calls started, so the parent can tell a busy child from a stuck one.
+    /// Counts calls started, so the supervisor can tell a busy probe from a stuck one.
     fn counter(&self) -> &AtomicU64 {
         self.atomic(8)
     }
@@ -168,8 +215,8 @@ impl Progress {
             bytes = &bytes[..cut];
         }
         let at = HEADER + slot * SLOT_SIZE;
-        // SAFETY: the slot's record area belongs to this slot's thread; the parent reads it only
-        // after the child stopped.
+        // SAFETY: the slot's record area belongs to this slot's thread; the supervisor reads it
+        // only after the worker stopped.
         unsafe {
             std::ptr::copy_nonoverlapping((bytes.len() as u32).to_le_bytes().as_ptr(), self.base.add(at + 8), 4);
             std::ptr::copy_nonoverlapping(bytes.as_ptr(), self.base.add(at + 12), bytes.len());
@@ -184,11 +231,11 @@ impl Progress {
         self.deadline(slot).store(0, Ordering::Release);
     }
 
-    /// The record of `slot` (read once the child stopped writing).
+    /// The record of `slot` (read once the worker stopped writing).
     fn record(&self, slot: usize) -> Option<CallRecord> {
         let at = HEADER + slot * SLOT_SIZE;
         let mut len = [0u8; 4];
-        // SAFETY: inside the mapping; the writer is stopped.
+        // SAFETY: inside the region; the writer is stopped.
         unsafe { std::ptr::copy_nonoverlapping(self.base.add(at + 8), len.as_mut_ptr(), 4) };
         let len = (u32::from_le_bytes(len) as usize).min(RECORD_MAX);
         if len == 0 {
@@ -210,168 +257,79 @@ impl Progress {
     }
 }
 
-impl Drop for Progress {
-    fn drop(&mut self) {
-        // SAFETY: unmapping the mapping made in open.
-        unsafe { libc::munmap(self.base as *mut libc::c_void, PROGRESS_SIZE) };
-    }
-}
-
-/// The name of a signal, for messages.
-fn signal_name(signal: i32) -> String {
-    let name = match signal {
-        libc::SIGSEGV => "SIGSEGV (invalid memory access)",
-        libc::SIGBUS => "SIGBUS (invalid memory access)",
-        libc::SIGABRT => "SIGABRT (abort)",
-        libc::SIGFPE => "SIGFPE (arithmetic exception)",
-        libc::SIGILL => "SIGILL (illegal instruction)",
-        libc::SIGKILL => "SIGKILL",
-        libc::SIGTERM => "SIGTERM",
-        libc::SIGTRAP => "SIGTRAP",
-        libc::SIGSYS => "SIGSYS",
-        _ => return format!("signal {signal}"),
-    };
-    name.to_owned()
-}
-
-/// What a probe process writes to its stderr when a cell starts, so that a crash report quotes
-/// only what the FMU logged in the cell that crashed.
+/// What a probe process writes to its stderr when a job or a cell starts, so that a death's
+/// finding quotes only what the FMU logged in the cell that died.
 pub(crate) const CELL_MARK: &str = "\u{1e}runner validate: cell ";
 
-/// The last few lines a child wrote to stderr since its last cell started, made printable.
-fn log_tail(path: &Path) -> Option<String> {
-    let bytes = std::fs::read(path).ok()?;
-    let text = String::from_utf8_lossy(&bytes[bytes.len().saturating_sub(1 << 16)..]).into_owned();
+/// The last few lines the workers wrote to `log` since the last cell began, made printable.
+fn log_tail(log: &Path) -> Option<String> {
+    const TAIL: u64 = 1 << 16;
+    let mut file = std::fs::File::open(log).ok()?;
+    let len = file.metadata().ok()?.len();
+    file.seek(SeekFrom::Start(len.saturating_sub(TAIL))).ok()?;
+    let mut bytes = Vec::new();
+    file.read_to_end(&mut bytes).ok()?;
+    let text = String::from_utf8_lossy(&bytes).into_owned();
     let since = text.rfind(CELL_MARK).map_or(&text[..], |at| &text[at..]);
     let lines: Vec<&str> = since.lines().filter(|l| !l.trim().is_empty() && !l.starts_with(CELL_MARK)).collect();
     let tail = lines[lines.len().saturating_sub(3)..].join(" | ");
     (!tail.is_empty()).then(|| fmi_schema::printable(tail))
 }
 
-static CHILDREN: AtomicUsize = AtomicUsize::new(0);
-
-/// True when the child `pid` has exited (it is left unreaped, for `wait` to collect).
-fn exited(pid: libc::pid_t) -> bool {
-    // SAFETY: a zeroed siginfo_t to fill; WNOWAIT leaves the child's status in place.
-    let mut info: libc::siginfo_t = unsafe { std::mem::zeroed() };
-    let found = unsafe { libc::waitid(libc::P_PID, pid as libc::id_t, &mut info, libc::WEXITED | libc::WNOHANG | libc::WNOWAIT) };
-    // SAFETY: si_pid is set when waitid found a child.
-    found == 0 && unsafe { info.si_pid() } == pid
+/// The probes of one FMU, each in a fresh worker.
+pub(crate) struct Supervisor {
+    session: Session<Probes>,
+    log: PathBuf,
+    timeout: Duration,
 }
 
-/// Runs one probe child: `launcher` with `args`, its files in `work`, each FMI call bounded by
-/// `timeout`. `cancelled` is polled; when it says so the child is killed.
-pub(crate) fn run_child(
-    launcher: &Launcher,
-    args: &[OsString],
-    work: &Path,
-    timeout: Duration,
-    cancelled: &dyn Fn() -> bool,
-) -> Result<ChildRun, String> {
-    let id = CHILDREN.fetch_add(1, Ordering::Relaxed);
-    let progress_path = work.join(format!("progress-{id}"));
-    let mut file = std::fs::File::create(&progress_path).map_err(|e| format!("cannot create {}: {e}", progress_path.display()))?;
-    file.write_all(&[0u8; PROGRESS_SIZE]).map_err(|e| format!("cannot write {}: {e}", progress_path.display()))?;
-    drop(file);
-    let progress = Progress::open(&progress_path)?;
-    let log_path = work.join(format!("child-{id}.log"));
-    let log = std::fs::File::create(&log_path).map_err(|e| format!("cannot create {}: {e}", log_path.display()))?;
-    let mut command = Command::new(&launcher.program);
-    command.args(&launcher.args).arg("--progress").arg(&progress_path).args(args);
-    command.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(log);
-    // Its own process group: Ctrl-C reaches only the validator, which then ends the child,
-    // and a kill takes any process the FMU started with it.
-    use std::os::unix::process::CommandExt;
-    command.process_group(0);
-    let mut child = command.spawn().map_err(|e| format!("cannot start the probe process {}: {e}", launcher.program.display()))?;
-    let stdout = child.stdout.take().expect("stdout is piped");
-    let (lines, received) = mpsc::channel::<String>();
-    let reader = std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines() {
-            let Ok(line) = line else { break };
-            if lines.send(line).is_err() {
-                break;
+/// Everything one probe produced.
+pub(crate) struct ProbeRun {
+    pub messages: Vec<Message>,
+    pub outcome: Outcome,
+    /// The last lines the probe process wrote to stderr (the FMU's log and output), when it
+    /// died.
+    pub log_tail: Option<String>,
+}
+
+impl Supervisor {
+    /// Probes started by `command`, their output in `work`, each FMI call bounded by
+    /// `timeout`.
+    pub(crate) fn new(command: WorkerCommand, work: &Path, timeout: Duration) -> Supervisor {
+        let log = work.join("probes.log");
+        let config = Config { shared_bytes: PROGRESS_SIZE, log_file: Some(log.clone()), ..Config::new(command) };
+        Supervisor { session: Session::new(config, &[], true), log, timeout }
+    }
+
+    /// Runs `job` in a fresh worker; `Err` when it could not run or `cancelled` said to stop
+    /// (the error is then "interrupted").
+    pub(crate) fn run(&mut self, job: Job, cancelled: &dyn Fn() -> bool) -> Result<ProbeRun, String> {
+        let timeout = self.timeout;
+        // A probe that makes no FMI call for this long while in none is stuck in the FMU's own
+        // threads or in an exit handler; generous, since the validator's own work between calls
+        // (comparing long runs) takes milliseconds.
+        let stall_limit = (timeout * 10).max(Duration::from_secs(60));
+        let (mut last_count, mut last_change) = (0, Instant::now());
+        let mut watch = |shared: &SharedMemory| -> Option<Duration> {
+            let progress = Progress::over(shared);
+            if let Some((_, deadline)) = progress.earliest_deadline() {
+                last_change = Instant::now();
+                return (deadline < monotonic_ns()).then_some(timeout);
             }
-        }
-    });
-    let pid = child.id() as libc::pid_t;
-    let kill = || {
-        // SAFETY: signalling the process group of our own child.
-        unsafe { libc::kill(-pid, libc::SIGKILL) };
-    };
-    let mut messages = Vec::new();
-    let mut forced: Option<End> = None;
-    // A child that makes no FMI call for this long while in none is stuck in the FMU's own
-    // threads or in an exit handler; generous, since the validator's own work between calls
-    // (comparing long runs) takes milliseconds.
-    let stall_limit = (timeout * 10).max(Duration::from_secs(60));
-    let (mut last_count, mut last_change) = (0, Instant::now());
-    loop {
-        match received.recv_timeout(Duration::from_millis(5)) {
-            Ok(line) => {
-                if let Ok(message) = serde_json::from_str::<Message>(&line) {
-                    messages.push(message);
-                }
-                continue;
-            }
-            Err(mpsc::RecvTimeoutError::Disconnected) => break,
-            Err(mpsc::RecvTimeoutError::Timeout) => {}
-        }
-        if exited(pid) {
-            // Ended, but something it started still holds the pipe: end that too (the child
-            // is not reaped yet, so its process group is still its own).
-            kill();
-            break;
-        }
-        if cancelled() {
-            kill();
-            forced = Some(End::Cancelled);
-            break;
-        }
-        let now = monotonic_ns();
-        if let Some((_, deadline)) = progress.earliest_deadline() {
-            if deadline < now {
-                kill();
-                forced = Some(End::TimedOut);
-                break;
-            }
-            last_change = Instant::now();
-        } else {
             let count = progress.counter().load(Ordering::Relaxed);
             if count != last_count {
                 (last_count, last_change) = (count, Instant::now());
-            } else if last_change.elapsed() > stall_limit {
-                kill();
-                forced = Some(End::TimedOut);
-                break;
             }
-        }
-    }
-    let status = child.wait().map_err(|e| format!("cannot wait for the probe process: {e}"))?;
-    let _ = reader.join();
-    while let Ok(line) = received.try_recv() {
-        if let Ok(message) = serde_json::from_str::<Message>(&line) {
+            (last_change.elapsed() > stall_limit).then_some(stall_limit)
+        };
+        let mut messages = Vec::new();
+        let outcome = self.session.run_watched(job, cancelled, &mut watch, |message| {
             messages.push(message);
-        }
+            Ok(())
+        })?;
+        let log_tail = matches!(outcome, Outcome::Died { .. }).then(|| log_tail(&self.log)).flatten();
+        Ok(ProbeRun { messages, outcome, log_tail })
     }
-    let done = messages.iter().any(|m| matches!(m, Message::Done));
-    use std::os::unix::process::ExitStatusExt;
-    let end = match forced {
-        Some(end) => end,
-        None => match (status.signal(), status.code()) {
-            (Some(signal), _) => End::Crashed(signal_name(signal)),
-            (None, Some(0)) if done => End::Finished,
-            (None, Some(code)) => End::Exited(code),
-            (None, None) => End::Exited(-1),
-        },
-    };
-    let in_call = progress.earliest_deadline().and_then(|(slot, _)| progress.record(slot));
-    let last_call = progress.record(0);
-    let log_tail = log_tail(&log_path);
-    drop(progress);
-    let _ = std::fs::remove_file(&progress_path);
-    let _ = std::fs::remove_file(&log_path);
-    Ok(ChildRun { messages, end, in_call, last_call, log_tail })
 }
 
 #[cfg(test)]
@@ -379,12 +337,9 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_record_written_in_one_mapping_is_read_in_another() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("p");
-        std::fs::write(&path, vec![0u8; PROGRESS_SIZE]).unwrap();
-        let writer = Progress::open(&path).unwrap();
-        let reader = Progress::open(&path).unwrap();
+    fn a_record_written_in_one_view_is_read_in_another() {
+        let memory = SharedMemory::new(PROGRESS_SIZE).unwrap();
+        let (writer, reader) = (Progress::over(&memory), Progress::over(&memory));
         assert_eq!(reader.earliest_deadline(), None);
         let record =
             CallRecord { call: "fmi2DoStep".into(), state: "StepComplete".into(), variable: None, value: Some("t = 1, h = 0.1".into()) };
@@ -401,5 +356,18 @@ mod tests {
         let back = reader.record(0).unwrap();
         assert!(back.variable.unwrap().len() <= RECORD_MAX);
         assert_eq!(reader.record(1), None);
+    }
+
+    /// A death's finding quotes what the FMU printed in the cell that died, not before.
+    #[test]
+    fn the_log_tail_starts_at_the_last_cell() {
+        let dir = tempfile::tempdir().unwrap();
+        let log = dir.path().join("probes.log");
+        std::fs::write(&log, format!("earlier\n{CELL_MARK}3\none\n\ntwo\nthree\nfour\u{1b}[0m\n")).unwrap();
+        assert_eq!(log_tail(&log).as_deref(), Some("two | three | four\\u{1b}[0m"));
+        std::fs::write(&log, format!("earlier\n{CELL_MARK}start\n")).unwrap();
+        assert_eq!(log_tail(&log), None, "nothing since the probe started");
+        assert_eq!(signal_name(libc::SIGSEGV), "SIGSEGV (invalid memory access)");
+        assert_eq!(signal_name(libc::SIGKILL), "SIGKILL");
     }
 }

@@ -4,11 +4,23 @@
 //! links), the description (the schema's `check()` and more), the binary's exports. Dynamic:
 //! probes that call the FMU (lifecycle, the state machine cell by cell, NULL and unknown
 //! arguments, FMU state, variable steps, threads, String variables, reproducibility, Model
-//! Exchange events), each in a child process ([`isolation`]) so that a crash or a hang is a
-//! finding.
+//! Exchange events), each in a worker process of the runner's sandbox (`isolation`) so that
+//! a crash or a hang is a finding.
 //!
-//! The FMI 2.0 set lives in `fmi2/`, the FMI 3.0 set in `fmi3/`, chosen by the description's
-//! `fmiVersion`.
+//! The probes are written once for FMI 2.0 and 3.0 (`probes`, over the framework of
+//! `probe`); what differs between the versions is each version's module (`fmi2`,
+//! `fmi3`): its C calls behind the `instance` traits, its state table as data
+//! (`table`), its description's rules. The layers, from the bottom:
+//!
+//! - `fmi`, `model`, `failure`, `report`: the words both versions share.
+//! - `isolation`: the validator's service of the sandbox (crate `runner-sandbox`): a probe as a
+//!   job, its messages and outcomes, the call records in the memory each worker shares.
+//! - `instance`, `table`: an FMU binary and its instances as the probes call them; the shape
+//!   of a state table. `fmi2`, `fmi3` implement them.
+//! - `exchange`, `run`: runs through the DefaultExperiment (Model Exchange integrated with
+//!   state events located by bisection).
+//! - `probe`, `probes`: the framework, and the probes.
+//! - `parent` (the validator's side) and `child` (the probe process's).
 
 // A probe's `Failure` (the findings' call, state, variable, value and log) is 160 bytes; it is
 // built once per finding, and boxing it would only add an allocation to the happy path's
@@ -16,25 +28,36 @@
 #![allow(clippy::result_large_err)]
 
 mod archive;
-mod concurrent;
+mod child;
+mod exchange;
+mod failure;
+mod fmi;
 mod fmi2;
 mod fmi3;
+mod instance;
 mod isolation;
+mod model;
+mod parent;
+mod probe;
+mod probes;
 pub mod report;
+mod run;
+mod table;
+#[cfg(test)]
+mod testing;
 
-use std::ffi::OsString;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-pub use isolation::Launcher;
 pub use report::{to_json, to_junit, Finding, Report, Severity};
+pub use runner_sandbox::WorkerCommand;
 
 /// How to validate.
 pub struct Options {
     /// The longest any single FMI call may take before it counts as a hang.
     pub timeout: Duration,
-    /// How to start a probe process (see [`probe_main`]).
-    pub launcher: Launcher,
+    /// How to start a probe process (see [`probe_worker`]).
+    pub command: WorkerCommand,
     /// Polled while probes run: true to stop (the validation then returns
     /// [`is_interrupted`] as its error).
     pub cancelled: fn() -> bool,
@@ -46,7 +69,7 @@ pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(5);
 
 /// True for the error of a validation stopped by [`Options::cancelled`].
 pub fn is_interrupted(error: &str) -> bool {
-    error == fmi2::INTERRUPTED
+    error == parent::INTERRUPTED
 }
 
 /// The `fmiVersion` attribute of a description, read without parsing the rest.
@@ -76,51 +99,56 @@ pub fn validate(path: &Path, options: &Options) -> Result<Report, String> {
     let archive = archive::check_and_extract(path, &dir, &mut report.findings);
     match archive.and_then(|a| a.xml) {
         None => report.findings.push(Finding::skipped("dynamic checks", "not run: the archive or its modelDescription.xml is unusable")),
-        Some(xml) => match fmi_version(&xml) {
-            Some(v) if v.starts_with('3') => fmi3::validate(&xml, &dir, work.path(), options, &mut report)?,
-            _ => fmi2::validate(&xml, &dir, work.path(), options, &mut report)?,
-        },
+        Some(xml) => {
+            let fmi = parent::version_of(fmi_version(&xml).as_deref());
+            parent::validate(fmi, &xml, &dir, work.path(), options, &mut report)?
+        }
     }
     report.settle();
     report.seconds = started.elapsed().as_secs_f64();
     Ok(report)
 }
 
-/// The probe process's entry point: the program a [`Launcher`] starts calls this with the
-/// arguments after its own, and exits with the code it returns. Its stdout carries the
-/// findings; whatever the FMU prints goes to its stderr.
-pub fn probe_main(args: &[OsString]) -> i32 {
-    use std::os::fd::FromRawFd;
-    // The protocol gets its own descriptor; fd 1 becomes stderr, so an FMU's printf cannot
-    // corrupt it.
-    // SAFETY: plain descriptor duplication at start-up, before any other thread exists.
-    let protocol = unsafe { libc::dup(1) };
-    if protocol < 0 || unsafe { libc::dup2(2, 1) } < 0 {
-        eprintln!("runner validate probe: cannot set up its output");
-        return 3;
+/// What the static checks of the description `xml` find against the standard (the errors
+/// `runner validate` reports for it: the schema's rules, the GUID or instantiation token, the
+/// ModelStructure), without the archive or the binary: for a warning before a run. A
+/// description that cannot be read at all is one problem.
+pub fn description_problems(xml: &str) -> Vec<String> {
+    let declared = match fmi_version(xml) {
+        Some(v) if v.starts_with('3') => fmi3::description::declared(xml),
+        _ => fmi2::description::declared(xml),
+    };
+    match declared {
+        Ok(declared) => declared.findings.into_iter().filter(|f| f.severity == Severity::Error).map(|f| f.message).collect(),
+        Err(e) => vec![format!("modelDescription.xml cannot be read: {e}")],
     }
-    // SAFETY: a descriptor this process just created and owns.
-    let out = fmi2::probes_out(unsafe { std::fs::File::from_raw_fd(protocol) });
-    // The FMI version's own probes.
-    let version = args.iter().position(|a| a == "--fmi").and_then(|i| args.get(i + 1)).map(|v| v.to_string_lossy().into_owned());
-    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match version.as_deref() {
-        Some("2") => fmi2::child(args, &out),
-        Some("3") => fmi3::child(args, &out),
-        other => Err(format!("no probes for FMI version {other:?}")),
-    }));
-    match result {
-        Ok(Ok(())) => {
-            out.send(&isolation::Message::Done);
-            0
-        }
-        Ok(Err(e)) => {
-            out.send(&isolation::Message::Internal(e));
-            3
-        }
-        Err(panic) => {
-            let text = panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned());
-            out.send(&isolation::Message::Internal(format!("panic: {}", text.unwrap_or_default())));
-            3
+}
+
+/// [`description_problems`] of the modelDescription.xml in the `.fmu` archive `fmu` (none when
+/// it cannot be read again: the importer has read it before).
+pub fn archive_description_problems(fmu: &Path) -> Vec<String> {
+    use std::io::Read;
+    let xml = (|| {
+        let mut archive = zip::ZipArchive::new(std::fs::File::open(fmu).ok()?).ok()?;
+        let entry = archive.by_name("modelDescription.xml").ok()?;
+        let mut xml = String::new();
+        // Far above any real description (the largest Reference FMU's is 30 kB).
+        entry.take(256 << 20).read_to_string(&mut xml).ok()?;
+        Some(xml)
+    })();
+    xml.map(|xml| description_problems(&xml)).unwrap_or_default()
+}
+
+/// The probe process: the program [`Options::command`] starts runs this and exits with the
+/// code it returns (0 when its supervisor let it go, 1 when it could not serve). It is a worker
+/// of the runner's sandbox: its jobs arrive and its findings leave on descriptors of their own,
+/// and whatever the FMU prints goes to the validation's log.
+pub fn probe_worker() -> i32 {
+    match child::serve() {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("runner validate probe: {e}");
+            1
         }
     }
 }

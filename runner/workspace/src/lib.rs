@@ -5,8 +5,9 @@
 
 use std::path::{Path, PathBuf};
 
-use runner_engine::run::GridSettings;
-use serde::Deserialize;
+pub mod experiment;
+
+pub use experiment::Experiment;
 
 /// The workspace root: the nearest ancestor of the current directory holding `models/` and a
 /// workspace `Cargo.toml`, else the one this crate was built from.
@@ -83,89 +84,6 @@ pub fn locate(arg: &str) -> Result<Located, String> {
     Ok(Located::Model { id: arg.to_owned(), fmu: fmu_path(&root, arg), experiment: root.join("models").join(arg).join("experiment.toml") })
 }
 
-/// Settings shared by `simulate` and `sweep`; each is overridden by its command-line option.
-#[derive(Debug, Default, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RunDefaults {
-    /// Stop time (s).
-    pub stop_time: Option<f64>,
-    /// Communication (output) interval (s).
-    pub output_interval: Option<f64>,
-    /// Relative tolerance passed to fmi2SetupExperiment.
-    pub tolerance: Option<f64>,
-    /// `NAME=VALUE` assignments applied before initialization.
-    #[serde(default)]
-    pub set: Vec<String>,
-}
-
-/// `[sweep]`: the sweep a model is known for.
-#[derive(Debug, Default, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SweepDefaults {
-    /// Stop time (s) of each run.
-    pub stop_time: Option<f64>,
-    /// Communication (output) interval (s).
-    pub output_interval: Option<f64>,
-    /// Relative tolerance.
-    pub tolerance: Option<f64>,
-    /// `NAME=VALUE` assignments common to every point.
-    #[serde(default)]
-    pub set: Vec<String>,
-    /// `NAME=START:STOP:STEP` or `NAME=V1,V2,...` ranges (their cartesian product).
-    #[serde(default)]
-    pub param: Vec<String>,
-    /// `NAME=EXPR` metrics.
-    #[serde(default)]
-    pub metric: Vec<String>,
-    /// CSV file written when `--out` is not given.
-    pub out: Option<PathBuf>,
-    /// SVG plot written when `--plot` is not given.
-    pub plot: Option<PathBuf>,
-}
-
-impl RunDefaults {
-    /// The grid part of these settings.
-    pub fn grid(&self) -> GridSettings {
-        GridSettings { stop_time: self.stop_time, output_interval: self.output_interval, tolerance: self.tolerance }
-    }
-}
-
-impl SweepDefaults {
-    /// The settings of each run (serde cannot flatten them and still refuse unknown keys).
-    pub fn run(&self) -> RunDefaults {
-        RunDefaults { stop_time: self.stop_time, output_interval: self.output_interval, tolerance: self.tolerance, set: self.set.clone() }
-    }
-}
-
-/// The `[simulate]` and `[sweep]` sections of an experiment file; its other sections belong to
-/// the runner's own commands (compare, animate), which read the whole file.
-#[derive(Debug, Default, Clone, Deserialize)]
-pub struct RunSections {
-    /// Defaults of a single run.
-    #[serde(default)]
-    pub simulate: RunDefaults,
-    /// Defaults of a sweep.
-    #[serde(default)]
-    pub sweep: SweepDefaults,
-}
-
-/// Reads the text of the experiment file `path`: `None` when there is none.
-pub fn read_text(path: &Path) -> Result<Option<String>, String> {
-    match std::fs::read_to_string(path) {
-        Ok(text) => Ok(Some(text)),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(e) => Err(format!("cannot read {}: {e}", path.display())),
-    }
-}
-
-/// Parses the experiment file `path` into `T` (a missing file gives `T`'s defaults).
-pub fn read<T: Default + serde::de::DeserializeOwned>(path: &Path) -> Result<T, String> {
-    match read_text(path)? {
-        Some(text) => toml::from_str(&text).map_err(|e| format!("{}: {e}", path.display())),
-        None => Ok(T::default()),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -190,24 +108,5 @@ mod tests {
         let path = file.path().to_str().unwrap();
         assert_eq!(locate(path).unwrap(), Located::File(file.path().to_path_buf()));
         assert!(!models(&root).unwrap().contains(&"linkages".to_owned()), "a shared library crate is no model");
-    }
-
-    /// The run sections are read from a file that also has the commands' own sections, and a
-    /// typo inside them is refused with the file's name.
-    #[test]
-    fn run_sections_are_read_and_checked() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("experiment.toml");
-        std::fs::write(&path, "[simulate]\nstop_time = 2.5\n[sweep]\nparam = [\"k=1,2\"]\ntolerance = 1e-9\n[animate]\nspeed = 0.5\n")
-            .unwrap();
-        let sections: RunSections = read(&path).unwrap();
-        assert_eq!(sections.simulate.stop_time, Some(2.5));
-        assert_eq!(sections.sweep.param, ["k=1,2"]);
-        assert_eq!(sections.sweep.run().grid().tolerance, Some(1e-9));
-        std::fs::write(&path, "[simulate]\nstop_tim = 2.5\n").unwrap();
-        let err = read::<RunSections>(&path).unwrap_err();
-        assert!(err.contains("experiment.toml") && err.contains("stop_tim"), "{err}");
-        let none: RunSections = read(&dir.path().join("absent.toml")).unwrap();
-        assert!(none.simulate.stop_time.is_none());
     }
 }

@@ -226,6 +226,8 @@ impl<M: Model> Core<M> {
             return Ok(EventUpdate { terminate_simulation: true, values_changed: false });
         }
         let t = self.state.t;
+        // The event may change the model's discrete state (its regime).
+        self.version += 1;
         let x_before = self.state.x.clone();
         let z = self.indicators_now();
         let fired: Vec<bool> = self.state.z_ref.iter().zip(&z).map(|(&r, &v)| crossed(r, v)).collect();

@@ -9,7 +9,9 @@
 //! event indicators, and the core finds which indicators crossed at an event, runs the model's
 //! event handling and its constraint projection (`exchange.rs`).
 
+pub mod derivatives;
 mod exchange;
+mod interpolation;
 
 pub mod snapshot;
 #[cfg(test)]
@@ -19,10 +21,11 @@ use ref_cast::RefCast;
 use serde::{Deserialize, Serialize};
 
 use crate::logging::{Logger, Status, LOG_EVENTS};
-use crate::model::{Access, BaseType, Causality, EventOutcome, Model, Variability};
+use crate::model::{refresh, Access, BaseType, Causality, EventOutcome, Model, Variability};
 use crate::table::{Slot, Table, DIRECT_TIME};
 
 pub use exchange::{EventUpdate, StepCompleted};
+pub use interpolation::MAX_ORDER;
 use solvers::controls::{Control, Controls};
 use solvers::{Advance, Integrator, OdeSystem, SolverError};
 
@@ -111,6 +114,9 @@ pub struct State<M> {
     /// asked for, reported as `n_steps` and `n_rhs` (the importer's solver does the work).
     pub(crate) exchange_steps: u64,
     pub(crate) exchange_rhs: u64,
+    /// Co-Simulation: the inputs that follow polynomials in time over steps, with their
+    /// derivatives (`interpolation.rs`); empty while every input is held.
+    pub(crate) drives: Vec<interpolation::Drive>,
 }
 
 impl<M: Model> State<M> {
@@ -124,8 +130,10 @@ impl<M: Model> State<M> {
     }
 
     fn new() -> State<M> {
+        let mut model = M::default();
+        refresh(&mut model);
         State {
-            model: M::default(),
+            model,
             x: vec![0.0; M::N_STATES],
             t: 0.0,
             start_time: 0.0,
@@ -141,26 +149,32 @@ impl<M: Model> State<M> {
             z_ref: vec![0.0; M::N_EVENT_INDICATORS],
             exchange_steps: 0,
             exchange_rhs: 0,
+            drives: Vec::new(),
         }
     }
 }
 
 /// A model seen as the solver's ODE system. A transparent wrapper: the solver holds what is
-/// in memory a `&M` (made from one by [`Equations::of`]), so the compiler still knows the stage
+/// in memory a `&M` (made from one by [`System::of`]), so the compiler still knows the stage
 /// buffers it writes cannot alias the model's parameters, and can share work between stages.
 #[derive(RefCast)]
 #[repr(transparent)]
-pub struct Equations<M>(pub M);
+pub struct System<M>(pub M);
 
-impl<M> Equations<M> {
-    /// The model `m` as an ODE system, without a copy.
+impl<M: Model> System<M> {
+    /// The model `m` as an ODE system, without a copy. Its `#[derived]` fields must be those of
+    /// its parameters ([`crate::Lift::refresh`]); debug builds check it.
     #[inline(always)]
-    pub fn of(m: &M) -> &Equations<M> {
-        Equations::ref_cast(m)
+    pub fn of(m: &M) -> &System<M> {
+        debug_assert!(
+            M::lifting().is_none_or(|l| (l.derived_current)(m)),
+            "a parameter changed without Lift::refresh: the derived constants are stale"
+        );
+        System::ref_cast(m)
     }
 }
 
-impl<M: Model> OdeSystem for Equations<M> {
+impl<M: Model> OdeSystem for System<M> {
     #[inline]
     fn dim(&self) -> usize {
         M::N_STATES
@@ -223,6 +237,11 @@ pub struct Core<M: Model> {
     x_start: Vec<f64>,
     /// The model as its resources made it (`Model::resources`), which a reset returns to.
     fresh: Option<Box<M>>,
+    /// Moves on whenever the model's parameters, inputs or discrete state may have changed (a
+    /// set, an event, a reset, a restored state): with the time and the states it says when
+    /// the cached Jacobian blocks (`jacobians`) are those of the current point.
+    version: u64,
+    jacobians: derivatives::Jacobians,
 }
 
 impl<M: Model> Core<M> {
@@ -236,6 +255,8 @@ impl<M: Model> Core<M> {
             state: State::new(),
             x_start: vec![0.0; M::N_STATES],
             fresh: None,
+            version: 0,
+            jacobians: Default::default(),
         }
     }
 
@@ -258,6 +279,7 @@ impl<M: Model> Core<M> {
 
     /// Back to the start values (logging settings are kept).
     pub fn reset(&mut self) {
+        self.version += 1;
         self.state = State::new();
         if let Some(fresh) = &self.fresh {
             self.state.model = (**fresh).clone();
@@ -284,6 +306,7 @@ impl<M: Model> Core<M> {
         s.t = start_time;
         s.stop_time = stop_time;
         s.tolerance = tolerance;
+        self.anchor_inputs(start_time);
         Ok(())
     }
 
@@ -293,6 +316,7 @@ impl<M: Model> Core<M> {
             let mut x = vec![0.0; M::N_STATES];
             // The declared ranges first, then what only the model can check.
             let model = &mut self.state.model;
+            refresh(model);
             crate::model::check_ranges(model)
                 .and_then(|()| model.initial_state(&mut x))
                 .map_err(|e| Failure::error(format!("the parameters were refused: {e}")))?;
@@ -301,6 +325,7 @@ impl<M: Model> Core<M> {
             }
             self.state.x = x;
             self.state.initial_state_ready = true;
+            self.version += 1;
             self.state.outputs_dirty = true;
         }
         Ok(())
@@ -389,7 +414,7 @@ impl<M: Model> Core<M> {
         all_finite
     }
 
-    /// Reads Real variables (see [`Core::prepare_read`]). A value that is not finite is
+    /// Reads Real variables (see `Core::prepare_read`). A value that is not finite is
     /// refused, naming it; after initialization that breaks the instance. Outputs are computed
     /// at the first one read, derivatives at the first der(x).
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64], phase: Phase) -> CallResult {
@@ -575,8 +600,14 @@ impl<M: Model> Core<M> {
     /// Records that settable values were set; `changed`: at least one to a value other than
     /// the one it had (compared bit for bit).
     fn after_set(&mut self, phase: Phase, changed: bool) {
+        self.version += 1;
         if phase == Phase::Initializing {
             self.state.initial_state_ready = false;
+        }
+        if changed {
+            // What the model derives from its parameters follows them (a tunable one, or any
+            // before initialization ends).
+            refresh(&mut self.state.model);
         }
         self.state.outputs_dirty = true;
         // A new input or parameter value changes the right-hand side from this communication
@@ -610,7 +641,10 @@ impl<M: Model> Core<M> {
             match &self.table.rows[*vr as usize].slot {
                 Slot::Model(Access::Real { get, set: Some(set) }) => {
                     changed |= get(&self.state.model).to_bits() != value.to_bits();
-                    set(&mut self.state.model, *value)
+                    set(&mut self.state.model, *value);
+                    if !self.state.drives.is_empty() {
+                        self.input_set(*vr as usize, *value);
+                    }
                 }
                 Slot::Control(c) => {
                     changed |= self.state.controls.get(*c).map(f64::to_bits) != Some(value.to_bits());
@@ -764,9 +798,7 @@ impl<M: Model> Core<M> {
             if self.state.t >= t_end {
                 return Ok(None);
             }
-            let State { model, x, t, integrator, .. } = &mut self.state;
-            let integrator = integrator.as_mut().expect("the integrator exists once started");
-            outcome = integrator.advance(Equations::of(&*model), t, x, t_end);
+            outcome = self.advance(t_end);
         }
     }
 
@@ -779,6 +811,7 @@ impl<M: Model> Core<M> {
             let msg = format!("more than {MAX_EVENTS_PER_STEP} events between t = {t0} and t = {t_end}: the model is chattering");
             return Err(self.fail_step(t0, msg));
         }
+        self.version += 1;
         let State { model, x, t, integrator, .. } = &mut self.state;
         let te = *t;
         let outcome = model.on_event(te, x, fired);
@@ -825,9 +858,7 @@ impl<M: Model> Core<M> {
         if self.state.t < t_end {
             // The usual step: one call of the solver that reaches t_end. Events and failures
             // continue out of line.
-            let State { model, x, t, integrator, .. } = &mut self.state;
-            let integrator = integrator.as_mut().expect("the integrator exists once started");
-            match integrator.advance(Equations::of(&*model), t, x, t_end) {
+            match self.advance(t_end) {
                 Ok(Advance::Reached) => {}
                 other => {
                     if let Some(end) = self.continue_after(other, t0, t_end)? {
@@ -839,6 +870,28 @@ impl<M: Model> Core<M> {
         self.finish_step(t0, t_end)
     }
 
+    /// The solver's advance from the current time towards `t_end`: the model as it is, or,
+    /// with inputs driven by polynomials, the model with its inputs at each stage's time.
+    #[inline(always)]
+    fn advance(&mut self, t_end: f64) -> Result<Advance, SolverError> {
+        if !self.state.drives.is_empty() {
+            return self.advance_driven(t_end);
+        }
+        let State { model, x, t, integrator, .. } = &mut self.state;
+        let integrator = integrator.as_mut().expect("the integrator exists once started");
+        integrator.advance(System::of(&*model), t, x, t_end)
+    }
+
+    /// [`Core::advance`] with driven inputs, which are left at their values at the time reached.
+    #[inline(never)]
+    fn advance_driven(&mut self, t_end: f64) -> Result<Advance, SolverError> {
+        let State { model, x, t, integrator, drives, .. } = &mut self.state;
+        let integrator = integrator.as_mut().expect("the integrator exists once started");
+        let outcome = integrator.advance(&interpolation::Driven::new(model, drives, &self.table.rows), t, x, t_end);
+        self.sync_inputs();
+        outcome
+    }
+
     /// The end of a communication step that reached `t_end`: time lands exactly on it, the
     /// model's communication-point work (a constraint projection) runs, and the step's status
     /// is recorded. Shared by [`Core::do_step`] and [`Core::step_to_event`].
@@ -846,6 +899,9 @@ impl<M: Model> Core<M> {
     fn finish_step(&mut self, t0: f64, t_end: f64) -> CallResult<StepEnd> {
         // Land exactly on the communication point whatever the solver's rounding.
         self.state.t = t_end;
+        if !self.state.drives.is_empty() {
+            self.sync_inputs();
+        }
         // A projection here that changes x is seen by the integrator at the next step, which
         // compares x with the state it left and then drops its cached derivative.
         let State { model, x, t, .. } = &mut self.state;
@@ -888,9 +944,7 @@ impl<M: Model> Core<M> {
         let n = M::N_STATES;
         self.x_start[..n].copy_from_slice(&self.state.x[..n]);
         if self.state.t < t_end {
-            let State { model, x, t, integrator, .. } = &mut self.state;
-            let integrator = integrator.as_mut().expect("the integrator exists once started");
-            match integrator.advance(Equations::of(&*model), t, x, t_end) {
+            match self.advance(t_end) {
                 Ok(Advance::Reached) => {}
                 // Out of line, as in `do_step`: most steps reach t_end.
                 other => return self.stopped_short(other, t0, t_end),
@@ -952,6 +1006,7 @@ impl<M: Model> Core<M> {
     /// Continues from a captured state: this instance's pending step gives way to the one the
     /// state captured.
     pub fn restore(&mut self, state: &State<M>) {
+        self.version += 1;
         self.state = state.clone();
     }
 }

@@ -15,8 +15,9 @@ const MAGIC: &[u8; 4] = b"RFMS";
 /// Exchange states of the state machine. Version 4: the solver's state holds its pending step
 /// (the step across the communication point, its dense output and the point last handed out)
 /// and the new solver settings (`max_step`, the stop time). Version 5: models may hold String
-/// parameters (their text is in the model struct's encoding).
-const FORMAT_VERSION: u16 = 5;
+/// parameters (their text is in the model struct's encoding). Version 6: the inputs' polynomials
+/// (`fmi2SetRealInputDerivatives`).
+const FORMAT_VERSION: u16 = 6;
 const HEADER_LEN: usize = 4 + 2 + 8 + 8 + 4;
 
 /// Encodes `state` and the front end's `phase` with a header tying them to the model whose

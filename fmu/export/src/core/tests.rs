@@ -28,6 +28,17 @@ impl Variables for Lag {
     }
 }
 
+impl fmu_export::Equations<f64> for Lag {
+    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
+        x[0] = 0.0;
+        Ok(())
+    }
+
+    fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
+        dx[0] = self.u - x[0];
+    }
+}
+
 impl Model for Lag {
     const N_STATES: usize = 1;
 
@@ -40,15 +51,6 @@ impl Model for Lag {
             output_interval: 0.01,
             documentation: "",
         }
-    }
-
-    fn initial_state(&mut self, x: &mut [f64]) -> Result<(), ModelError> {
-        x[0] = 0.0;
-        Ok(())
-    }
-
-    fn derivatives(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
-        dx[0] = self.u - x[0];
     }
 }
 

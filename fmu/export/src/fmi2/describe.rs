@@ -54,6 +54,9 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
         can_serialize_fmu_state: true,
         can_not_use_memory_management_functions: true,
         can_be_instantiated_only_once_per_process: false,
+        // Exact, from the model's equations in dual numbers (core::derivatives), for a model
+        // generic over its number type.
+        provides_directional_derivative: M::lifting().is_some(),
         ..Default::default()
     };
     md.model_exchange = Some(d::ModelExchange {
@@ -61,7 +64,17 @@ pub fn model_description<M: Model>() -> d::ModelDescription {
         // fmi2CompletedIntegratorStep checks sign changes and the constraints' drift.
         completed_integrator_step_not_needed: false,
     });
-    md.co_simulation = Some(d::CoSimulation { common, can_handle_variable_communication_step_size: true, ..Default::default() });
+    // Exact output derivatives along the trajectory and inputs that follow the polynomials of
+    // their derivatives over a step (core::derivatives, core::interpolation), for a model
+    // generic over its number type.
+    let exact = M::lifting().is_some();
+    md.co_simulation = Some(d::CoSimulation {
+        common,
+        can_handle_variable_communication_step_size: true,
+        can_interpolate_inputs: exact,
+        max_output_derivative_order: if exact { crate::core::MAX_ORDER as u32 } else { 0 },
+        ..Default::default()
+    });
     md.log_categories = CATEGORIES.iter().map(|c| d::Category::new(c.name, Some(c.description))).collect();
     md.default_experiment = Some(d::DefaultExperiment {
         start_time: Some(0.0),

@@ -8,22 +8,8 @@
 
 use serde::{Deserialize, Serialize};
 
-/// The interface an instance was created for (which `fmi3Instantiate...` made it).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Interface {
-    ModelExchange,
-    CoSimulation,
-}
-
-impl Interface {
-    /// The standard's name, for messages.
-    pub fn name(self) -> &'static str {
-        match self {
-            Interface::ModelExchange => "Model Exchange",
-            Interface::CoSimulation => "Co-Simulation",
-        }
-    }
-}
+pub use crate::frontend::{Call, Interface};
+use crate::frontend::{MachineState, Row};
 
 /// States of an instance.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -42,9 +28,8 @@ pub enum FmiState {
     Fatal,
 }
 
-impl FmiState {
-    /// The standard's name of the state, for log messages.
-    pub fn name(self) -> &'static str {
+impl MachineState for FmiState {
+    fn name(self) -> &'static str {
         match self {
             FmiState::Instantiated => "Instantiated",
             FmiState::InitializationMode => "Initialization Mode",
@@ -57,8 +42,7 @@ impl FmiState {
         }
     }
 
-    /// The interface whose state machine has this state; `None` for the states both share.
-    pub fn interface(self) -> Option<Interface> {
+    fn interface(self) -> Option<Interface> {
         match self {
             FmiState::StepMode => Some(Interface::CoSimulation),
             FmiState::ContinuousTimeMode => Some(Interface::ModelExchange),
@@ -66,199 +50,142 @@ impl FmiState {
         }
     }
 
-    const fn bit(self) -> u16 {
-        1 << (self as u16)
+    #[inline(always)]
+    fn bit(self) -> u16 {
+        bit(self)
     }
 }
 
-/// Every instance-level FMI 3.0 call (all 75 functions but `fmi3GetVersion` and the three
-/// instantiations, which have no instance), for the allowed-state check and messages.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Call {
-    SetDebugLogging,
-    FreeInstance,
-    EnterInitializationMode,
-    ExitInitializationMode,
-    EnterEventMode,
-    Terminate,
-    Reset,
-    /// `fmi3GetFloat64` (the other getters and setters of types these FMUs have: below).
-    GetFloat64,
-    GetInt32,
-    GetBoolean,
-    GetString,
-    SetFloat64,
-    SetInt32,
-    SetBoolean,
-    SetString,
-    /// A getter of a type no variable of these FMUs has (`fmi3GetFloat32`, ...): its name.
-    GetOther(&'static str),
-    /// A setter of a type no variable of these FMUs has.
-    SetOther(&'static str),
-    GetNumberOfVariableDependencies,
-    GetVariableDependencies,
-    GetFMUState,
-    SetFMUState,
-    FreeFMUState,
-    SerializedFMUStateSize,
-    SerializeFMUState,
-    DeserializeFMUState,
-    GetDirectionalDerivative,
-    GetAdjointDerivative,
-    EnterConfigurationMode,
-    ExitConfigurationMode,
-    /// The clock functions (`fmi3GetClock`, `fmi3SetIntervalDecimal`, ...): its name.
-    Clock(&'static str),
-    EvaluateDiscreteStates,
-    UpdateDiscreteStates,
-    EnterContinuousTimeMode,
-    CompletedIntegratorStep,
-    SetTime,
-    SetContinuousStates,
-    GetContinuousStateDerivatives,
-    GetEventIndicators,
-    GetContinuousStates,
-    GetNominalsOfContinuousStates,
-    GetNumberOfEventIndicators,
-    GetNumberOfContinuousStates,
-    EnterStepMode,
-    GetOutputDerivatives,
-    DoStep,
-    ActivateModelPartition,
+/// The bit of `state` in the table's rows.
+const fn bit(state: FmiState) -> u16 {
+    1 << (state as u16)
 }
 
-const I: u16 = FmiState::Instantiated.bit();
-const INIT: u16 = FmiState::InitializationMode.bit();
-const EVENT: u16 = FmiState::EventMode.bit();
-const CT: u16 = FmiState::ContinuousTimeMode.bit();
-const STEP: u16 = FmiState::StepMode.bit();
-const TERM: u16 = FmiState::Terminated.bit();
-const ERR: u16 = FmiState::Error.bit();
+const I: u16 = bit(FmiState::Instantiated);
+const INIT: u16 = bit(FmiState::InitializationMode);
+const EVENT: u16 = bit(FmiState::EventMode);
+const CT: u16 = bit(FmiState::ContinuousTimeMode);
+const STEP: u16 = bit(FmiState::StepMode);
+const TERM: u16 = bit(FmiState::Terminated);
+const ERR: u16 = bit(FmiState::Error);
 /// Every state but Fatal: after a fatal error nothing but freeing is meaningful.
 const ALIVE: u16 = I | INIT | EVENT | CT | STEP | TERM | ERR;
 /// Where values may be read (and the Model Exchange evaluations made).
 const READABLE: u16 = INIT | EVENT | CT | STEP | TERM | ERR;
 
-impl Call {
-    /// The C name of the call, for log messages.
-    pub fn name(self) -> &'static str {
-        match self {
-            Call::SetDebugLogging => "fmi3SetDebugLogging",
-            Call::FreeInstance => "fmi3FreeInstance",
-            Call::EnterInitializationMode => "fmi3EnterInitializationMode",
-            Call::ExitInitializationMode => "fmi3ExitInitializationMode",
-            Call::EnterEventMode => "fmi3EnterEventMode",
-            Call::Terminate => "fmi3Terminate",
-            Call::Reset => "fmi3Reset",
-            Call::GetFloat64 => "fmi3GetFloat64",
-            Call::GetInt32 => "fmi3GetInt32",
-            Call::GetBoolean => "fmi3GetBoolean",
-            Call::GetString => "fmi3GetString",
-            Call::SetFloat64 => "fmi3SetFloat64",
-            Call::SetInt32 => "fmi3SetInt32",
-            Call::SetBoolean => "fmi3SetBoolean",
-            Call::SetString => "fmi3SetString",
-            Call::GetOther(name) | Call::SetOther(name) | Call::Clock(name) => name,
-            Call::GetNumberOfVariableDependencies => "fmi3GetNumberOfVariableDependencies",
-            Call::GetVariableDependencies => "fmi3GetVariableDependencies",
-            Call::GetFMUState => "fmi3GetFMUState",
-            Call::SetFMUState => "fmi3SetFMUState",
-            Call::FreeFMUState => "fmi3FreeFMUState",
-            Call::SerializedFMUStateSize => "fmi3SerializedFMUStateSize",
-            Call::SerializeFMUState => "fmi3SerializeFMUState",
-            Call::DeserializeFMUState => "fmi3DeserializeFMUState",
-            Call::GetDirectionalDerivative => "fmi3GetDirectionalDerivative",
-            Call::GetAdjointDerivative => "fmi3GetAdjointDerivative",
-            Call::EnterConfigurationMode => "fmi3EnterConfigurationMode",
-            Call::ExitConfigurationMode => "fmi3ExitConfigurationMode",
-            Call::EvaluateDiscreteStates => "fmi3EvaluateDiscreteStates",
-            Call::UpdateDiscreteStates => "fmi3UpdateDiscreteStates",
-            Call::EnterContinuousTimeMode => "fmi3EnterContinuousTimeMode",
-            Call::CompletedIntegratorStep => "fmi3CompletedIntegratorStep",
-            Call::SetTime => "fmi3SetTime",
-            Call::SetContinuousStates => "fmi3SetContinuousStates",
-            Call::GetContinuousStateDerivatives => "fmi3GetContinuousStateDerivatives",
-            Call::GetEventIndicators => "fmi3GetEventIndicators",
-            Call::GetContinuousStates => "fmi3GetContinuousStates",
-            Call::GetNominalsOfContinuousStates => "fmi3GetNominalsOfContinuousStates",
-            Call::GetNumberOfEventIndicators => "fmi3GetNumberOfEventIndicators",
-            Call::GetNumberOfContinuousStates => "fmi3GetNumberOfContinuousStates",
-            Call::EnterStepMode => "fmi3EnterStepMode",
-            Call::GetOutputDerivatives => "fmi3GetOutputDerivatives",
-            Call::DoStep => "fmi3DoStep",
-            Call::ActivateModelPartition => "fmi3ActivateModelPartition",
-        }
-    }
+const ANY: Option<Interface> = None;
+const CS: Option<Interface> = Some(Interface::CoSimulation);
+const ME: Option<Interface> = Some(Interface::ModelExchange);
 
-    /// The interface this call belongs to; `None` for the functions both share.
-    pub fn interface(self) -> Option<Interface> {
-        match self {
-            Call::EnterStepMode | Call::GetOutputDerivatives | Call::DoStep => Some(Interface::CoSimulation),
-            Call::EnterContinuousTimeMode
-            | Call::CompletedIntegratorStep
-            | Call::SetTime
-            | Call::SetContinuousStates
-            | Call::GetContinuousStateDerivatives
-            | Call::GetEventIndicators
-            | Call::GetContinuousStates
-            | Call::GetNominalsOfContinuousStates
-            | Call::GetNumberOfEventIndicators
-            | Call::GetNumberOfContinuousStates => Some(Interface::ModelExchange),
-            _ => None,
-        }
-    }
+/// Why `fmi3GetNumberOfVariableDependencies` and `fmi3GetVariableDependencies` refuse.
+const NO_DEPENDENCY_FUNCTIONS: &str =
+    "this FMU does not provide per-element dependencies (providesPerElementDependencies=\"false\"): its ModelStructure in modelDescription.xml lists the dependencies of its scalar variables";
+/// Why the getters and setters of the types no variable has refuse.
+const NO_SUCH_TYPE: &str = "this FMU has no variables of this type (its variables are Float64, Int32, Boolean or String)";
+/// Why Configuration Mode is refused.
+const NO_CONFIGURATION: &str = "this FMU has no structural parameters, so there is no Configuration Mode to enter or leave";
+/// Why the clock functions refuse.
+const NO_CLOCKS: &str = "this FMU has no clocks";
 
-    /// The states in which the standard allows this call (both interfaces' tables in one). A
-    /// call allowed here may still be refused for what it asks (a type these FMUs do not
-    /// have, a fixed parameter after initialization): the front end decides that.
-    fn allowed(self) -> u16 {
-        match self {
-            Call::SetDebugLogging | Call::FreeInstance | Call::Reset => ALIVE,
-            Call::EnterInitializationMode => I,
-            Call::ExitInitializationMode => INIT,
-            // Model Exchange from Continuous-Time Mode; Co-Simulation from Step Mode (with
-            // eventModeUsed, which the front end checks).
-            Call::EnterEventMode => CT | STEP,
-            Call::Terminate => EVENT | CT | STEP,
-            Call::GetFloat64 | Call::GetInt32 | Call::GetBoolean | Call::GetString | Call::GetOther(_) => READABLE,
-            // In Continuous-Time Mode only continuous-time inputs may be set, which are Float64.
-            Call::SetFloat64 | Call::SetOther(_) => I | INIT | EVENT | CT | STEP,
-            Call::SetInt32 | Call::SetBoolean | Call::SetString => I | INIT | EVENT | STEP,
-            Call::GetNumberOfVariableDependencies | Call::GetVariableDependencies => READABLE,
-            Call::GetFMUState
-            | Call::SetFMUState
-            | Call::FreeFMUState
-            | Call::SerializedFMUStateSize
-            | Call::SerializeFMUState
-            | Call::DeserializeFMUState => ALIVE,
-            Call::GetDirectionalDerivative | Call::GetAdjointDerivative => INIT | EVENT | CT | STEP | TERM | ERR,
-            Call::EnterConfigurationMode => I | STEP,
-            // Only allowed in Configuration Mode, which an FMU without structural parameters
-            // never enters.
-            Call::ExitConfigurationMode => 0,
-            Call::Clock(_) => EVENT,
-            Call::EvaluateDiscreteStates => EVENT | CT | STEP,
-            Call::UpdateDiscreteStates => EVENT,
-            Call::EnterContinuousTimeMode => EVENT,
-            Call::CompletedIntegratorStep | Call::SetContinuousStates => CT,
-            // In Event Mode only for an FMU without continuous states (the front end checks).
-            Call::SetTime => EVENT | CT,
-            Call::GetContinuousStateDerivatives | Call::GetEventIndicators | Call::GetContinuousStates => INIT | EVENT | CT | TERM | ERR,
-            Call::GetNominalsOfContinuousStates => INIT | EVENT | CT | TERM | ERR,
-            Call::GetNumberOfEventIndicators | Call::GetNumberOfContinuousStates => ALIVE,
-            Call::EnterStepMode => EVENT,
-            Call::GetOutputDerivatives => STEP | TERM | ERR,
-            Call::DoStep => STEP,
-            // A Scheduled Execution function: no instance of this FMU is ever one.
-            Call::ActivateModelPartition => 0,
-        }
-    }
-
-    /// True when the standard allows this call in `state` (of an instance of the call's
-    /// interface: see [`Call::interface`]).
-    #[inline]
-    pub fn is_allowed_in(self, state: FmiState) -> bool {
-        self.allowed() & state.bit() != 0
+/// FMI 3.0's table: each call's C name, interface, the states that allow it (both interfaces'
+/// tables in one), and why these FMUs refuse the ones they do not serve. A call allowed here
+/// may still be refused for what it asks (a fixed parameter after initialization): the front
+/// end decides that.
+#[inline(always)]
+pub fn row(call: Call) -> Row {
+    use Call::*;
+    match call {
+        SetDebugLogging => Row::serves("fmi3SetDebugLogging", ANY, ALIVE),
+        FreeInstance => Row::serves("fmi3FreeInstance", ANY, ALIVE),
+        EnterInitializationMode => Row::serves("fmi3EnterInitializationMode", ANY, I),
+        ExitInitializationMode => Row::serves("fmi3ExitInitializationMode", ANY, INIT),
+        // Model Exchange from Continuous-Time Mode; Co-Simulation from Step Mode (with
+        // eventModeUsed, which the front end checks).
+        EnterEventMode => Row::serves("fmi3EnterEventMode", ANY, CT | STEP),
+        Terminate => Row::serves("fmi3Terminate", ANY, EVENT | CT | STEP),
+        Reset => Row::serves("fmi3Reset", ANY, ALIVE),
+        GetReal => Row::serves("fmi3GetFloat64", ANY, READABLE),
+        GetInteger => Row::serves("fmi3GetInt32", ANY, READABLE),
+        GetBoolean => Row::serves("fmi3GetBoolean", ANY, READABLE),
+        GetString => Row::serves("fmi3GetString", ANY, READABLE),
+        GetFloat32 => Row::refuses("fmi3GetFloat32", ANY, READABLE, NO_SUCH_TYPE),
+        GetInt8 => Row::refuses("fmi3GetInt8", ANY, READABLE, NO_SUCH_TYPE),
+        GetUInt8 => Row::refuses("fmi3GetUInt8", ANY, READABLE, NO_SUCH_TYPE),
+        GetInt16 => Row::refuses("fmi3GetInt16", ANY, READABLE, NO_SUCH_TYPE),
+        GetUInt16 => Row::refuses("fmi3GetUInt16", ANY, READABLE, NO_SUCH_TYPE),
+        GetUInt32 => Row::refuses("fmi3GetUInt32", ANY, READABLE, NO_SUCH_TYPE),
+        GetInt64 => Row::refuses("fmi3GetInt64", ANY, READABLE, NO_SUCH_TYPE),
+        GetUInt64 => Row::refuses("fmi3GetUInt64", ANY, READABLE, NO_SUCH_TYPE),
+        GetBinary => Row::refuses("fmi3GetBinary", ANY, READABLE, NO_SUCH_TYPE),
+        // In Continuous-Time Mode only continuous-time inputs may be set, which are Float64.
+        SetReal => Row::serves("fmi3SetFloat64", ANY, I | INIT | EVENT | CT | STEP),
+        SetFloat32 => Row::refuses("fmi3SetFloat32", ANY, I | INIT | EVENT | CT | STEP, NO_SUCH_TYPE),
+        SetInt8 => Row::refuses("fmi3SetInt8", ANY, I | INIT | EVENT | CT | STEP, NO_SUCH_TYPE),
+        SetUInt8 => Row::refuses("fmi3SetUInt8", ANY, I | INIT | EVENT | CT | STEP, NO_SUCH_TYPE),
+        SetInt16 => Row::refuses("fmi3SetInt16", ANY, I | INIT | EVENT | CT | STEP, NO_SUCH_TYPE),
+        SetUInt16 => Row::refuses("fmi3SetUInt16", ANY, I | INIT | EVENT | CT | STEP, NO_SUCH_TYPE),
+        SetUInt32 => Row::refuses("fmi3SetUInt32", ANY, I | INIT | EVENT | CT | STEP, NO_SUCH_TYPE),
+        SetInt64 => Row::refuses("fmi3SetInt64", ANY, I | INIT | EVENT | CT | STEP, NO_SUCH_TYPE),
+        SetUInt64 => Row::refuses("fmi3SetUInt64", ANY, I | INIT | EVENT | CT | STEP, NO_SUCH_TYPE),
+        SetBinary => Row::refuses("fmi3SetBinary", ANY, I | INIT | EVENT | CT | STEP, NO_SUCH_TYPE),
+        SetInteger => Row::serves("fmi3SetInt32", ANY, I | INIT | EVENT | STEP),
+        SetBoolean => Row::serves("fmi3SetBoolean", ANY, I | INIT | EVENT | STEP),
+        SetString => Row::serves("fmi3SetString", ANY, I | INIT | EVENT | STEP),
+        GetNumberOfVariableDependencies => Row::refuses("fmi3GetNumberOfVariableDependencies", ANY, READABLE, NO_DEPENDENCY_FUNCTIONS),
+        GetVariableDependencies => Row::refuses("fmi3GetVariableDependencies", ANY, READABLE, NO_DEPENDENCY_FUNCTIONS),
+        GetFMUState => Row::serves("fmi3GetFMUState", ANY, ALIVE),
+        SetFMUState => Row::serves("fmi3SetFMUState", ANY, ALIVE),
+        FreeFMUState => Row::serves("fmi3FreeFMUState", ANY, ALIVE),
+        SerializedFMUStateSize => Row::serves("fmi3SerializedFMUStateSize", ANY, ALIVE),
+        SerializeFMUState => Row::serves("fmi3SerializeFMUState", ANY, ALIVE),
+        DeserializeFMUState => Row::serves("fmi3DeserializeFMUState", ANY, ALIVE),
+        GetDirectionalDerivative => Row::serves("fmi3GetDirectionalDerivative", ANY, INIT | EVENT | CT | STEP | TERM | ERR),
+        GetAdjointDerivative => Row::serves("fmi3GetAdjointDerivative", ANY, INIT | EVENT | CT | STEP | TERM | ERR),
+        EnterConfigurationMode => Row::refuses("fmi3EnterConfigurationMode", ANY, I | STEP, NO_CONFIGURATION),
+        // Only allowed in Configuration Mode, which an FMU without structural parameters
+        // never enters.
+        ExitConfigurationMode => Row::refuses("fmi3ExitConfigurationMode", ANY, 0, NO_CONFIGURATION),
+        GetClock => Row::refuses("fmi3GetClock", ANY, EVENT, NO_CLOCKS),
+        SetClock => Row::refuses("fmi3SetClock", ANY, EVENT, NO_CLOCKS),
+        GetIntervalDecimal => Row::refuses("fmi3GetIntervalDecimal", ANY, EVENT, NO_CLOCKS),
+        GetIntervalFraction => Row::refuses("fmi3GetIntervalFraction", ANY, EVENT, NO_CLOCKS),
+        GetShiftDecimal => Row::refuses("fmi3GetShiftDecimal", ANY, EVENT, NO_CLOCKS),
+        GetShiftFraction => Row::refuses("fmi3GetShiftFraction", ANY, EVENT, NO_CLOCKS),
+        SetIntervalDecimal => Row::refuses("fmi3SetIntervalDecimal", ANY, EVENT, NO_CLOCKS),
+        SetIntervalFraction => Row::refuses("fmi3SetIntervalFraction", ANY, EVENT, NO_CLOCKS),
+        SetShiftDecimal => Row::refuses("fmi3SetShiftDecimal", ANY, EVENT, NO_CLOCKS),
+        SetShiftFraction => Row::refuses("fmi3SetShiftFraction", ANY, EVENT, NO_CLOCKS),
+        EvaluateDiscreteStates => Row::refuses(
+            "fmi3EvaluateDiscreteStates",
+            ANY,
+            EVENT | CT | STEP,
+            "this FMU does not provide it (providesEvaluateDiscreteStates=\"false\")",
+        ),
+        UpdateDiscreteStates => Row::serves("fmi3UpdateDiscreteStates", ANY, EVENT),
+        EnterContinuousTimeMode => Row::serves("fmi3EnterContinuousTimeMode", ME, EVENT),
+        CompletedIntegratorStep => Row::serves("fmi3CompletedIntegratorStep", ME, CT),
+        // In Event Mode only for an FMU without continuous states (the front end checks).
+        SetTime => Row::serves("fmi3SetTime", ME, EVENT | CT),
+        SetContinuousStates => Row::serves("fmi3SetContinuousStates", ME, CT),
+        GetDerivatives => Row::serves("fmi3GetContinuousStateDerivatives", ME, INIT | EVENT | CT | TERM | ERR),
+        GetEventIndicators => Row::serves("fmi3GetEventIndicators", ME, INIT | EVENT | CT | TERM | ERR),
+        GetContinuousStates => Row::serves("fmi3GetContinuousStates", ME, INIT | EVENT | CT | TERM | ERR),
+        GetNominalsOfContinuousStates => Row::serves("fmi3GetNominalsOfContinuousStates", ME, INIT | EVENT | CT | TERM | ERR),
+        GetNumberOfEventIndicators => Row::serves("fmi3GetNumberOfEventIndicators", ME, ALIVE),
+        GetNumberOfContinuousStates => Row::serves("fmi3GetNumberOfContinuousStates", ME, ALIVE),
+        EnterStepMode => Row::serves("fmi3EnterStepMode", CS, EVENT),
+        GetOutputDerivatives => Row::serves("fmi3GetOutputDerivatives", CS, STEP | TERM | ERR),
+        DoStep => Row::serves("fmi3DoStep", CS, STEP),
+        // A Scheduled Execution function: no instance of this FMU is ever one.
+        ActivateModelPartition => Row::refuses(
+            "fmi3ActivateModelPartition",
+            ANY,
+            0,
+            "this FMU does not offer Scheduled Execution, so no instance has model partitions",
+        ),
+        // FMI 2.0's alone.
+        SetupExperiment | SetInputDerivatives | CancelStep | GetStatus | GetRealStatus | GetIntegerStatus | GetBooleanStatus
+        | GetStringStatus => Row::ABSENT,
     }
 }
 
@@ -266,29 +193,33 @@ impl Call {
 mod tests {
     use super::*;
 
+    fn allowed(call: Call, state: FmiState) -> bool {
+        crate::frontend::is_allowed_in::<super::super::Fmi3>(call, state)
+    }
+
     /// Spot checks against the standard's tables (FMI 3.0.2, sections 3.3 and 4.3).
     #[test]
     fn table_matches_the_standard() {
         use FmiState::*;
-        assert!(Call::DoStep.is_allowed_in(StepMode));
+        assert!(allowed(Call::DoStep, StepMode));
         for s in [Instantiated, InitializationMode, EventMode, ContinuousTimeMode, Terminated, Error, Fatal] {
-            assert!(!Call::DoStep.is_allowed_in(s), "DoStep in {s:?}");
+            assert!(!allowed(Call::DoStep, s), "DoStep in {s:?}");
         }
-        assert!(Call::EnterStepMode.is_allowed_in(EventMode) && !Call::EnterStepMode.is_allowed_in(StepMode));
-        assert!(Call::UpdateDiscreteStates.is_allowed_in(EventMode) && !Call::UpdateDiscreteStates.is_allowed_in(StepMode));
-        assert!(Call::EnterEventMode.is_allowed_in(StepMode) && Call::EnterEventMode.is_allowed_in(ContinuousTimeMode));
-        assert!(!Call::EnterEventMode.is_allowed_in(EventMode));
-        assert!(Call::EnterInitializationMode.is_allowed_in(Instantiated) && !Call::EnterInitializationMode.is_allowed_in(Terminated));
-        assert!(!Call::GetFloat64.is_allowed_in(Instantiated) && Call::GetFloat64.is_allowed_in(Error));
-        assert!(Call::SetFloat64.is_allowed_in(ContinuousTimeMode) && !Call::SetInt32.is_allowed_in(ContinuousTimeMode));
-        assert!(!Call::SetFloat64.is_allowed_in(Terminated));
-        assert!(Call::Reset.is_allowed_in(Error) && !Call::Reset.is_allowed_in(Fatal));
-        assert!(Call::SetContinuousStates.is_allowed_in(ContinuousTimeMode) && !Call::SetContinuousStates.is_allowed_in(EventMode));
-        assert!(Call::GetContinuousStateDerivatives.is_allowed_in(InitializationMode));
-        assert!(!Call::ExitConfigurationMode.is_allowed_in(Instantiated) && !Call::ActivateModelPartition.is_allowed_in(StepMode));
-        assert_eq!(Call::DoStep.interface(), Some(Interface::CoSimulation));
-        assert_eq!(Call::SetTime.interface(), Some(Interface::ModelExchange));
-        assert_eq!(Call::UpdateDiscreteStates.interface(), None);
+        assert!(allowed(Call::EnterStepMode, EventMode) && !allowed(Call::EnterStepMode, StepMode));
+        assert!(allowed(Call::UpdateDiscreteStates, EventMode) && !allowed(Call::UpdateDiscreteStates, StepMode));
+        assert!(allowed(Call::EnterEventMode, StepMode) && allowed(Call::EnterEventMode, ContinuousTimeMode));
+        assert!(!allowed(Call::EnterEventMode, EventMode));
+        assert!(allowed(Call::EnterInitializationMode, Instantiated) && !allowed(Call::EnterInitializationMode, Terminated));
+        assert!(!allowed(Call::GetReal, Instantiated) && allowed(Call::GetReal, Error));
+        assert!(allowed(Call::SetReal, ContinuousTimeMode) && !allowed(Call::SetInteger, ContinuousTimeMode));
+        assert!(!allowed(Call::SetReal, Terminated));
+        assert!(allowed(Call::Reset, Error) && !allowed(Call::Reset, Fatal));
+        assert!(allowed(Call::SetContinuousStates, ContinuousTimeMode) && !allowed(Call::SetContinuousStates, EventMode));
+        assert!(allowed(Call::GetDerivatives, InitializationMode));
+        assert!(!allowed(Call::ExitConfigurationMode, Instantiated) && !allowed(Call::ActivateModelPartition, StepMode));
+        assert_eq!(row(Call::DoStep).interface, Some(Interface::CoSimulation));
+        assert_eq!(row(Call::SetTime).interface, Some(Interface::ModelExchange));
+        assert_eq!(row(Call::UpdateDiscreteStates).interface, None);
         assert_eq!(
             (StepMode.interface(), ContinuousTimeMode.interface(), EventMode.interface()),
             (Some(Interface::CoSimulation), Some(Interface::ModelExchange), None)

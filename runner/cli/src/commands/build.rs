@@ -21,7 +21,7 @@ type TextExport = unsafe extern "C" fn(*mut c_char, usize) -> usize;
 fn text_export(lib: &Library, name: &str) -> Result<String, String> {
     // SAFETY: the export toolkit defines these symbols with exactly this signature.
     let f: Symbol<TextExport> = unsafe { lib.get(name.as_bytes()) }.map_err(|_| format!("the model library does not export {name}"))?;
-    // SAFETY: f follows the snprintf contract of fmu_export::fmi2::ffi::copy_out.
+    // SAFETY: f follows the snprintf contract of fmu_export::frontend::ffi::copy_out.
     let needed = unsafe { f(std::ptr::null_mut(), 0) };
     if needed == 0 {
         return Err(format!("{name} failed inside the model library"));
@@ -52,13 +52,30 @@ pub fn cargo_build(root: &Path, ids: &[String]) -> Result<(), String> {
 /// returns their paths.
 pub fn pack(root: &Path, id: &str) -> Result<[PathBuf; 2], String> {
     let so = workspace::target_dir(root).join("release").join(format!("lib{id}.so"));
-    // SAFETY: our own model library, just built: loading it runs no code but Rust's.
-    let lib = unsafe { Library::new(&so) }.map_err(|e| format!("cannot load {}: {e}", so.display()))?;
+    let resources = root.join("models").join(id).join("resources");
+    pack_library(&so, id, &resources, &workspace::fmu_path(root, id), &workspace::fmu3_path(root, id))
+}
+
+/// Packs the model library `so` (modelIdentifier `id`) and the files of `resources` (if that
+/// folder exists) into the FMI 2.0 FMU `fmu2` and the FMI 3.0 FMU `fmu3`; returns their paths.
+pub fn pack_library(so: &Path, id: &str, resources: &Path, fmu2: &Path, fmu3: &Path) -> Result<[PathBuf; 2], String> {
+    // SAFETY: a model library just built from source by cargo: loading it runs no code but Rust's.
+    let lib = unsafe { Library::new(so) }.map_err(|e| format!("cannot load {}: {e}", so.display()))?;
     let xml = text_export(&lib, "fmu_model_description")?;
     let xml3 = text_export(&lib, "fmu3_model_description")?;
     let html = text_export(&lib, "fmu_documentation")?;
     let description = fmi_schema::fmi2::ModelDescription::from_xml(&xml)
         .map_err(|e| format!("{id}: generated modelDescription.xml does not parse: {e}"))?;
+    let identifiers = [
+        description.co_simulation.as_ref().map(|c| &c.common.model_identifier),
+        description.model_exchange.as_ref().map(|m| &m.common.model_identifier),
+    ];
+    if let Some(other) = identifiers.into_iter().flatten().find(|i| *i != id) {
+        return Err(format!(
+            "{}: the model's identifier (ModelInfo::identifier) is '{other}' but its library is named '{id}'; they must agree, since the FMU's binary is named after its modelIdentifier",
+            so.display()
+        ));
+    }
     let problems = description.check();
     if !problems.is_empty() {
         return Err(format!("{id}: generated modelDescription.xml has problems:\n  {}", problems.join("\n  ")));
@@ -69,13 +86,11 @@ pub fn pack(root: &Path, id: &str) -> Result<[PathBuf; 2], String> {
     if !problems.is_empty() {
         return Err(format!("{id}: generated FMI 3.0 modelDescription.xml has problems:\n  {}", problems.join("\n  ")));
     }
-    let binary = std::fs::read(&so).map_err(|e| format!("cannot read {}: {e}", so.display()))?;
-    let resources = model_resources(&root.join("models").join(id).join("resources"))?;
-    let fmu2 = workspace::fmu_path(root, id);
-    write_fmu(&fmu2, &xml, &format!("binaries/{PLATFORM}/{id}.so"), &binary, &html, &resources)?;
-    let fmu3 = workspace::fmu3_path(root, id);
-    write_fmu(&fmu3, &xml3, &format!("binaries/{}/{id}.so", fmi_importer::fmi3::PLATFORM), &binary, &html, &resources)?;
-    Ok([fmu2, fmu3])
+    let binary = std::fs::read(so).map_err(|e| format!("cannot read {}: {e}", so.display()))?;
+    let resources = model_resources(resources)?;
+    write_fmu(fmu2, &xml, &format!("binaries/{PLATFORM}/{id}.so"), &binary, &html, &resources)?;
+    write_fmu(fmu3, &xml3, &format!("binaries/{}/{id}.so", fmi_importer::fmi3::PLATFORM), &binary, &html, &resources)?;
+    Ok([fmu2.to_path_buf(), fmu3.to_path_buf()])
 }
 
 /// Writes one `.fmu` archive at `dest`.
@@ -111,6 +126,82 @@ fn model_resources(dir: &Path) -> Result<Vec<(String, Vec<u8>)>, String> {
         files.push((format!("resources/{name}"), std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?));
     }
     Ok(files)
+}
+
+/// The model crate of a `Cargo.toml` anywhere, as cargo describes it.
+struct Crate {
+    /// Its library's name: the FMU's modelIdentifier.
+    lib: String,
+    /// Its folder (for `resources/`).
+    dir: PathBuf,
+    /// Cargo's target directory for it.
+    target: PathBuf,
+}
+
+/// Reads `cargo metadata` for `manifest`: the package it names must build a `cdylib`.
+fn describe(manifest: &Path) -> Result<Crate, String> {
+    if !manifest.is_file() {
+        return Err(format!("{} does not exist", manifest.display()));
+    }
+    let manifest = manifest.canonicalize().map_err(|e| format!("cannot resolve {}: {e}", manifest.display()))?;
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let out = Command::new(cargo)
+        .args(["metadata", "--format-version", "1", "--no-deps", "--manifest-path"])
+        .arg(&manifest)
+        .output()
+        .map_err(|e| format!("cannot run cargo: {e}"))?;
+    if !out.status.success() {
+        return Err(format!("cargo metadata failed for {}:\n{}", manifest.display(), String::from_utf8_lossy(&out.stderr).trim_end()));
+    }
+    let meta: serde_json::Value = serde_json::from_slice(&out.stdout).map_err(|e| format!("cargo metadata gave no JSON: {e}"))?;
+    let target = meta["target_directory"].as_str().ok_or("cargo metadata names no target directory")?;
+    let package = meta["packages"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .find(|p| p["manifest_path"].as_str().is_some_and(|m| Path::new(m) == manifest))
+        .ok_or_else(|| format!("{} names no package (a workspace's manifest? give the model crate's own)", manifest.display()))?;
+    let lib = package["targets"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .find(|t| t["kind"].as_array().is_some_and(|k| k.iter().any(|k| k == "cdylib")))
+        .and_then(|t| t["name"].as_str())
+        .ok_or_else(|| {
+            format!(
+                "{}: the package builds no cdylib, so no FMU binary; its [lib] needs crate-type = [\"cdylib\", \"rlib\"]",
+                manifest.display()
+            )
+        })?;
+    let dir = manifest.parent().expect("a file has a folder").to_path_buf();
+    Ok(Crate { lib: lib.to_owned(), dir, target: PathBuf::from(target) })
+}
+
+/// `runner build --manifest-path DIR/Cargo.toml [--out-dir OUT]`: builds the model crate there
+/// (anywhere, such as one `runner new` made) in release mode and packs `OUT/fmu/<id>.fmu`
+/// (FMI 2.0) and `OUT/fmu3/<id>.fmu` (FMI 3.0); OUT defaults to the crate's target directory.
+pub fn build_manifest(manifest: &Path, out_dir: Option<&Path>) -> Result<Vec<PathBuf>, String> {
+    let krate = describe(manifest)?;
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let status = Command::new(cargo)
+        .args(["build", "--release", "--quiet", "--lib", "--manifest-path"])
+        .arg(krate.dir.join("Cargo.toml"))
+        .status()
+        .map_err(|e| format!("cannot run cargo: {e}"))?;
+    if !status.success() {
+        return Err(format!("cargo build --release failed for {}", manifest.display()));
+    }
+    let so = krate.target.join("release").join(format!("lib{}.so", krate.lib));
+    let out = out_dir.map(Path::to_path_buf).unwrap_or(krate.target);
+    let id = &krate.lib;
+    let fmus = pack_library(
+        &so,
+        id,
+        &krate.dir.join("resources"),
+        &out.join("fmu").join(format!("{id}.fmu")),
+        &out.join("fmu3").join(format!("{id}.fmu")),
+    )?;
+    Ok(fmus.to_vec())
 }
 
 /// `runner build [NAME...]`: every model and every system under `systems/` when none is named;

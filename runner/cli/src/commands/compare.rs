@@ -16,8 +16,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use fmi_importer::{Causality, Description, Interface, Kind, Solver, Value, Variability, Variable};
-use runner_engine::isolation;
-use runner_engine::metrics::Formula;
+use formulas::Formula;
+use runner_engine::exec::Runs;
+use runner_engine::request::RunRequest;
 use runner_engine::run::{Grid, Recording};
 use runner_engine::variables;
 use solvers::controls::Control;
@@ -26,10 +27,10 @@ use solvers::Method;
 use crate::experiment::{self, RunDefaults};
 use crate::integration::Integration;
 use crate::interrupt;
-use crate::report::output;
-use crate::report::plot::{self, Mark, Series};
 use crate::report::progress::Progress;
-use crate::workers::{self, Executor, Held};
+use crate::report::{self, output};
+use crate::workers;
+use plots::lines::{LinePlot, Mark, Series};
 
 /// The method of the reference run: DOP853, whose error at `REFERENCE_RTOL` is far below any
 /// the table reports (its tightest tolerance is 1e-11).
@@ -95,8 +96,8 @@ type Trials = (i32, &'static str, Vec<f64>);
 
 /// The settings tried for each solver: fixed steps from the output interval down (Euler by 4x,
 /// RK4 by 2x, matching their orders), tolerances by decades from 1e-2 for the adaptive methods,
-/// to 1e-10 for BS23 (a third-order method needs 10x the steps per 1000x in tolerance) and
-/// 1e-11 for the others.
+/// to 1e-10 for BS23 (a third-order method needs 10x the steps per 1000x in tolerance) and the
+/// implicit BDF and ESDIRK (orders up to 5 and 3), and 1e-11 for the others.
 fn settings(solver: &str, interval: f64) -> Result<Trials, String> {
     let method = Method::from_name(solver).ok_or_else(|| {
         let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
@@ -106,7 +107,7 @@ fn settings(solver: &str, interval: f64) -> Result<Trials, String> {
         Method::Euler => (method.code(), Control::FixedStep.name(), (0..8).map(|k| interval / 4f64.powi(k)).collect()),
         Method::Rk4 => (method.code(), Control::FixedStep.name(), (0..6).map(|k| interval / 2f64.powi(k)).collect()),
         Method::Dopri5 | Method::Dop853 => (method.code(), "tolerance", (2..=11).map(|k| 10f64.powi(-k)).collect()),
-        Method::Bs23 => (method.code(), "tolerance", (2..=10).map(|k| 10f64.powi(-k)).collect()),
+        Method::Bs23 | Method::Bdf | Method::Esdirk => (method.code(), "tolerance", (2..=10).map(|k| 10f64.powi(-k)).collect()),
     })
 }
 
@@ -129,7 +130,7 @@ fn control(description: &Description, control: Control) -> Result<&Variable, Str
 /// `counters` (`n_steps`, `n_rhs`) under Co-Simulation, the runner's integrator's when
 /// `counters` is empty (Model Exchange).
 fn run_once(
-    executor: &mut Executor,
+    runs: &mut Runs,
     md: &Description,
     grid: &Grid,
     base: &[(&Variable, Value)],
@@ -145,7 +146,8 @@ fn run_once(
     let mut last = (0.0, 0.0);
     let n = compared.len();
     let recording = Recording::new(md, &recorded, &assignments)?;
-    let outcome = executor.run(md, "compare", grid, &assignments, &recording, false, |_, values, _| {
+    let request = RunRequest::new("compare", *grid, &assignments, &recording, false);
+    let outcome = runs.run(&request, &interrupt::requested, |_, values, _| {
         samples.push(values[..n].to_vec());
         if !counters.is_empty() {
             last = (values[n], values[n + 1]);
@@ -156,8 +158,8 @@ fn run_once(
         return Err(format!("the run ended early: {reason}"));
     }
     if counters.is_empty() {
-        let (steps, rhs) = outcome.counters.unwrap_or((0, 0));
-        last = (steps as f64, rhs as f64);
+        let c = outcome.counters.unwrap_or_default();
+        last = (c.n_steps as f64, c.n_rhs as f64);
     }
     Ok((samples, last.0, last.1))
 }
@@ -251,7 +253,7 @@ fn destinations(options: &Options) -> Result<Vec<(PathBuf, PathBuf)>, String> {
             let plot = options.plot.clone().unwrap_or_else(|| PathBuf::from(format!("{stem}_compare.svg")));
             // Both files are written after the runs.
             output::check_destination(&out)?;
-            output::check_destination(&plot)?;
+            report::check_plot(&plot)?;
             Ok((out, plot))
         })
         .collect()
@@ -399,19 +401,19 @@ pub fn step_counts(comparisons: &[Comparison], solvers: &[String], target: f64) 
 
 /// Compares the solvers on one model, writing its table to `out` and its plot to `plot`.
 fn compare_one(model: &str, options: &Options, out: &std::path::Path, plot_path: &std::path::Path) -> Result<Comparison, String> {
-    let timeout = workers::timeout("--point-timeout", options.point_timeout)?;
+    let timeout = runner_sandbox::timeout("--point-timeout", options.point_timeout)?;
     let target = experiment::resolve(model)?;
     // With workers, only the description is read here: the FMU's binary runs in them alone.
-    let (held, source) = Held::open(&target.path, &options.integration, options.in_process)?;
+    let (held, source) = workers::open(&target.path, &options.integration, options.in_process)?;
     let md = held.description();
-    if options.in_process && isolation::once_per_process(md, held.interface()) {
+    if options.in_process && held.once_per_process() {
         return Err(format!(
             "{} declares canBeInstantiatedOnlyOncePerProcess, so its runs cannot share a process: drop --in-process",
             md.model_name
         ));
     }
-    let config = workers::isolation(timeout, workers::default_memory_mib(1))?;
-    let mut executor = Executor::new(&held, &config, &source);
+    let config = workers::isolation(timeout, runner_sandbox::default_memory_mib(1))?;
+    let mut runs = Runs::new(&held, &config, &source);
     let grid = Grid::choose(md, &[options.run.grid(), target.experiment.simulate.grid()])?;
     let mut set_texts = target.experiment.simulate.set.clone();
     set_texts.extend(target.experiment.compare.set.iter().cloned());
@@ -447,7 +449,7 @@ fn compare_one(model: &str, options: &Options, out: &std::path::Path, plot_path:
             }
             None => Vec::new(),
         };
-        let (reference, _, _) = run_once(&mut executor, md, &reference_grid, &base, &reference_settings, &compared, &counters)
+        let (reference, _, _) = run_once(&mut runs, md, &reference_grid, &base, &reference_settings, &compared, &counters)
             .map_err(|e| format!("the reference run ({reference_name}) failed: {e}"))?;
         (compared, reference, reference_name)
     } else {
@@ -476,7 +478,7 @@ fn compare_one(model: &str, options: &Options, out: &std::path::Path, plot_path:
                 }
             };
             let started = Instant::now();
-            let result = run_once(&mut executor, md, &run_grid, &base, &extra, &compared, &counters);
+            let result = run_once(&mut runs, md, &run_grid, &base, &extra, &compared, &counters);
             let seconds = started.elapsed().as_secs_f64();
             rows.push(match result {
                 Ok((samples, n_steps, n_rhs)) => Row {
@@ -569,14 +571,10 @@ fn compare_one(model: &str, options: &Options, out: &std::path::Path, plot_path:
                 .map(|at| Mark { at, text: format!("{} reaches {:e}", s.label, options.target_error) })
         })
         .collect();
-    plot::lines(
-        plot_path,
-        &format!("{}: work-precision (error against right-hand-side evaluations)", md.model_name),
-        "log10(rhs evaluations)",
-        "log10(max relative error)",
-        &series,
-        &marks,
-    )?;
+    let title = format!("{}: work-precision (error against right-hand-side evaluations)", md.model_name);
+    let plot =
+        LinePlot { title: &title, x_label: "log10(rhs evaluations)", y_label: "log10(max relative error)", series: &series, marks: &marks };
+    report::write_plot(plot_path, &plot)?;
     println!("wrote {} and {}", out.display(), plot_path.display());
     Ok(comparison)
 }

@@ -5,6 +5,8 @@ pub mod build;
 pub mod compare;
 pub mod handbook;
 pub mod info;
+pub mod linearize;
+pub mod new;
 pub mod simulate;
 pub mod sweep;
 pub mod system;

@@ -6,16 +6,21 @@
 
 use std::path::{Path, PathBuf};
 
-use fmi_importer::{Causality, Description, FmiVersion, Kind, Value, Variable};
+use fmi_importer::{Causality, Description, Kind, Value, Variable};
+use runner_engine::exec::{Held, Runs};
+use runner_engine::input::InputTable;
+use runner_engine::request::RunRequest;
 use runner_engine::run::{Grid, Recording};
-use runner_engine::variables::{self, UnitConversion};
+use runner_engine::variables;
 
-use crate::experiment::{self, RunDefaults};
+use crate::experiment::{self, RunDefaults, Target};
 use crate::integration::Integration;
-use crate::report::figure::{self, Curve, Figure, Format, Note, Panel, VLine};
-use crate::report::output;
-use crate::trace::{self, Event, Trace};
-use crate::workers::{self, Executor, Held};
+use crate::interrupt;
+use crate::reference;
+use crate::report::{self, output};
+use crate::workers;
+use plots::outputs::{figure, Axis};
+use plots::trace::{self, Event, Trace};
 
 /// Options of `runner simulate`.
 #[derive(Default)]
@@ -48,6 +53,24 @@ pub struct Options {
     pub input_file: Option<PathBuf>,
     /// The master algorithm for a system (`--master`).
     pub master: Option<String>,
+    /// Start time (`--start-time`; default: the FMU's DefaultExperiment, else 0).
+    pub start_time: Option<f64>,
+    /// Record exactly these variables (`--output-variable`; default: the outputs).
+    pub output_variables: Vec<String>,
+    /// Communication points on a logarithmic time scale (`--log-time-scale`).
+    pub log_time_scale: bool,
+    /// Check the run against reference results (`--reference-file`; `Some(None)`: the ones
+    /// the FMU ships under LS-REF).
+    pub reference_file: Option<Option<PathBuf>>,
+    /// The tolerances of the reference check (`--rtol`, `--atol`).
+    pub rtol: Option<f64>,
+    pub atol: Option<f64>,
+    /// Go on from the state saved in this file (`--initial-fmu-state-file`).
+    pub initial_fmu_state_file: Option<PathBuf>,
+    /// Save the state at the stop time into this file (`--final-fmu-state-file`).
+    pub final_fmu_state_file: Option<PathBuf>,
+    /// How a system's connections pass Real values (`--coupling`).
+    pub coupling: Option<String>,
 }
 
 /// `runner simulate SYSTEM`, refusing the options that are for single FMUs.
@@ -59,11 +82,68 @@ fn run_system(options: &Options) -> Result<(), String> {
         ("--timeout", options.timeout.is_some()),
         ("--record-events", options.record_events),
         ("--log", options.log),
+        ("--start-time", options.start_time.is_some()),
+        ("--output-variable", !options.output_variables.is_empty()),
+        ("--log-time-scale", options.log_time_scale),
+        ("--reference-file", options.reference_file.is_some()),
+        ("--initial-fmu-state-file", options.initial_fmu_state_file.is_some()),
+        ("--final-fmu-state-file", options.final_fmu_state_file.is_some()),
     ];
     if let Some((flag, _)) = single.iter().find(|(_, given)| *given) {
-        return Err(format!("{flag} is for single FMUs; a system takes --stop-time, --output-interval, --tolerance, --set COMPONENT.VARIABLE=VALUE, --master and --out"));
+        return Err(format!("{flag} is for single FMUs; a system takes --stop-time, --output-interval, --tolerance, --set COMPONENT.VARIABLE=VALUE, --master, --coupling and --out"));
     }
-    crate::commands::system::simulate(Path::new(&options.fmu), &options.run, options.master.as_deref(), options.out.as_deref())
+    crate::commands::system::simulate(
+        Path::new(&options.fmu),
+        &options.run,
+        crate::commands::system::Algorithm { master: options.master.as_deref(), coupling: options.coupling.as_deref() },
+        options.out.as_deref(),
+    )
+}
+
+/// The variables `--output-variable` names, in order: any variable with a value (parameters,
+/// locals and inputs too), each once.
+fn recorded_variables<'a>(md: &'a Description, names: &[String]) -> Result<Vec<&'a Variable>, String> {
+    let mut chosen: Vec<&Variable> = Vec::with_capacity(names.len());
+    for name in names.iter().map(|n| n.trim()) {
+        let variable = variables::find(md, name)?;
+        if variable.kind == Kind::Clock {
+            return Err(format!("--output-variable {name}: a Clock has no value to record"));
+        }
+        if chosen.iter().any(|v| v.name == variable.name) {
+            return Err(format!("--output-variable {name} is given twice"));
+        }
+        chosen.push(variable);
+    }
+    Ok(chosen)
+}
+
+/// Refuses saving or restoring the state of an FMU that does not declare it can.
+fn check_state_capability(held: &Held) -> Result<(), String> {
+    let md = held.description();
+    match md.interface(held.interface()).is_some_and(|c| c.can_get_and_set_fmu_state && c.can_serialize_fmu_state) {
+        true => Ok(()),
+        false => Err(format!(
+            "{} does not declare canGetAndSetFMUState and canSerializeFMUState for {}, so its state cannot be saved or restored",
+            md.model_name,
+            held.interface()
+        )),
+    }
+}
+
+/// Largest state file read (a state of more is not one this runner wrote).
+const MAX_STATE_FILE_BYTES: u64 = fmi_importer::state::MAX_STATE_BYTES as u64 + (1 << 20);
+
+/// The state file `path` of `--initial-fmu-state-file`, checked to be of the FMU `held`.
+fn read_state(path: &Path, held: &Held) -> Result<(Vec<u8>, fmi_importer::state::SavedState), String> {
+    check_state_capability(held)?;
+    let size = std::fs::metadata(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?.len();
+    if size > MAX_STATE_FILE_BYTES {
+        return Err(format!("{} has {size} bytes, more than a saved state may have", path.display()));
+    }
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let identity = fmi_importer::state::Identity::of(held.description(), held.interface());
+    let saved = fmi_importer::state::SavedState::from_bytes(&bytes, identity).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok((bytes, saved))
 }
 
 /// One run of an overlay: its label and the assignment that makes it.
@@ -106,124 +186,64 @@ fn spaced_unit(text: &str) -> String {
     }
 }
 
-/// A variable as plotted: its column name, the unit it is shown in and the conversion.
-#[derive(Debug, Clone)]
-pub struct Axis {
-    pub name: String,
-    pub label: String,
-    pub conversion: Option<UnitConversion>,
+/// A simulation resolved against the FMU: one run request per case (one, or one per
+/// `--overlay` value), the CSV's columns, and what the plot draws.
+struct Simulation<'a> {
+    grid: Grid,
+    /// The `--overlay` parameter, whose value (SI) is the CSV's first column.
+    overlaid: Option<&'a Variable>,
+    cases: Vec<Case<'a>>,
+    /// Per case: its columns (the outputs, then what only the plot reads) and its request.
+    runs: Vec<(Recording<'a>, RunRequest)>,
+    /// The CSV's header.
+    header: Vec<String>,
+    /// The CSV's output columns, first in each sample.
+    output_columns: usize,
+    /// Per output column: its number is its value (not a String's or a Binary's).
+    comparable: Vec<bool>,
+    /// Drawn against time (or `x`), with these event flags.
+    plotted: Vec<&'a Variable>,
+    x: Option<&'a Variable>,
+    flags: Vec<&'a Variable>,
 }
 
-impl Axis {
-    /// `variable` in its display unit when the FMU declares one, else in its own unit.
-    pub fn of(description: &Description, variable: &Variable) -> Axis {
-        let conversion = variables::display_unit_of(description, variable);
-        let unit = conversion.as_ref().map(|c| c.name.clone()).or_else(|| variable.unit.clone());
-        let label = match unit {
-            Some(u) if u != "1" => format!("{} ({u})", variable.name),
-            _ => variable.name.clone(),
-        };
-        Axis { name: variable.name.clone(), label, conversion }
-    }
-
-    /// A value of this variable, in the unit shown.
-    pub fn show(&self, si: f64) -> f64 {
-        self.conversion.as_ref().map_or(si, |c| c.from_si(si))
-    }
-
-    /// The column of this variable in `trace`, converted.
-    pub fn values(&self, trace: &Trace) -> Result<Vec<f64>, String> {
-        Ok(trace.get(&self.name)?.iter().map(|&v| self.show(v)).collect())
-    }
-}
-
-/// Panels per column before the figure gets another column.
-const ROWS_PER_COLUMN: usize = 6;
-
-/// Builds the figure of `runs` (one trace per case): one panel per y axis, all sharing the x
-/// axis (time, or `x`), events as vertical lines (or marked points against `x`).
-pub fn figure(title: String, runs: &[(Option<String>, &Trace, Vec<Event>)], ys: &[Axis], x: Option<&Axis>) -> Result<Figure, String> {
-    let xs: Vec<Vec<f64>> = runs.iter().map(|(_, t, _)| x.map_or(Ok(t.time.clone()), |a| a.values(t))).collect::<Result<_, _>>()?;
-    let x_values = xs.iter().flatten().copied();
-    let x_range = if x.is_some() { figure::padded_range(x_values) } else { figure::exact_range(x_values) };
-    let x_label = x.map_or("time (s)".to_owned(), |a| a.label.clone());
-    let columns = ys.len().div_ceil(ROWS_PER_COLUMN).max(1);
-    let rows = ys.len().div_ceil(columns);
-    let mut panels = Vec::new();
-    for (k, y) in ys.iter().enumerate() {
-        let mut panel = Panel { y_label: y.label.clone(), x_range: Some(x_range.clone()), ..Panel::default() };
-        // Only the bottom panel of each column names the shared axis.
-        let bottom = k / columns == rows - 1 || k + columns >= ys.len();
-        panel.x_label = if bottom { x_label.clone() } else { String::new() };
-        for (i, ((label, run, events), run_x)) in runs.iter().zip(&xs).enumerate() {
-            let values = y.values(run)?;
-            let color = figure::color(if runs.len() > 1 { i } else { 0 });
-            let mut curve = Curve::line(
-                label.clone().unwrap_or_else(|| y.name.clone()),
-                run_x.iter().copied().zip(values.iter().copied()).collect(),
-                color,
-            );
-            // One legend for the overlaid runs, in the first panel; a single run needs none.
-            if runs.len() == 1 || k > 0 {
-                curve.label = None;
-            }
-            panel.curves.push(curve);
-            let event_color = if runs.len() > 1 { color } else { figure::color(3) };
-            for e in events {
-                match x {
-                    None => panel.vlines.push(VLine {
-                        x: e.time,
-                        label: (k == 0).then(|| format!("{} (t = {} s)", e.text, trace::short(e.time))),
-                        color: event_color,
-                    }),
-                    Some(_) => panel.notes.push(Note {
-                        at: (run_x[e.index], values[e.index]),
-                        text: if k == 0 { e.text.clone() } else { String::new() },
-                        color: event_color,
-                    }),
-                }
-            }
-        }
-        panels.push(panel);
-    }
-    let width = if columns == 1 { 900 } else { 620 };
-    let height = if ys.len() == 1 { 460 } else { 210 };
-    Ok(Figure { title: Some(title), panels, columns, panel_size: (width, height) })
-}
-
-/// Checks a plot destination before any run: its extension and its directory.
-pub fn check_plot_path(path: &Path) -> Result<Format, String> {
-    let format = Format::of(path)?;
-    output::check_destination(path)?;
-    Ok(format)
-}
-
-/// Runs `runner simulate`.
-pub fn run(options: &Options) -> Result<(), String> {
-    if fmi_systems::is_system(Path::new(&options.fmu)) {
-        return run_system(options);
-    }
-    if let Some(plot) = &options.plot {
-        check_plot_path(plot)?;
-    } else if !options.plot_vars.is_empty() || options.plot_x.is_some() {
-        return Err("--plot-vars and --plot-x choose what --plot FILE draws: give --plot too".to_owned());
-    }
-    let timeout = workers::timeout("--timeout", options.timeout)?;
-    if options.in_process && timeout.is_some() {
-        return Err("--timeout needs a worker process (a run in this process cannot be stopped): drop --in-process".to_owned());
-    }
-    let target = experiment::resolve(&options.fmu)?;
-    // In a worker, only the description is read here: the FMU's binary runs in the worker alone.
-    let (held, source) = Held::open(&target.path, &options.integration, options.in_process)?;
-    let config = workers::isolation(timeout, workers::default_memory_mib(1))?;
-    let mut executor = Executor::new(&held, &config, &source);
+/// Resolves the options against the FMU `held`: the grid, the assignments (the experiment's,
+/// then the options'), the input file, the overlay's cases, the recorded columns and the plot's.
+fn resolve<'a>(options: &Options, target: &Target, held: &'a Held) -> Result<Simulation<'a>, String> {
     let (md, identifier) = (held.description(), held.identifier());
-    let mut grid = Grid::choose(md, &[options.run.grid(), target.experiment.simulate.grid()])?;
+    let mut settings = options.run.grid();
+    settings.start_time = options.start_time;
+    let initial_state = match &options.initial_fmu_state_file {
+        Some(path) => {
+            let (bytes, saved) = read_state(path, held)?;
+            // The run goes on from the state's time: that is its start.
+            match options.start_time {
+                Some(start) if !runner_engine::input::same_time(start, saved.time) => {
+                    return Err(format!(
+                        "{} holds the state at t = {} s, so the run starts there, not at --start-time {start}",
+                        path.display(),
+                        saved.time
+                    ))
+                }
+                _ => settings.start_time = Some(saved.time),
+            }
+            Some(bytes)
+        }
+        None => None,
+    };
+    if options.final_fmu_state_file.is_some() {
+        check_state_capability(held)?;
+    }
+    let sources = [settings, target.experiment.simulate.grid()];
+    let mut grid = match options.log_time_scale {
+        true => Grid::choose_logarithmic(md, &sources)?,
+        false => Grid::choose(md, &sources)?,
+    };
     grid.solver = options.integration.solver()?;
     let mut set_texts = target.experiment.simulate.set.clone();
     set_texts.extend(options.run.set.iter().cloned());
     let assignments = variables::parse_sets(md, &set_texts)?;
-    let inputs = workers::input_file(options.input_file.as_deref(), md, held.interface())?;
+    let inputs: Option<InputTable> = workers::input_file(options.input_file.as_deref(), md, held.interface())?;
 
     let (overlaid, cases) = match &options.overlay {
         Some(text) => {
@@ -235,7 +255,7 @@ pub fn run(options: &Options) -> Result<(), String> {
 
     // What the plot needs, checked before running: the y variables, x, and the event flags.
     let numeric = |name: &str| trace::numeric_variable(md, name);
-    let (plotted, x_variable, flags) = if options.plot.is_some() {
+    let (plotted, x, flags) = if options.plot.is_some() {
         let plotted: Vec<&Variable> = if options.plot_vars.is_empty() {
             trace::continuous_outputs(md)
         } else {
@@ -250,85 +270,231 @@ pub fn run(options: &Options) -> Result<(), String> {
         (Vec::new(), None, Vec::new())
     };
 
-    // FMI 2.0 String outputs are left out, as fmpy leaves them out; FMI 3.0's Strings and
-    // Binaries (hexadecimal) are written. Clocks have no value to record.
-    let recordable = |v: &&Variable| match md.fmi_version {
-        FmiVersion::Fmi2 => v.kind.is_numeric(),
-        FmiVersion::Fmi3 => v.kind != Kind::Clock,
+    // One convention for both versions: Strings written as they are, Binaries in hexadecimal,
+    // integers as integers. Clocks have no value to record.
+    let recordable = |v: &&Variable| v.kind != Kind::Clock;
+    let outputs: Vec<&Variable> = match options.output_variables.is_empty() {
+        true => md.outputs().filter(recordable).collect(),
+        false => recorded_variables(md, &options.output_variables)?,
     };
-    let outputs: Vec<&Variable> = md.outputs().filter(recordable).collect();
     // One CSV column per output, an array's elements each.
-    let output_columns = Recording::new(md, &outputs, &assignments)?.names;
+    let output_recording = Recording::new(md, &outputs, &assignments)?;
+    // The columns whose numbers are their values (what a reference check compares).
+    let comparable = output_recording
+        .variables
+        .iter()
+        .zip(&output_recording.sizes)
+        .flat_map(|(v, &n)| std::iter::repeat_n(!matches!(v.kind, Kind::String | Kind::Binary), n))
+        .collect();
+    let output_columns = output_recording.names;
     // The CSV has the outputs; the plot may also read other variables, recorded after them.
     let mut recorded = outputs.clone();
-    for v in plotted.iter().chain(x_variable.iter()).chain(flags.iter()) {
+    for v in plotted.iter().chain(x.iter()).chain(flags.iter()) {
         if !recorded.iter().any(|r| r.name == v.name) {
             recorded.push(v);
         }
     }
-    let mut writer = output::csv_writer(options.out.as_deref())?;
     let mut header: Vec<String> = overlaid.iter().map(|v| v.name.clone()).collect();
     header.push("time".to_owned());
     header.extend(output_columns.iter().cloned());
-    writer.write_record(&header).map_err(|e| format!("cannot write CSV: {e}"))?;
-    let mut row = Vec::with_capacity(header.len());
-    let mut traces = Vec::new();
+    let mut runs = Vec::new();
     for case in &cases {
         let mut case_assignments = assignments.clone();
         case_assignments.extend(case.assignment.clone());
         let recording = Trace::recording(md, &recorded, &case_assignments, options.record_events)?;
-        let mut trace = Trace::empty(&recording, &grid);
-        let keep = options.plot.is_some();
-        let outcome = executor.run_with_inputs(
-            md,
-            identifier,
-            &grid,
-            &case_assignments,
-            inputs.as_ref(),
-            &recording,
-            options.log,
-            |t, values, texts| {
-                if keep {
-                    trace.push(t, values);
-                }
-                row.clear();
-                if overlaid.is_some() {
-                    row.push(format!("{:?}", case.si));
-                }
-                row.push(format!("{t:?}"));
-                // Exactly as the FMU gave them: 64-bit integers in full, Binary in hexadecimal.
-                row.extend((0..output_columns.len()).map(|c| texts.text(c, values)));
-                writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
-            },
-        )?;
+        let mut request = RunRequest::new(identifier, grid, &case_assignments, &recording, options.log).with_inputs(inputs.clone());
+        request.initial_state = initial_state.clone();
+        request.final_state = options.final_fmu_state_file.is_some();
+        runs.push((recording, request));
+    }
+    Ok(Simulation { grid, overlaid, cases, runs, header, output_columns: output_columns.len(), comparable, plotted, x, flags })
+}
+
+/// Runs `runner simulate`.
+pub fn run(options: &Options) -> Result<(), String> {
+    if fmi_systems::is_system(Path::new(&options.fmu)) {
+        return run_system(options);
+    }
+    if let Some(plot) = &options.plot {
+        report::check_plot(plot)?;
+    } else if !options.plot_vars.is_empty() || options.plot_x.is_some() {
+        return Err("--plot-vars and --plot-x choose what --plot FILE draws: give --plot too".to_owned());
+    }
+    let timeout = runner_sandbox::timeout("--timeout", options.timeout)?;
+    if options.in_process && timeout.is_some() {
+        return Err("--timeout needs a worker process (a run in this process cannot be stopped): drop --in-process".to_owned());
+    }
+    if options.reference_file.is_none() && (options.rtol.is_some() || options.atol.is_some()) {
+        return Err("--rtol and --atol are the tolerances of --reference-file: give it too".to_owned());
+    }
+    if options.reference_file.is_some() && options.overlay.is_some() {
+        return Err("--reference-file checks one run: drop --overlay".to_owned());
+    }
+    if options.overlay.is_some() && (options.initial_fmu_state_file.is_some() || options.final_fmu_state_file.is_some()) {
+        return Err("--initial-fmu-state-file and --final-fmu-state-file are for one run: drop --overlay".to_owned());
+    }
+    let tube = reference::Tube::new(options.rtol, options.atol)?;
+    let target = experiment::resolve(&options.fmu)?;
+    // The reference is read before running, so a missing or malformed one costs no run.
+    let checked = match &options.reference_file {
+        None => None,
+        Some(None) => {
+            let (label, text) = reference::shipped(&target.path)?;
+            Some(reference::Reference::parse(&text, &label)?)
+        }
+        Some(Some(path)) => {
+            let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+            Some(reference::Reference::parse(&text, &path.display().to_string())?)
+        }
+    };
+    // In a worker, only the description is read here: the FMU's binary runs in the worker alone.
+    let (held, source) = workers::open(&target.path, &options.integration, options.in_process)?;
+    warn_if_nonstandard(&target.path);
+    let config = workers::isolation(timeout, runner_sandbox::default_memory_mib(1))?;
+    let mut runs = Runs::new(&held, &config, &source);
+    let simulation = resolve(options, &target, &held)?;
+    let mut samples = checked.as_ref().map(|_| Vec::new());
+    let traces = execute(&simulation, &mut runs, options, held.identifier(), samples.as_mut())?;
+    if let Some(path) = &options.plot {
+        plot(path, &simulation, &traces, held.description())?;
+    }
+    if let (Some(reference), Some(samples)) = (&checked, &samples) {
+        let names = &simulation.header[simulation.header.len() - simulation.output_columns..];
+        let verdict = reference::check(reference, names, &simulation.comparable, samples, tube)
+            .map_err(|violation| format!("reference check failed: {violation}"))?;
+        let skipped = match verdict.skipped.is_empty() {
+            true => String::new(),
+            false => format!("; not compared: {}", verdict.skipped.join(", ")),
+        };
+        eprintln!(
+            "reference check passed: {} at the {} times of {} within {}{}",
+            verdict.compared.join(", "),
+            verdict.times,
+            reference.label,
+            tube.describe(),
+            skipped
+        );
+    }
+    Ok(())
+}
+
+/// The numbers of a run's CSV output columns at each time, kept for the reference check.
+type Samples = Vec<(f64, Vec<f64>)>;
+
+/// Warns in one line when the FMU's description breaks the standard (what `runner validate`'s
+/// static checks find): the runner may run what fmpy and others refuse.
+fn warn_if_nonstandard(fmu: &Path) {
+    let problems = fmi_validate::archive_description_problems(fmu);
+    if let Some(first) = problems.first() {
+        let more = match problems.len() {
+            1 => String::new(),
+            n => format!(" (and {} more)", n - 1),
+        };
+        let first: String = first.chars().map(|c| if c.is_control() { ' ' } else { c }).collect();
+        eprintln!(
+            "warning: {}: its modelDescription.xml breaks the FMI standard, so other importers may refuse it: {first}{more}; `runner validate {}` lists every problem",
+            fmu.display(),
+            fmu.display()
+        );
+    }
+}
+
+/// Runs every case, writing the CSV rows as the samples arrive; the traces the plot draws.
+fn execute(
+    simulation: &Simulation,
+    runs: &mut Runs,
+    options: &Options,
+    identifier: &str,
+    mut samples: Option<&mut Samples>,
+) -> Result<Vec<Trace>, String> {
+    let mut writer = output::csv_writer(options.out.as_deref())?;
+    writer.write_record(&simulation.header).map_err(|e| format!("cannot write CSV: {e}"))?;
+    let mut row = Vec::with_capacity(simulation.header.len());
+    let mut traces = Vec::new();
+    let keep = options.plot.is_some();
+    // The rows written so far and the last one's time, for the message of a failed run.
+    let (mut rows, mut last) = (0usize, f64::NAN);
+    for (case, (recording, request)) in simulation.cases.iter().zip(&simulation.runs) {
+        let mut trace = Trace::empty(recording, &simulation.grid);
+        let outcome = runs.run(request, &interrupt::requested, |t, values, texts| {
+            if keep {
+                trace.push(t, values);
+            }
+            rows += 1;
+            last = t;
+            row.clear();
+            if simulation.overlaid.is_some() {
+                row.push(format!("{:?}", case.si));
+            }
+            row.push(format!("{t:?}"));
+            // Exactly as the FMU gave them: 64-bit integers in full, Binary in hexadecimal.
+            row.extend((0..simulation.output_columns).map(|c| texts.text(c, values)));
+            if let Some(samples) = samples.as_deref_mut() {
+                samples.push((t, values[..simulation.output_columns].to_vec()));
+            }
+            writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
+        });
+        let outcome = match outcome {
+            Ok(outcome) => outcome,
+            Err(error) => return Err(keep_rows(writer, error, options.out.as_deref(), rows, last)),
+        };
+        if let (Some(path), Some(state)) = (&options.final_fmu_state_file, &outcome.final_state) {
+            std::fs::write(path, state).map_err(|e| format!("cannot write the final state to {}: {e}", path.display()))?;
+        }
+        if let Some(c) = outcome.counters {
+            let which = case.label.as_ref().map(|l| format!(" ({l})")).unwrap_or_default();
+            eprintln!("{identifier}{which}: {}", crate::integration::work(&c, simulation.grid.solver.method));
+        }
         trace.ended_early = outcome.ended_early;
         if let Some(reason) = &trace.ended_early {
             let which = case.label.as_ref().map(|l| format!(" ({l})")).unwrap_or_default();
-            eprintln!("{identifier}{which}: stopped before the stop time {} s: {reason}", grid.stop);
+            eprintln!("{identifier}{which}: stopped before the stop time {} s: {reason}", simulation.grid.stop);
+            if let Some(path) = &options.final_fmu_state_file {
+                output::finish_csv(writer)?;
+                return Err(format!(
+                    "{} is not written: the model ended the run before the stop time, where its state would be saved",
+                    path.display()
+                ));
+            }
         }
-        if options.plot.is_some() {
+        if keep {
             traces.push(trace);
         }
     }
     output::finish_csv(writer)?;
+    Ok(traces)
+}
 
-    if let Some(path) = &options.plot {
-        let ys: Vec<Axis> = plotted.iter().map(|v| Axis::of(md, v)).collect();
-        let x = x_variable.map(|v| Axis::of(md, v));
-        let runs: Vec<(Option<String>, &Trace, Vec<Event>)> =
-            cases.iter().zip(&traces).map(|(c, t)| (c.label.clone(), t, trace::events(t, &flags))).collect();
-        let mut title = format!("{}: outputs", md.model_name);
-        if let Some(x) = &x {
-            title.push_str(&format!(" against {}", x.name));
-        }
-        if let Some(v) = overlaid {
-            let values: Vec<String> =
-                cases.iter().filter_map(|c| c.label.as_ref()).map(|l| l.split(" = ").nth(1).unwrap_or("").to_owned()).collect();
-            title.push_str(&format!(" for {} = {}", v.name, values.join(", ")));
-        }
-        figure::write(path, &figure(title, &runs, &ys, x.as_ref())?)?;
+/// A failed run's error, after the rows written before the failure are put in place: `--out`
+/// gets them as standard output has them (every row up to the failure, then the error), and
+/// the message says how many there are. Ctrl-C abandons the file, as it does every result.
+fn keep_rows(writer: csv::Writer<output::Output>, error: String, out: Option<&Path>, rows: usize, last: f64) -> String {
+    let Some(path) = out.filter(|_| !interrupt::requested()) else {
+        return error;
+    };
+    match output::finish_csv(writer) {
+        Ok(()) if rows == 0 => format!("{error}\n{} has the header only: the run failed before its first row", path.display()),
+        Ok(()) => format!("{error}\n{} keeps the {rows} row(s) before the failure, up to t = {last}", path.display()),
+        Err(e) => format!("{error}\n(the rows before the failure are lost too: {e})"),
     }
-    Ok(())
+}
+
+/// Draws the runs' figure into `path`.
+fn plot(path: &Path, simulation: &Simulation, traces: &[Trace], md: &Description) -> Result<(), String> {
+    let ys: Vec<Axis> = simulation.plotted.iter().map(|v| Axis::of(md, v)).collect();
+    let x = simulation.x.map(|v| Axis::of(md, v));
+    let runs: Vec<(Option<String>, &Trace, Vec<Event>)> =
+        simulation.cases.iter().zip(traces).map(|(c, t)| (c.label.clone(), t, trace::events(t, &simulation.flags))).collect();
+    let mut title = format!("{}: outputs", md.model_name);
+    if let Some(x) = &x {
+        title.push_str(&format!(" against {}", x.name));
+    }
+    if let Some(v) = simulation.overlaid {
+        let values: Vec<String> =
+            simulation.cases.iter().filter_map(|c| c.label.as_ref()).map(|l| l.split(" = ").nth(1).unwrap_or("").to_owned()).collect();
+        title.push_str(&format!(" for {} = {}", v.name, values.join(", ")));
+    }
+    report::write_plot(path, &figure(title, &runs, &ys, x.as_ref())?)
 }
 
 #[cfg(test)]

@@ -2,24 +2,34 @@
 //! worker processes or, with `--in-process`, on threads), one CSV row per point streamed in
 //! point order to `<out>.partial` as points finish, renamed to `<out>` when complete; a killed or
 //! interrupted sweep continues with `--resume`. Then the peaks and a plot.
+//!
+//! The command resolves, runs, reports: its options are checked and merged with the model's
+//! experiment once (`Settings`), bound to the FMU as the engine's [`SweepRequest`]
+//! (`Settings::request`); the destination (`Destination`: standard output, or a durable
+//! `.partial` file and the record `--resume` checks) takes the rows as the points finish; the
+//! report prints the peaks and draws the plot.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use fmi_importer::Value;
-use runner_engine::isolation::{self, Isolation, Workers};
+use runner_engine::exec::{self, Held, Points};
+use runner_engine::isolated::Engine;
+use runner_engine::request::{MetricSet, SweepRequest};
 use runner_engine::run::Grid;
-use runner_engine::sweep::{parse_range, Plan, PointResult, SweepSpec};
+use runner_engine::sweep::{parse_range, Plan, PointResult, Space};
+use runner_engine::variables;
+use runner_sandbox::{Config, Workers};
 use sha2::{Digest, Sha256};
 
-use crate::experiment::{self, RunDefaults};
+use crate::experiment::{self, RunDefaults, Target};
 use crate::integration::Integration;
 use crate::interrupt;
-use crate::report::output;
 use crate::report::partial::{self, PartialCsv, Record};
-use crate::report::plot::{self, Mark, Series};
 use crate::report::progress::Progress;
-use crate::workers::{self, Held};
+use crate::report::{self, output};
+use crate::workers;
+use plots::lines::{LinePlot, Mark, Series};
 
 /// Options of `runner sweep`; empty lists and `None`s fall back to the model's experiment.toml.
 #[derive(Default)]
@@ -54,6 +64,8 @@ pub struct Options {
     pub input_file: Option<PathBuf>,
     /// The master algorithm for a system (`--master`).
     pub master: Option<String>,
+    /// How a system's connections pass Real values (`--coupling`).
+    pub coupling: Option<String>,
 }
 
 /// `runner sweep SYSTEM`, refusing the options that are for single FMUs.
@@ -66,7 +78,7 @@ fn run_system(options: &Options) -> Result<Summary, String> {
         ("--resume", options.resume),
     ];
     if let Some((flag, _)) = single.iter().find(|(_, given)| *given) {
-        return Err(format!("{flag} is for single FMUs; a system sweep takes --param COMPONENT.PARAM=..., --metric, --threads, --stop-time, --output-interval, --tolerance, --set, --master and --out"));
+        return Err(format!("{flag} is for single FMUs; a system sweep takes --param COMPONENT.PARAM=..., --metric, --threads, --stop-time, --output-interval, --tolerance, --set, --master, --coupling and --out"));
     }
     if options.params.is_empty() {
         return Err("nothing to sweep: give --param COMPONENT.PARAM=START:STOP:STEP or COMPONENT.PARAM=V1,V2,...".to_owned());
@@ -74,7 +86,7 @@ fn run_system(options: &Options) -> Result<Summary, String> {
     let (points, failed) = crate::commands::system::sweep(
         Path::new(&options.fmu),
         &options.run,
-        options.master.as_deref(),
+        crate::commands::system::Algorithm { master: options.master.as_deref(), coupling: options.coupling.as_deref() },
         &options.params,
         &options.metrics,
         options.threads,
@@ -118,7 +130,7 @@ fn record(
     fmu_sha256: &str,
     interface: fmi_importer::Interface,
     plan: &Plan,
-    spec: &SweepSpec,
+    request: &SweepRequest,
     timeout: Option<f64>,
 ) -> Record {
     let mut entries: Vec<(String, String)> = Vec::new();
@@ -136,7 +148,7 @@ fn record(
         let (first, last) = (values.first().copied().unwrap_or(f64::NAN), values.last().copied().unwrap_or(f64::NAN));
         put("param", format!("{name}: {} values from {first:?} to {last:?} (sha256 {})", values.len(), &digest[..16]));
     }
-    for text in &spec.metrics {
+    for text in request.metrics.texts() {
         put("metric", text.clone());
     }
     for (variable, value) in &plan.fixed {
@@ -152,7 +164,7 @@ fn record(
         put("solver", format!("{} (fixed step {:?} s, abs_tol {:?})", s.method.name(), s.fixed_step, s.abs_tol));
     }
     put("point_timeout", timeout.map_or("none".to_owned(), |t| format!("{t:?} s")));
-    if let Some(inputs) = &spec.inputs {
+    if let Some(inputs) = &request.inputs {
         // The table itself, not the file's name: the same name may hold other inputs later.
         let mut hash = Sha256::new();
         for name in &inputs.names {
@@ -184,111 +196,143 @@ fn file_sha256(path: &Path) -> Result<String, String> {
     }
 }
 
-/// Where a durable sweep starts: the points already on file and their values.
-struct Start {
-    partial: PartialCsv,
-    first: usize,
-    kept: Vec<f64>,
-    failed: usize,
+/// The options of a sweep, checked and merged with the model's experiment before the FMU is
+/// opened: what is wrong with them costs nothing.
+struct Settings {
+    target: Target,
+    /// The swept parameters and their values, in `--param` order.
+    ranges: Vec<(String, Vec<f64>)>,
+    /// The metrics, parsed once.
+    metrics: MetricSet,
+    threads: usize,
+    /// `--point-timeout`, as given (the record names it).
+    point_timeout: Option<f64>,
+    /// The workers' sandbox; `None` with `--in-process`.
+    isolation: Option<Config>,
+    /// The runner's integrator for Model Exchange.
+    solver: fmi_importer::Solver,
+    out: Option<PathBuf>,
+    plot: Option<PathBuf>,
 }
 
-/// Runs `runner sweep`. To a file the CSV is streamed in point order to `<out>.partial` and
-/// renamed into place when complete; an interrupted or killed sweep keeps its finished rows
-/// there for `--resume`.
-pub fn run(options: &Options) -> Result<Summary, String> {
-    if fmi_systems::is_system(Path::new(&options.fmu)) {
-        return run_system(options);
-    }
-    let target = experiment::resolve(&options.fmu)?;
-    let defaults = &target.experiment.sweep;
-    let pick = |cli: &Vec<String>, file: &Vec<String>| if cli.is_empty() { file.clone() } else { cli.clone() };
-    let param_texts = pick(&options.params, &defaults.param);
-    let metric_texts = pick(&options.metrics, &defaults.metric);
-    if param_texts.is_empty() {
-        return Err("nothing to sweep: give --param NAME=START:STOP:STEP or NAME=V1,V2,...".to_owned());
-    }
-    if metric_texts.is_empty() {
-        return Err("no metric: give --metric NAME=EXPR, e.g. --metric 'amplitude=max(x)'".to_owned());
-    }
-    let ranges = param_texts.iter().map(|p| parse_range(p)).collect::<Result<Vec<_>, _>>()?;
-    runner_engine::metrics::Metrics::parse(&metric_texts)?;
-    let threads = options.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    if threads == 0 {
-        return Err("--threads must be at least 1".to_owned());
-    }
-    let timeout = workers::timeout("--point-timeout", options.point_timeout)?;
-    if options.in_process && timeout.is_some() {
-        return Err("--point-timeout needs worker processes (a thread cannot be stopped): drop --in-process".to_owned());
-    }
-    if options.in_process && options.worker_memory.is_some() {
-        return Err("--worker-memory limits worker processes: drop --in-process".to_owned());
-    }
-    let solver = options.integration.solver()?;
-    let (out_path, plot_path) = output_paths(options, defaults);
-    // The record identifies the FMU by its file's sha256, hashed while this thread starts the
-    // workers and unpacks the FMU: off the path to the first point when a core is free.
-    let fmu_sha256 = out_path.as_ref().map(|_| {
-        let path = target.path.clone();
-        std::thread::spawn(move || file_sha256(&path))
-    });
-    let config: Option<Isolation> = match options.in_process {
-        true => None,
-        false => Some(workers::isolation(timeout, options.worker_memory.unwrap_or_else(|| workers::default_memory_mib(threads)))?),
-    };
-    // Workers start now, while this process unpacks the FMU; then they load it (from this
-    // process's copy) while this process checks the plan and opens its files.
-    let points = ranges.iter().fold(1usize, |n, (_, v)| n.saturating_mul(v.len()));
-    let mut pool = match &config {
-        Some(config) => Some(Workers::start(config, threads.min(points))?),
-        None => None,
-    };
-    let (held, source) = Held::open(&target.path, &options.integration, options.in_process)?;
-    if let Some(pool) = &mut pool {
-        pool.load(&source);
-    }
-    let d = held.description();
-    let mut grid = Grid::choose(d, &[options.run.grid(), defaults.run().grid()])?;
-    grid.solver = solver;
-    let mut set_texts = defaults.set.clone();
-    set_texts.extend(options.run.set.iter().cloned());
-    let inputs = workers::input_file(options.input_file.as_deref(), d, held.interface())?;
-    let spec = SweepSpec { grid, sets: set_texts, ranges, metrics: metric_texts.clone(), inputs };
-    let plan = spec.plan(d, held.identifier(), held.interface())?;
-    let (space, metrics, swept) = (&plan.space, &plan.metrics, &plan.swept);
-    let n = space.len;
-    let once = isolation::once_per_process(d, held.interface());
-    if options.in_process && once && n > 1 {
-        return Err(format!(
-            "{} declares canBeInstantiatedOnlyOncePerProcess, so its points cannot share a process: drop --in-process (each point then gets a worker process of its own)",
-            d.model_name
-        ));
-    }
-    if let Some(pool) = &mut pool {
-        pool.one_instance_per_process(once);
-    }
-
-    if let Some(plot) = &plot_path {
-        output::check_destination(plot)?;
-    }
-    let mut header: Vec<String> = space.ranges.iter().map(|(n, _)| n.clone()).collect();
-    header.extend(metrics.metrics.iter().map(|(n, _)| n.clone()));
-    header.push("status".to_owned());
-    let m = metrics.metrics.len();
-    let spell = |i: usize| -> Vec<String> {
-        let mut point = Vec::new();
-        space.point(i, &mut point);
-        point.iter().map(|x| format!("{x:?}")).collect()
-    };
-
-    // To a file: the finished rows so far (a resumed sweep's) and the partial file to extend.
-    let mut start: Option<Start> = None;
-    if let Some(out) = &out_path {
-        output::check_destination(out)?;
-        let digest = match fmu_sha256 {
-            Some(hashing) => hashing.join().map_err(|_| format!("hashing {} failed", target.path.display()))??,
-            None => file_sha256(&target.path)?,
+impl Settings {
+    /// Checks `options` and merges them with the model's experiment.
+    fn resolve(options: &Options) -> Result<Settings, String> {
+        let target = experiment::resolve(&options.fmu)?;
+        let defaults = &target.experiment.sweep;
+        let pick = |cli: &Vec<String>, file: &Vec<String>| if cli.is_empty() { file.clone() } else { cli.clone() };
+        let param_texts = pick(&options.params, &defaults.param);
+        let metric_texts = pick(&options.metrics, &defaults.metric);
+        if param_texts.is_empty() {
+            return Err("nothing to sweep: give --param NAME=START:STOP:STEP or NAME=V1,V2,...".to_owned());
+        }
+        if metric_texts.is_empty() {
+            return Err("no metric: give --metric NAME=EXPR, e.g. --metric 'amplitude=max(x)'".to_owned());
+        }
+        let ranges = param_texts.iter().map(|p| parse_range(p)).collect::<Result<Vec<_>, _>>()?;
+        let metrics = MetricSet::parse(&metric_texts)?;
+        let threads = options.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+        if threads == 0 {
+            return Err("--threads must be at least 1".to_owned());
+        }
+        let timeout = runner_sandbox::timeout("--point-timeout", options.point_timeout)?;
+        if options.in_process && timeout.is_some() {
+            return Err("--point-timeout needs worker processes (a thread cannot be stopped): drop --in-process".to_owned());
+        }
+        if options.in_process && options.worker_memory.is_some() {
+            return Err("--worker-memory limits worker processes: drop --in-process".to_owned());
+        }
+        let solver = options.integration.solver()?;
+        let (out, plot) = output_paths(options, defaults);
+        let isolation = match options.in_process {
+            true => None,
+            false => Some(isolation(timeout, options.worker_memory, threads)?),
         };
-        let current = record(&target.path, &digest, held.interface(), &plan, &spec, options.point_timeout);
+        Ok(Settings { target, ranges, metrics, threads, point_timeout: options.point_timeout, isolation, solver, out, plot })
+    }
+
+    /// The number of points (saturating: the exact count is checked once the FMU is known).
+    fn points(&self) -> usize {
+        self.ranges.iter().fold(1usize, |n, (_, v)| n.saturating_mul(v.len()))
+    }
+
+    /// The sweep as the engine takes it, bound to the FMU `held`: the grid from the options, the
+    /// experiment and the FMU's default experiment; the assignments common to every point (the
+    /// experiment's, then the options'); the input file.
+    fn request(&self, options: &Options, held: &Held) -> Result<SweepRequest, String> {
+        let d = held.description();
+        let defaults = &self.target.experiment.sweep;
+        let mut grid = Grid::choose(d, &[options.run.grid(), defaults.run().grid()])?;
+        grid.solver = self.solver;
+        let mut set_texts = defaults.set.clone();
+        set_texts.extend(options.run.set.iter().cloned());
+        let inputs = workers::input_file(options.input_file.as_deref(), d, held.interface())?;
+        let fixed = variables::parse_sets(d, &set_texts)?;
+        Ok(SweepRequest::new(grid, &fixed, self.ranges.clone(), self.metrics.clone(), inputs))
+    }
+}
+
+/// The workers' sandbox: `--point-timeout`, and `--worker-memory` (default: three quarters of
+/// the machine's memory, shared among `threads` workers).
+fn isolation(timeout: Option<Duration>, worker_memory: Option<u64>, threads: usize) -> Result<Config, String> {
+    workers::isolation(timeout, worker_memory.unwrap_or_else(|| runner_sandbox::default_memory_mib(threads)))
+}
+
+/// Where the rows go: standard output, or a durable file: `<out>.partial`, extended as points
+/// finish and renamed to `<out>` when complete, with its record beside it.
+// One value per sweep: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
+enum Destination {
+    Stdout(csv::Writer<output::Output>),
+    File {
+        partial: PartialCsv,
+        /// The first point still to run (a resumed sweep's), and the finished points' metric
+        /// values and failures.
+        first: usize,
+        kept: Vec<f64>,
+        failed: usize,
+    },
+}
+
+/// What opening the destination found.
+#[allow(clippy::large_enum_variant)]
+enum Opened {
+    /// Run the points from the destination's first on.
+    Run(Destination),
+    /// The file is complete already: every point is there.
+    Complete(Summary),
+}
+
+/// The CSV of a sweep: its header, and the text of point `i`'s parameter values.
+struct Table<'a> {
+    header: Vec<String>,
+    /// Metrics per row.
+    m: usize,
+    space: &'a Space,
+}
+
+impl Table<'_> {
+    fn spell(&self, i: usize) -> Vec<String> {
+        let mut point = Vec::new();
+        self.space.point(i, &mut point);
+        point.iter().map(|x| format!("{x:?}")).collect()
+    }
+}
+
+impl Destination {
+    /// Opens the sweep's destination: to standard output, or (with `out`) a new partial file
+    /// and record, or with `resume` the earlier sweep's, checked to be this sweep's.
+    fn open(out: Option<&Path>, resume: bool, current: impl FnOnce() -> Result<Record, String>, table: &Table) -> Result<Opened, String> {
+        let Some(out) = out else {
+            if resume {
+                return Err("--resume needs --out FILE.csv: a sweep to standard output keeps no partial file".to_owned());
+            }
+            let mut writer = output::csv_writer(None)?;
+            writer.write_record(&table.header).map_err(|e| format!("cannot write CSV: {e}"))?;
+            return Ok(Opened::Run(Destination::Stdout(writer)));
+        };
+        let n = table.space.len;
+        let current = current()?;
         let (partial_path, record_path) = (partial::partial_path(out), partial::record_path(out));
         let earlier = || -> Result<Record, String> {
             let text = std::fs::read_to_string(&record_path).map_err(|e| {
@@ -304,10 +348,10 @@ pub fn run(options: &Options) -> Result<Summary, String> {
                 )),
             }
         };
-        let mut spell_some = |i: usize| (i < n).then(|| spell(i));
-        if options.resume && partial_path.exists() {
+        let mut spell_some = |i: usize| (i < n).then(|| table.spell(i));
+        if resume && partial_path.exists() {
             earlier()?;
-            let finished = partial::read_finished(&partial_path, &header, m, &mut spell_some)?;
+            let finished = partial::read_finished(&partial_path, &table.header, table.m, &mut spell_some)?;
             eprintln!(
                 "resuming: {} of {n} points are in {}; running the other {}",
                 finished.rows,
@@ -316,14 +360,14 @@ pub fn run(options: &Options) -> Result<Summary, String> {
             );
             // A kill before the header reached the file leaves it empty: start it again.
             let file = if finished.valid == 0 {
-                PartialCsv::create(out, &header)?
+                PartialCsv::create(out, &table.header)?
             } else {
                 PartialCsv::resume(out, finished.valid, finished.rows)?
             };
-            start = Some(Start { partial: file, first: finished.rows, kept: finished.metrics, failed: finished.failed });
-        } else if options.resume && out.exists() && record_path.exists() {
+            Ok(Opened::Run(Destination::File { partial: file, first: finished.rows, kept: finished.metrics, failed: finished.failed }))
+        } else if resume && out.exists() && record_path.exists() {
             earlier()?;
-            let finished = partial::read_finished(out, &header, m, &mut spell_some)?;
+            let finished = partial::read_finished(out, &table.header, table.m, &mut spell_some)?;
             if finished.rows != n {
                 return Err(format!(
                     "{} has {} of this sweep's {n} rows and no partial file to continue; run without --resume to start again",
@@ -332,9 +376,9 @@ pub fn run(options: &Options) -> Result<Summary, String> {
                 ));
             }
             eprintln!("{} is already complete: all {n} points of this sweep are there; nothing to do", out.display());
-            return Ok(Summary { points: n, failed: finished.failed });
+            Ok(Opened::Complete(Summary { points: n, failed: finished.failed }))
         } else {
-            if options.resume {
+            if resume {
                 eprintln!("nothing to resume: there is no {}; starting from the first point", partial_path.display());
             } else if partial_path.exists() {
                 return Err(format!(
@@ -343,34 +387,132 @@ pub fn run(options: &Options) -> Result<Summary, String> {
                 ));
             }
             output::write_file(&record_path, current.text().as_bytes())?;
-            start = Some(Start { partial: PartialCsv::create(out, &header)?, first: 0, kept: Vec::new(), failed: 0 });
+            Ok(Opened::Run(Destination::File { partial: PartialCsv::create(out, &table.header)?, first: 0, kept: Vec::new(), failed: 0 }))
         }
-    } else if options.resume {
-        return Err("--resume needs --out FILE.csv: a sweep to standard output keeps no partial file".to_owned());
     }
 
-    // Only the metric values are kept, for the peaks and the plot.
-    let progress = Progress::start(n as u64, "points");
-    let clock = Instant::now();
-    let (first, mut kept, mut failed) = match &mut start {
-        Some(s) => (s.first, std::mem::take(&mut s.kept), s.failed),
-        None => (0, Vec::new(), 0),
+    /// Appends a row.
+    fn append(&mut self, row: &[String]) -> Result<(), String> {
+        match self {
+            Destination::File { partial, .. } => partial.append(row),
+            Destination::Stdout(writer) => writer.write_record(row).map_err(|e| format!("cannot write CSV: {e}")),
+        }
+    }
+}
+
+/// Runs `runner sweep`. To a file the CSV is streamed in point order to `<out>.partial` and
+/// renamed into place when complete; an interrupted or killed sweep keeps its finished rows
+/// there for `--resume`.
+pub fn run(options: &Options) -> Result<Summary, String> {
+    if fmi_systems::is_system(Path::new(&options.fmu)) {
+        return run_system(options);
+    }
+    let settings = Settings::resolve(options)?;
+    // Metrics of modes linearize every point: through Model Exchange.
+    let mut integration = options.integration.clone();
+    if settings.metrics.metrics().highest_mode().is_some() {
+        if integration.interface == Some(fmi_importer::Interface::CoSimulation) {
+            return Err("the metrics read modes of the linearized model (natural_frequency, damping), which needs the FMU's Model Exchange interface: drop --interface co-simulation".to_owned());
+        }
+        integration.interface = Some(fmi_importer::Interface::ModelExchange);
+    }
+    let path = settings.target.path.clone();
+    // The record identifies the FMU by its file's sha256, hashed while this thread starts the
+    // workers and unpacks the FMU: off the path to the first point when a core is free.
+    let hashing = settings.out.as_ref().map(|_| {
+        let path = path.clone();
+        std::thread::spawn(move || file_sha256(&path))
+    });
+    // Workers start now, while this process unpacks the FMU; then they load it (from this
+    // process's copy) while this process checks the plan and opens its files.
+    let mut workers: Option<Workers<Engine>> = match &settings.isolation {
+        Some(config) => Some(exec::start_workers(config.clone(), settings.threads.min(settings.points()))?),
+        None => None,
     };
+    let in_process = workers.is_none();
+    let (held, source) = workers::open(&path, &integration, in_process)?;
+    let once = held.once_per_process();
+    if let Some(workers) = &mut workers {
+        exec::load(workers, &source, once);
+    }
+    let request = settings.request(options, &held)?;
+    let plan = request.plan(held.description(), held.identifier(), held.interface())?;
+    let n = plan.space.len;
+    if in_process && once && n > 1 {
+        return Err(format!(
+            "{} declares canBeInstantiatedOnlyOncePerProcess, so its points cannot share a process: drop --in-process (each point then gets a worker process of its own)",
+            held.description().model_name
+        ));
+    }
+    if let Some(plot) = &settings.plot {
+        report::check_plot(plot)?;
+    }
+    let metrics = plan.metrics.metrics.len();
+    let mut header: Vec<String> = plan.space.ranges.iter().map(|(n, _)| n.clone()).collect();
+    header.extend(plan.metrics.metrics.iter().map(|(n, _)| n.clone()));
+    header.push("status".to_owned());
+    let table = Table { header, m: metrics, space: &plan.space };
+    let current = || -> Result<Record, String> {
+        let digest = match hashing {
+            Some(hashing) => hashing.join().map_err(|_| format!("hashing {} failed", path.display()))??,
+            None => file_sha256(&path)?,
+        };
+        Ok(record(&path, &digest, held.interface(), &plan, &request, settings.point_timeout))
+    };
+    if let Some(out) = &settings.out {
+        output::check_destination(out)?;
+    }
+    let destination = match Destination::open(settings.out.as_deref(), options.resume, current, &table)? {
+        Opened::Run(destination) => destination,
+        Opened::Complete(summary) => return Ok(summary),
+    };
+    let on = match workers {
+        Some(workers) => Points::Workers(workers),
+        None => Points::Threads(settings.threads),
+    };
+    let clock = Instant::now();
+    let finished = execute(&held, &plan, &request, on, destination, &table)?;
+    let written = finish(finished, options, &settings, &table)?;
+    let elapsed = clock.elapsed().as_secs_f64();
+    report(&settings, &plan, &written, elapsed);
+    if let Some(path) = &settings.plot {
+        plot_metrics(path, &plan, &request, held.description(), &written.kept)?;
+    }
+    Ok(Summary { points: n, failed: written.failed })
+}
+
+/// What running the points left: the destination, the metric values of every point delivered
+/// (NaN for a failed one) and the failures, and how the run ended.
+struct Finished {
+    destination: Destination,
+    kept: Vec<f64>,
+    failed: usize,
+    outcome: Result<(), String>,
+}
+
+/// Runs the points from the destination's first on, each row appended as it finishes.
+fn execute(
+    held: &Held,
+    plan: &Plan,
+    request: &SweepRequest,
+    on: Points,
+    mut destination: Destination,
+    table: &Table,
+) -> Result<Finished, String> {
+    let n = plan.space.len;
+    let m = table.m;
+    // Only the metric values are kept, for the peaks and the plot.
+    let (first, mut kept, mut failed) = match &mut destination {
+        Destination::File { first, kept, failed, .. } => (*first, std::mem::take(kept), *failed),
+        Destination::Stdout(_) => (0, Vec::new(), 0),
+    };
+    let progress = Progress::start(n as u64, "points");
     kept.reserve(n.saturating_sub(first) * m);
     progress.inc(first as u64);
-    let mut partial = start.map(|s| s.partial);
-    let mut stdout_csv = match &partial {
-        Some(_) => None,
-        None => {
-            let mut writer = output::csv_writer(None)?;
-            writer.write_record(&header).map_err(|e| format!("cannot write CSV: {e}"))?;
-            Some(writer)
-        }
-    };
     let mut point = Vec::new();
-    let mut row: Vec<String> = Vec::with_capacity(header.len());
-    let mut deliver = |i: usize, r: PointResult| -> Result<(), String> {
-        space.point(i, &mut point);
+    let mut row: Vec<String> = Vec::with_capacity(table.header.len());
+    let deliver = |i: usize, r: PointResult| -> Result<(), String> {
+        plan.space.point(i, &mut point);
         row.clear();
         row.extend(point.iter().map(|x| format!("{x:?}")));
         match &r.metrics {
@@ -385,21 +527,31 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         }
         failed += usize::from(r.status != "ok");
         row.push(r.status);
-        match (&mut partial, &mut stdout_csv) {
-            (Some(file), _) => file.append(&row)?,
-            (None, Some(writer)) => writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))?,
-            (None, None) => unreachable!("one destination is open"),
-        }
+        destination.append(&row)?;
         progress.inc(1);
         Ok(())
     };
-    let written = match (&held, pool) {
-        (Held::Loaded(fmu), _) => plan.execute_range(fmu, first..n, threads, &interrupt::requested, &mut deliver),
-        (Held::Described(_), Some(pool)) => isolation::execute_sweep(&plan, &spec, pool, first..n, &interrupt::requested, &mut deliver),
-        (Held::Described(_), None) => unreachable!("workers were started"),
-    };
+    let outcome = exec::sweep(held, plan, request, on, first..n, &interrupt::requested, deliver);
     drop(progress);
-    let delivered = kept.len() / m.max(1);
+    Ok(Finished { destination, kept, failed, outcome })
+}
+
+/// What a sweep wrote.
+struct Written {
+    /// Metric values of every point, row-major.
+    kept: Vec<f64>,
+    failed: usize,
+    /// Where the CSV went, for the summary line.
+    destination: String,
+    csv_on_stdout: bool,
+}
+
+/// Commits the destination, or on a failure or an interrupt keeps the finished rows and says
+/// how to continue.
+fn finish(finished: Finished, options: &Options, settings: &Settings, table: &Table) -> Result<Written, String> {
+    let Finished { destination, kept, failed, outcome } = finished;
+    let n = table.space.len;
+    let delivered = kept.len() / table.m.max(1);
     let continue_with = || {
         let mut args = options.command_line.clone();
         if !args.iter().any(|a| a == "--resume") {
@@ -407,51 +559,56 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         }
         workers::shell_line(&args)
     };
-    if let Err(e) = written {
-        return Err(match partial {
-            Some(file) => {
-                let path = file.path().to_path_buf();
-                let _ = file.close();
+    if let Err(e) = outcome {
+        return Err(match destination {
+            Destination::File { partial, .. } => {
+                let path = partial.path().to_path_buf();
+                let _ = partial.close();
                 // What reached the file, read back: rows a failed write did not reach are gone.
-                let kept = partial::read_finished(&path, &header, m, &mut |i| (i < n).then(|| spell(i))).map_or(0, |f| f.rows);
+                let kept =
+                    partial::read_finished(&path, &table.header, table.m, &mut |i| (i < n).then(|| table.spell(i))).map_or(0, |f| f.rows);
                 format!(
                     "{e}\nthe {kept} points finished before are kept in {}; once it can be written, continue with: {}",
                     path.display(),
                     continue_with()
                 )
             }
-            None => e,
+            Destination::Stdout(_) => e,
         });
     }
     if interrupt::requested() {
-        return Err(match partial {
-            Some(file) => {
-                let path = file.path().to_path_buf();
-                let done = file.close()?;
+        return Err(match destination {
+            Destination::File { partial, .. } => {
+                let path = partial.path().to_path_buf();
+                let done = partial.close()?;
                 format!(
                     "interrupted after {done} of {n} points; the finished points are in {}; continue with: {}",
                     path.display(),
                     continue_with()
                 )
             }
-            None => format!("interrupted after {delivered} of {n} points"),
+            Destination::Stdout(_) => format!("interrupted after {delivered} of {n} points"),
         });
     }
-    let destination = match (&partial, &out_path) {
-        (Some(_), Some(out)) => out.display().to_string(),
-        _ => "standard output".to_owned(),
+    let (destination_name, csv_on_stdout) = match (&destination, &settings.out) {
+        (Destination::File { .. }, Some(out)) => (out.display().to_string(), false),
+        _ => ("standard output".to_owned(), true),
     };
-    let csv_on_stdout = partial.is_none();
-    match (partial, stdout_csv) {
-        (Some(file), _) => file.finish()?,
-        (None, Some(writer)) => output::finish_csv(writer)?,
-        (None, None) => {}
+    match destination {
+        Destination::File { partial, .. } => partial.finish()?,
+        Destination::Stdout(writer) => output::finish_csv(writer)?,
     }
-    let mode = if config.is_some() { "worker process(es)" } else { "thread(s), in-process" };
-    let elapsed = clock.elapsed().as_secs_f64();
+    Ok(Written { kept, failed, destination: destination_name, csv_on_stdout })
+}
 
-    eprintln!("{n} points in {elapsed:.2} s on {threads} {mode}; {failed} failed; wrote {destination}");
-    let metric_of = |i: usize, k: usize| kept[i * m + k];
+/// The summary line and each metric's peak.
+fn report(settings: &Settings, plan: &Plan, written: &Written, elapsed: f64) {
+    let (space, metrics) = (&plan.space, &plan.metrics);
+    let n = space.len;
+    let m = metrics.metrics.len();
+    let mode = if settings.isolation.is_some() { "worker process(es)" } else { "thread(s), in-process" };
+    eprintln!("{n} points in {elapsed:.2} s on {} {mode}; {} failed; wrote {}", settings.threads, written.failed, written.destination);
+    let metric_of = |i: usize, k: usize| written.kept[i * m + k];
     let mut point = Vec::new();
     for (k, (name, _)) in metrics.metrics.iter().enumerate() {
         let best = (0..n).filter(|&i| metric_of(i, k).is_finite()).max_by(|&a, &b| metric_of(a, k).total_cmp(&metric_of(b, k)));
@@ -460,55 +617,69 @@ pub fn run(options: &Options) -> Result<Summary, String> {
             let at: Vec<String> = space.ranges.iter().zip(&point).map(|((n, _), x)| format!("{n} = {x}")).collect();
             let line = format!("{name}: peak {:?} at {}", metric_of(i, k), at.join(", "));
             // Keep a CSV on stdout clean: the summary goes to stderr then.
-            if csv_on_stdout {
+            if written.csv_on_stdout {
                 eprintln!("{line}");
             } else {
                 println!("{line}");
             }
         }
     }
-    if let Some(path) = plot_path {
-        let x_name = &space.ranges[0].0;
-        let x_unit = swept[0].unit.as_deref().map_or(String::new(), |u| format!(" {u}"));
-        let mut series = Vec::new();
-        let mut marks = Vec::new();
-        for (k, (metric, _)) in metrics.metrics.iter().enumerate() {
-            // One line per combination of the other parameters, in point order.
-            let mut lines: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
-            for i in 0..n {
-                space.point(i, &mut point);
-                let others: Vec<String> = space.ranges.iter().zip(&point).skip(1).map(|((n, _), x)| format!("{n}={x}")).collect();
-                let label = if others.is_empty() { metric.clone() } else { format!("{metric} ({})", others.join(", ")) };
-                match lines.iter_mut().find(|(l, _)| *l == label) {
-                    Some((_, pts)) => pts.push((point[0], metric_of(i, k))),
-                    None => lines.push((label, vec![(point[0], metric_of(i, k))])),
-                }
-            }
-            for (label, points) in lines {
-                if let Some(&(x, y)) = points.iter().filter(|p| p.1.is_finite()).max_by(|a, b| a.1.total_cmp(&b.1)) {
-                    marks.push((label.clone(), Mark { at: (x, y), text: format!("peak {y:.4} at {x_name} = {x}{x_unit}") }));
-                }
-                series.push(Series { label, points });
+}
+
+/// Plots each metric against the first parameter into `path`, peaks marked: one line per
+/// combination of the other parameters.
+fn plot_metrics(
+    path: &Path,
+    plan: &Plan,
+    request: &SweepRequest,
+    description: &fmi_importer::Description,
+    kept: &[f64],
+) -> Result<(), String> {
+    let (space, metrics, swept) = (&plan.space, &plan.metrics, &plan.swept);
+    let n = space.len;
+    let m = metrics.metrics.len();
+    let metric_of = |i: usize, k: usize| kept[i * m + k];
+    let mut point = Vec::new();
+    let x_name = &space.ranges[0].0;
+    let x_unit = swept[0].unit.as_deref().map_or(String::new(), |u| format!(" {u}"));
+    let mut series = Vec::new();
+    let mut marks = Vec::new();
+    for (k, (metric, _)) in metrics.metrics.iter().enumerate() {
+        // One line per combination of the other parameters, in point order.
+        let mut lines: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+        for i in 0..n {
+            space.point(i, &mut point);
+            let others: Vec<String> = space.ranges.iter().zip(&point).skip(1).map(|((n, _), x)| format!("{n}={x}")).collect();
+            let label = if others.is_empty() { metric.clone() } else { format!("{metric} ({})", others.join(", ")) };
+            match lines.iter_mut().find(|(l, _)| *l == label) {
+                Some((_, pts)) => pts.push((point[0], metric_of(i, k))),
+                None => lines.push((label, vec![(point[0], metric_of(i, k))])),
             }
         }
-        let x_label = match swept[0].unit.as_deref() {
-            Some(u) => format!("{x_name} ({u})"),
-            None => x_name.clone(),
-        };
-        let y_label = if metrics.metrics.len() == 1 { metric_texts[0].replace('=', " = ") } else { "metric".to_owned() };
-        let title = format!(
-            "{}: {} against {x_name}",
-            d.model_name,
-            metrics.metrics.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
-        );
-        // With several lines, each peak says whose it is.
-        let several = series.len() > 1;
-        let marks: Vec<Mark> =
-            marks.into_iter().map(|(label, m)| if several { Mark { text: format!("{label}: {}", m.text), ..m } } else { m }).collect();
-        plot::lines(&path, &title, &x_label, &y_label, &series, &marks)?;
-        eprintln!("wrote {}", path.display());
+        for (label, points) in lines {
+            if let Some(&(x, y)) = points.iter().filter(|p| p.1.is_finite()).max_by(|a, b| a.1.total_cmp(&b.1)) {
+                marks.push((label.clone(), Mark { at: (x, y), text: format!("peak {y:.4} at {x_name} = {x}{x_unit}") }));
+            }
+            series.push(Series { label, points });
+        }
     }
-    Ok(Summary { points: n, failed })
+    let x_label = match swept[0].unit.as_deref() {
+        Some(u) => format!("{x_name} ({u})"),
+        None => x_name.clone(),
+    };
+    let y_label = if metrics.metrics.len() == 1 { request.metrics.texts()[0].replace('=', " = ") } else { "metric".to_owned() };
+    let title = format!(
+        "{}: {} against {x_name}",
+        description.model_name,
+        metrics.metrics.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
+    );
+    // With several lines, each peak says whose it is.
+    let several = series.len() > 1;
+    let marks: Vec<Mark> =
+        marks.into_iter().map(|(label, m)| if several { Mark { text: format!("{label}: {}", m.text), ..m } } else { m }).collect();
+    report::write_plot(path, &LinePlot { title: &title, x_label: &x_label, y_label: &y_label, series: &series, marks: &marks })?;
+    eprintln!("wrote {}", path.display());
+    Ok(())
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@
 
 use std::path::Path;
 
-use fmi_systems::{Bound, Master, Outcome, System};
+use fmi_systems::{Bound, Coupling, Master, Outcome, System};
 use runner_engine::metrics::Metrics;
 use runner_engine::run::Grid;
 use runner_engine::sweep::{parse_range, Space};
@@ -23,6 +23,30 @@ pub fn master(name: Option<&str>) -> Result<Master, String> {
         None => Ok(Master::Jacobi),
         Some(n) => Master::from_name(n).ok_or_else(|| format!("--master '{n}': choose jacobi or gauss-seidel")),
     }
+}
+
+/// The master and the coupling named on the command line (`--master`, `--coupling`).
+#[derive(Clone, Copy, Default)]
+pub struct Algorithm<'a> {
+    pub master: Option<&'a str>,
+    pub coupling: Option<&'a str>,
+}
+
+/// The system bound for runs under the master and coupling named on the command line.
+fn bind<'a>(system: &'a System, algorithm: Algorithm) -> Result<Bound<'a>, String> {
+    let Algorithm { master: master_name, coupling: coupling_name } = algorithm;
+    let coupling = match coupling_name {
+        None => None,
+        Some(n) => Some(Coupling::from_name(n).ok_or_else(|| format!("--coupling '{n}': choose hold or polynomial"))?),
+    };
+    let mut bound = Bound::new(system, master(master_name)?)?;
+    bound.set_coupling(coupling);
+    if coupling == Some(Coupling::Polynomial) && bound.polynomial_connections().is_empty() {
+        eprintln!(
+            "warning: --coupling polynomial: no connection of the system can pass a polynomial (that needs a Co-Simulation source with output derivatives and a continuous Real input of an FMI 2.0 FMU that interpolates inputs): every input holds"
+        );
+    }
+    Ok(bound)
 }
 
 /// The grid: the command line, then the SSD's DefaultExperiment and step annotation, then the
@@ -45,9 +69,9 @@ fn number(x: f64) -> String {
 }
 
 /// `runner simulate SYSTEM`: one run, CSV `time,COMPONENT.VARIABLE,...`.
-pub fn simulate(path: &Path, run: &RunDefaults, master_name: Option<&str>, out: Option<&Path>) -> Result<(), String> {
+pub fn simulate(path: &Path, run: &RunDefaults, algorithm: Algorithm, out: Option<&Path>) -> Result<(), String> {
     let system = System::open(path)?;
-    let bound = Bound::new(&system, master(master_name)?)?;
+    let bound = bind(&system, algorithm)?;
     if let Some(w) = &bound.warning {
         eprintln!("warning: {w}");
     }
@@ -82,7 +106,7 @@ pub fn simulate(path: &Path, run: &RunDefaults, master_name: Option<&str>, out: 
 pub fn sweep(
     path: &Path,
     run: &RunDefaults,
-    master_name: Option<&str>,
+    algorithm: Algorithm,
     params: &[String],
     metric_texts: &[String],
     threads: Option<usize>,
@@ -93,7 +117,7 @@ pub fn sweep(
         return Err("no metric: give --metric NAME=EXPR, e.g. --metric 'amplitude=max(car.z_s)'".to_owned());
     }
     let system = System::open(path)?;
-    let bound = Bound::new(&system, master(master_name)?)?;
+    let bound = bind(&system, algorithm)?;
     if let Some(w) = &bound.warning {
         eprintln!("warning: {w}");
     }
@@ -108,6 +132,12 @@ pub fn sweep(
     }
     let space = Space::new(ranges)?;
     let metrics = Metrics::parse(metric_texts)?;
+    if metrics.needs_frequencies() {
+        return Err("amplitude(...) reads its frequency from parameters of one FMU: it is for sweeps of an FMU, not of a system".to_owned());
+    }
+    if metrics.highest_mode().is_some() {
+        return Err("natural_frequency(N) and damping(N) linearize one FMU: they are for sweeps of an FMU, not of a system".to_owned());
+    }
     let sources = metrics
         .sources
         .iter()

@@ -1,11 +1,12 @@
 //! `runner validate FMU...`: static and dynamic checks of any FMU (crate fmi-validate), with a
 //! readable report on stdout, and JSON and JUnit files for CI. Each probe of an FMU runs in a
-//! child process: this binary started again with the hidden `__validate-probe` command.
+//! worker process of the sandbox: this binary started again with the hidden `__validate-probe`
+//! command.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use fmi_validate::{Launcher, Report};
+use fmi_validate::{Report, WorkerCommand};
 
 use crate::experiment;
 use crate::interrupt;
@@ -68,12 +69,8 @@ fn validate_all(options: &Options) -> Result<i32, String> {
     for path in [&options.report, &options.junit].into_iter().flatten() {
         output::check_destination(path)?;
     }
-    let program = std::env::current_exe().map_err(|e| format!("cannot find the runner binary to start probes: {e}"))?;
-    let validate_options = fmi_validate::Options {
-        timeout,
-        launcher: Launcher { program, args: vec![PROBE_COMMAND.into()] },
-        cancelled: interrupt::requested,
-    };
+    let validate_options =
+        fmi_validate::Options { timeout, command: WorkerCommand::this_program(&[PROBE_COMMAND])?, cancelled: interrupt::requested };
     let mut reports: Vec<Report> = Vec::new();
     let mut could_not_run = false;
     for fmu in &options.fmus {

@@ -67,9 +67,9 @@ impl<'a> Component<'a> {
 
     /// An error message for a failed call, with the last problem the FMU logged.
     pub(crate) fn failure(&self, call: &str, what: &str) -> String {
-        match self.callbacks.log.take_problem() {
+        match self.callbacks.log.take_reason() {
             Some(message) => format!("{}: {call} {what}: {message}", self.name),
-            None => format!("{}: {call} {what} (the FMU logged no reason)", self.name),
+            None => format!("{}: {call} {what} ({})", self.name, crate::logging::NO_REASON),
         }
     }
 
@@ -88,10 +88,18 @@ impl<'a> Component<'a> {
     pub(crate) fn note_status(&mut self, status: c_int) {
         if status == FATAL {
             self.fatal = true;
+            trace::note_fatal();
         }
         if status == ERROR || status == FATAL {
             self.terminate_allowed = false;
         }
+    }
+
+    /// The failure of `call` at model time `t` (a step from it), with the FMU's reason.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn refused_at(&mut self, call: &str, t: f64, status: c_int) -> String {
+        self.refused(&format!("{call} at t = {t}"), status)
     }
 
     #[cold]
@@ -104,9 +112,86 @@ impl<'a> Component<'a> {
     pub(crate) fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
         self.time = start;
         trace::enter(Call::SetupExperiment, start);
-        let status =
-            unsafe { (self.binary.api.setup_experiment)(self.raw, tolerance.is_some() as c_int, tolerance.unwrap_or(0.0), start, 1, stop) };
+        // An infinite stop time is none: stepping from outside runs as long as it is asked to.
+        let stop_defined = stop.is_finite();
+        let status = unsafe {
+            (self.binary.api.setup_experiment)(
+                self.raw,
+                tolerance.is_some() as c_int,
+                tolerance.unwrap_or(0.0),
+                start,
+                stop_defined as c_int,
+                if stop_defined { stop } else { 0.0 },
+            )
+        };
         self.check("fmi2SetupExperiment", status)
+    }
+
+    /// fmi2Reset: back to the state right after instantiation (set up and initialize again).
+    pub(crate) fn reset(&mut self) -> Result<(), String> {
+        let Some(reset) = self.binary.api.functions.reset else {
+            return Err(format!("{}: the FMU does not export fmi2Reset", self.name));
+        };
+        trace::enter(Call::Reset, self.time);
+        // SAFETY: the component is live.
+        let status = unsafe { reset(self.raw) };
+        self.check("fmi2Reset", status)?;
+        self.terminate_allowed = false;
+        self.time = f64::NAN;
+        Ok(())
+    }
+
+    /// The FMU's state, serialized (fmi2GetFMUstate, fmi2SerializedFMUstateSize,
+    /// fmi2SerializeFMUstate; the state freed again).
+    pub(crate) fn get_state(&mut self) -> Result<Vec<u8>, String> {
+        let f = &self.binary.api.functions;
+        let (Some(get), Some(size), Some(serialize), Some(free)) =
+            (f.get_fmu_state, f.serialized_fmu_state_size, f.serialize_fmu_state, f.free_fmu_state)
+        else {
+            return Err(format!("{}: the FMU does not export fmi2GetFMUstate and fmi2SerializeFMUstate", self.name));
+        };
+        let mut state: c::FmuState = std::ptr::null_mut();
+        trace::enter(Call::GetFmuState, self.time);
+        // SAFETY: the component is live; `state` receives the FMU's handle.
+        let status = unsafe { get(self.raw, &mut state) };
+        self.check("fmi2GetFMUstate", status)?;
+        let mut n = 0usize;
+        // SAFETY: a state this component returned, and an out pointer.
+        let status = unsafe { size(self.raw, state, &mut n) };
+        let bytes = self.check("fmi2SerializedFMUstateSize", status).and_then(|()| {
+            if n > crate::state::MAX_STATE_BYTES {
+                return Err(format!("{}: fmi2SerializedFMUstateSize gave {n} bytes", self.name));
+            }
+            let mut bytes = vec![0u8; n];
+            // SAFETY: `n` writable bytes, as the FMU asked for.
+            let status = unsafe { serialize(self.raw, state, bytes.as_mut_ptr().cast(), n) };
+            self.check("fmi2SerializeFMUstate", status).map(|()| bytes)
+        });
+        // SAFETY: the state is this component's, freed once.
+        unsafe { free(self.raw, &mut state) };
+        bytes
+    }
+
+    /// Sets the FMU's state from `bytes` of [`Component::get_state`] (fmi2DeSerializeFMUstate,
+    /// fmi2SetFMUstate; the state freed again).
+    pub(crate) fn set_state(&mut self, bytes: &[u8]) -> Result<(), String> {
+        let f = &self.binary.api.functions;
+        let (Some(deserialize), Some(set), Some(free)) = (f.de_serialize_fmu_state, f.set_fmu_state, f.free_fmu_state) else {
+            return Err(format!("{}: the FMU does not export fmi2DeSerializeFMUstate and fmi2SetFMUstate", self.name));
+        };
+        let mut state: c::FmuState = std::ptr::null_mut();
+        trace::enter(Call::SetFmuState, self.time);
+        // SAFETY: `bytes.len()` readable bytes; `state` receives the FMU's handle.
+        let status = unsafe { deserialize(self.raw, bytes.as_ptr().cast(), bytes.len(), &mut state) };
+        self.check("fmi2DeSerializeFMUstate", status)?;
+        // SAFETY: a state this component made.
+        let status = unsafe { set(self.raw, state) };
+        let result = self.check("fmi2SetFMUstate", status);
+        // SAFETY: freed once.
+        unsafe { free(self.raw, &mut state) };
+        result?;
+        self.terminate_allowed = true;
+        Ok(())
     }
 
     /// fmi2EnterInitializationMode.
@@ -175,7 +260,7 @@ impl<'a> Component<'a> {
         if variable.kind != Kind::String {
             return Err(format!("{} is a {}, not a String", variable.name, variable.kind.as_str()));
         }
-        let Some(get) = self.binary.api.get_string else {
+        let Some(get) = self.binary.api.functions.get_string else {
             return Err(format!("{}: the FMU does not export fmi2GetString", self.name));
         };
         let vr = variable.value_reference;
@@ -237,6 +322,22 @@ impl<'a> Component<'a> {
                     Buffer::IntBool(b) => {
                         trace::enter(Call::GetBoolean, time);
                         ("fmi2GetBoolean", (api.get_boolean)(comp, vrs, n, b.as_mut_ptr()))
+                    }
+                    Buffer::Text(texts) => {
+                        let Some(get_string) = api.functions.get_string else {
+                            return Err(format!("{}: the FMU does not export fmi2GetString", self.name));
+                        };
+                        trace::enter(Call::GetString, time);
+                        let mut pointers = vec![std::ptr::null::<std::ffi::c_char>(); n];
+                        let status = get_string(comp, vrs, n, pointers.as_mut_ptr());
+                        if status == OK || status == WARNING {
+                            for (text, &p) in texts.iter_mut().zip(&pointers) {
+                                // SAFETY: the FMU returned NUL-terminated strings valid until its next call.
+                                *text =
+                                    if p.is_null() { String::new() } else { std::ffi::CStr::from_ptr(p).to_string_lossy().into_owned() };
+                            }
+                        }
+                        ("fmi2GetString", status)
                     }
                     _ => return Err(format!("{}: a {} variable cannot be read from an FMI 2.0 FMU", self.name, group.kind)),
                 }

@@ -6,19 +6,21 @@ use std::ffi::c_int;
 use fmi_c::fmi2 as c;
 
 use super::component::{Component, DISCARD, OK, WARNING};
-use super::Binary;
+use super::{Binary, CoSimulationApi};
 use crate::trace::{self, Call};
 use crate::{Fmu, Reader, Step, Value, Variable};
 
 /// One Co-Simulation instance of an FMI 2.0 FMU.
 pub struct CoSimulation<'a> {
     component: Component<'a>,
+    cs: CoSimulationApi,
 }
 
 impl<'a> CoSimulation<'a> {
     /// fmi2Instantiate as Co-Simulation; `debug_logging` sets loggingOn.
     pub(crate) fn new(fmu: &'a Fmu, binary: &'a Binary, name: &str, debug_logging: bool) -> Result<CoSimulation<'a>, String> {
-        Ok(CoSimulation { component: Component::instantiate(fmu, binary, name, debug_logging, c::CO_SIMULATION)? })
+        let cs = binary.api.co_simulation.expect("resolved for Co-Simulation");
+        Ok(CoSimulation { component: Component::instantiate(fmu, binary, name, debug_logging, c::CO_SIMULATION)?, cs })
     }
 
     /// fmi2SetupExperiment with an optional relative tolerance and a defined stop time.
@@ -36,12 +38,27 @@ impl<'a> CoSimulation<'a> {
         self.component.exit_initialization_mode()
     }
 
+    /// fmi2Reset: back to the state right after instantiation.
+    pub fn reset(&mut self) -> Result<(), String> {
+        self.component.reset()
+    }
+
+    /// The FMU's state, serialized.
+    pub fn get_state(&mut self) -> Result<Vec<u8>, String> {
+        self.component.get_state()
+    }
+
+    /// Sets the FMU's state from bytes of [`CoSimulation::get_state`].
+    pub fn set_state(&mut self, bytes: &[u8]) -> Result<(), String> {
+        self.component.set_state(bytes)
+    }
+
     /// Reads a String variable (fmi2GetString).
     pub fn get_string(&mut self, variable: &Variable) -> Result<String, String> {
         self.component.get_string(variable)
     }
 
-    /// Sets one variable (fmi2Set<Type> with one value reference).
+    /// Sets one variable (`fmi2Set<Type>` with one value reference).
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
         self.component.set(variable, value)
     }
@@ -49,14 +66,34 @@ impl<'a> CoSimulation<'a> {
     /// fmi2SetRealInputDerivatives of the first derivative of the Real input `variable`, for an
     /// FMU that interpolates inputs over a step (`canInterpolateInputs`).
     pub fn set_input_derivative(&mut self, variable: &Variable, derivative: f64) -> Result<(), String> {
-        let Some(set) = self.component.binary.api.set_real_input_derivatives else {
+        self.set_input_derivatives(&[variable.value_reference], &[1], &[derivative])
+            .map_err(|e| format!("{e} (the derivative of {})", variable.name))
+    }
+
+    /// fmi2SetRealInputDerivatives: the `orders[k]`-th time derivative of the Real input
+    /// `vrs[k]` is `values[k]`, for an FMU that interpolates inputs (`canInterpolateInputs`).
+    pub fn set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64]) -> Result<(), String> {
+        let Some(set) = self.component.binary.api.functions.set_real_input_derivatives else {
             return Err(format!("{}: the FMU does not export fmi2SetRealInputDerivatives", self.component.name));
         };
-        let (vr, order): (c::ValueReference, c::Integer) = (variable.value_reference, 1);
+        let n = vrs.len().min(orders.len()).min(values.len());
         trace::enter(Call::SetReal, self.component.time);
-        // SAFETY: one value reference, order and value, valid for the call.
-        let status = unsafe { set(self.component.raw, &vr, 1, &order, &derivative) };
-        self.component.check(&format!("fmi2SetRealInputDerivatives of {}", variable.name), status)
+        // SAFETY: `n` value references, orders and values, valid for the call.
+        let status = unsafe { set(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) };
+        self.component.check("fmi2SetRealInputDerivatives", status)
+    }
+
+    /// fmi2GetRealOutputDerivatives: `out[k]` = the `orders[k]`-th time derivative of the Real
+    /// output `vrs[k]` (FMUs with `maxOutputDerivativeOrder` > 0).
+    pub fn get_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], out: &mut [f64]) -> Result<(), String> {
+        let Some(get) = self.component.binary.api.functions.get_real_output_derivatives else {
+            return Err(format!("{}: the FMU does not export fmi2GetRealOutputDerivatives", self.component.name));
+        };
+        let n = vrs.len().min(orders.len()).min(out.len());
+        trace::enter(Call::GetReal, self.component.time);
+        // SAFETY: `n` value references and orders, room for `n` values, valid for the call.
+        let status = unsafe { get(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr()) };
+        self.component.check("fmi2GetRealOutputDerivatives", status)
     }
 
     /// Reads the variables of `reader` into `out` (one f64 per variable, Booleans as 0/1).
@@ -75,13 +112,14 @@ impl<'a> CoSimulation<'a> {
     /// Inlined into the run loop, with the discard handling out of line.
     #[inline(always)]
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
-        let do_step = self.component.binary.api.do_step.expect("resolved for Co-Simulation");
         trace::enter(Call::DoStep, t);
-        let status = unsafe { do_step(self.component.raw, t, h, c::TRUE) };
+        let status = unsafe { (self.cs.do_step)(self.component.raw, t, h, c::TRUE) };
         if status == DISCARD {
             return self.discarded(t);
         }
-        self.component.check("fmi2DoStep", status)?;
+        if status != OK && status != WARNING {
+            return Err(self.component.refused_at("fmi2DoStep", t, status));
+        }
         self.component.time = t + h;
         Ok(Step::Done)
     }
@@ -89,8 +127,7 @@ impl<'a> CoSimulation<'a> {
     /// After fmi2Discard from the step at `t`: [`Step::Ended`] if the model terminated.
     #[cold]
     fn discarded(&mut self, t: f64) -> Result<Step, String> {
-        let api = &self.component.binary.api;
-        let (get_boolean_status, get_real_status) = (api.get_boolean_status.expect("resolved"), api.get_real_status.expect("resolved"));
+        let (get_boolean_status, get_real_status) = (self.cs.get_boolean_status, self.cs.get_real_status);
         let raw = self.component.raw;
         let mut terminated: c_int = 0;
         trace::enter(Call::GetBooleanStatus, t);

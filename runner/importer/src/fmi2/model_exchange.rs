@@ -5,9 +5,11 @@ use std::ffi::c_int;
 
 use fmi_c::fmi2 as c;
 
+use fmi_schema::fmi2 as schema;
+
 use super::component::Component;
 use super::{Binary, ExchangeApi};
-use crate::exchange::{EventUpdate, Exchange, Names};
+use crate::exchange::{EventUpdate, Exchange, Names, StateStructure};
 use crate::logging::LogContext;
 use crate::trace::Call;
 use crate::{Fmu, Reader, Value, Variable};
@@ -19,6 +21,35 @@ pub type ModelExchange<'a> = crate::exchange::ModelExchange<Exchange2<'a>>;
 pub struct Exchange2<'a> {
     component: Component<'a>,
     api: ExchangeApi,
+    /// `fmi2GetDirectionalDerivative`, when the FMU declares providesDirectionalDerivative.
+    directional: Option<c::GetDirectionalDerivative>,
+}
+
+/// The states of an FMI 2.0 description for the implicit methods' Jacobian: ModelStructure
+/// `Derivatives` (1-based variable indices) mapped to the value references of the derivatives
+/// and their states, and each derivative's dependencies on the states (dependencies on other
+/// knowns, inputs and the like, are constant during integration). `None` when a derivative
+/// names no state.
+pub(crate) fn state_structure(md: &schema::ModelDescription) -> Option<StateStructure> {
+    let variable = |index: u32| md.model_variables.get((index as usize).checked_sub(1)?);
+    let derivatives = &md.model_structure.derivatives;
+    let mut structure = StateStructure { pattern: Some(Vec::new()), ..StateStructure::default() };
+    let mut state_indices = Vec::new();
+    for unknown in derivatives {
+        let derivative = variable(unknown.index)?;
+        let state_index = derivative.derivative()?;
+        structure.derivatives.push(derivative.value_reference);
+        structure.states.push(variable(state_index)?.value_reference);
+        state_indices.push(state_index);
+    }
+    for unknown in derivatives {
+        let row = unknown.dependencies.as_ref().map(|deps| deps.iter().filter_map(|d| state_indices.iter().position(|s| s == d)).collect());
+        match (row, structure.pattern.as_mut()) {
+            (Some(row), Some(pattern)) => pattern.push(row),
+            _ => structure.pattern = None,
+        }
+    }
+    Some(structure)
 }
 
 /// fmi2Instantiate as Model Exchange; `debug_logging` sets loggingOn.
@@ -26,7 +57,9 @@ pub(crate) fn instantiate<'a>(fmu: &'a Fmu, binary: &'a Binary, name: &str, debu
     let api = binary.api.exchange.expect("resolved for Model Exchange");
     let component = Component::instantiate(fmu, binary, name, debug_logging, c::MODEL_EXCHANGE)?;
     let (nx, nz) = (fmu.description.number_of_continuous_states, fmu.description.number_of_event_indicators);
-    Ok(crate::exchange::ModelExchange::new(Exchange2 { component, api }, nx, nz))
+    let declared = fmu.description.model_exchange.as_ref().is_some_and(|me| me.provides_directional_derivative);
+    let directional = binary.api.functions.get_directional_derivative.filter(|_| declared);
+    Ok(crate::exchange::ModelExchange::new(Exchange2 { component, api, directional }, nx, nz, fmu.states.clone()))
 }
 
 impl Exchange for Exchange2<'_> {
@@ -40,8 +73,21 @@ impl Exchange for Exchange2<'_> {
         update_discrete_states: (Call::NewDiscreteStates, "fmi2NewDiscreteStates"),
         enter_continuous_time_mode: (Call::EnterContinuousTimeMode, "fmi2EnterContinuousTimeMode"),
         completed_integrator_step: (Call::CompletedIntegratorStep, "fmi2CompletedIntegratorStep"),
+        get_directional_derivative: (Call::GetDirectionalDerivative, "fmi2GetDirectionalDerivative"),
         again_flag: "newDiscreteStatesNeeded",
     };
+
+    fn reset(&mut self) -> Result<(), String> {
+        self.component.reset()
+    }
+
+    fn get_state(&mut self) -> Result<Vec<u8>, String> {
+        self.component.get_state()
+    }
+
+    fn set_state(&mut self, bytes: &[u8]) -> Result<(), String> {
+        self.component.set_state(bytes)
+    }
 
     fn status_name(status: c_int) -> &'static str {
         c::status_name(status)
@@ -154,5 +200,15 @@ impl Exchange for Exchange2<'_> {
     #[inline]
     fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
         self.component.set_reals(vrs, values)
+    }
+
+    fn provides_directional_derivative(&self) -> bool {
+        self.directional.is_some()
+    }
+
+    fn directional_derivative(&self, unknowns: &[u32], knowns: &[u32], seed: &[f64], out: &mut [f64]) -> c_int {
+        let Some(f) = self.directional else { return crate::exchange::ERROR };
+        // SAFETY: arrays of the lengths passed (out as long as unknowns, seed as knowns).
+        unsafe { f(self.component.raw, unknowns.as_ptr(), unknowns.len(), knowns.as_ptr(), knowns.len(), seed.as_ptr(), out.as_mut_ptr()) }
     }
 }

@@ -61,9 +61,9 @@ impl<'a> Component<'a> {
     }
 
     fn failure(&self, call: &str, what: &str) -> String {
-        match self.env.log.take_problem() {
+        match self.env.log.take_reason() {
             Some(message) => format!("{}: {call} {what}: {message}", self.name),
-            None => format!("{}: {call} {what} (the FMU logged no reason)", self.name),
+            None => format!("{}: {call} {what} ({})", self.name, crate::logging::NO_REASON),
         }
     }
 
@@ -80,10 +80,18 @@ impl<'a> Component<'a> {
     pub(crate) fn note_status(&mut self, status: c_int) {
         if status == FATAL {
             self.fatal = true;
+            trace::note_fatal();
         }
         if status == ERROR || status == FATAL {
             self.terminate_allowed = false;
         }
+    }
+
+    /// The failure of `call` at model time `t` (a step from it), with the FMU's reason.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn refused_at(&mut self, call: &str, t: f64, status: c_int) -> String {
+        self.refused(&format!("{call} at t = {t}"), status)
     }
 
     #[cold]
@@ -108,7 +116,15 @@ impl<'a> Component<'a> {
         let (tolerance, start, stop) = self.experiment;
         trace::enter(Call::Fmi3EnterInitializationMode, start);
         let status = unsafe {
-            (self.binary.api.enter_initialization_mode)(self.instance, tolerance.is_some(), tolerance.unwrap_or(0.0), start, true, stop)
+            // An infinite stop time is none: stepping from outside runs as long as it is asked to.
+            (self.binary.api.enter_initialization_mode)(
+                self.instance,
+                tolerance.is_some(),
+                tolerance.unwrap_or(0.0),
+                start,
+                stop.is_finite(),
+                if stop.is_finite() { stop } else { 0.0 },
+            )
         };
         self.instantiated = false;
         self.check("fmi3EnterInitializationMode", status)
@@ -120,6 +136,74 @@ impl<'a> Component<'a> {
         let status = unsafe { (self.binary.api.exit_initialization_mode)(self.instance) };
         self.check("fmi3ExitInitializationMode", status)?;
         self.terminate_allowed = true;
+        Ok(())
+    }
+
+    /// fmi3Reset: back to the state right after instantiation (set up and initialize again).
+    pub(crate) fn reset(&mut self) -> Result<(), String> {
+        let Some(reset) = self.binary.api.functions.reset else {
+            return Err(format!("{}: the FMU does not export fmi3Reset", self.name));
+        };
+        trace::enter(Call::Fmi3Reset, f64::NAN);
+        // SAFETY: the instance is live.
+        let status = unsafe { reset(self.instance) };
+        self.check("fmi3Reset", status)?;
+        self.terminate_allowed = false;
+        self.instantiated = true;
+        Ok(())
+    }
+
+    /// The FMU's state, serialized (fmi3GetFMUState, fmi3SerializedFMUStateSize,
+    /// fmi3SerializeFMUState; the state freed again).
+    pub(crate) fn get_state(&mut self) -> Result<Vec<u8>, String> {
+        let f = &self.binary.api.functions;
+        let (Some(get), Some(size), Some(serialize), Some(free)) =
+            (f.get_fmu_state, f.serialized_fmu_state_size, f.serialize_fmu_state, f.free_fmu_state)
+        else {
+            return Err(format!("{}: the FMU does not export fmi3GetFMUState and fmi3SerializeFMUState", self.name));
+        };
+        let mut state: c::FmuState = std::ptr::null_mut();
+        trace::enter(Call::Fmi3GetFmuState, f64::NAN);
+        // SAFETY: the instance is live; `state` receives the FMU's handle.
+        let status = unsafe { get(self.instance, &mut state) };
+        self.check("fmi3GetFMUState", status)?;
+        let mut n = 0usize;
+        // SAFETY: a state this instance returned, and an out pointer.
+        let status = unsafe { size(self.instance, state, &mut n) };
+        let bytes = self.check("fmi3SerializedFMUStateSize", status).and_then(|()| {
+            if n > crate::state::MAX_STATE_BYTES {
+                return Err(format!("{}: fmi3SerializedFMUStateSize gave {n} bytes", self.name));
+            }
+            let mut bytes = vec![0u8; n];
+            // SAFETY: `n` writable bytes, as the FMU asked for.
+            let status = unsafe { serialize(self.instance, state, bytes.as_mut_ptr(), n) };
+            self.check("fmi3SerializeFMUState", status).map(|()| bytes)
+        });
+        // SAFETY: the state is this instance's, freed once.
+        unsafe { free(self.instance, &mut state) };
+        bytes
+    }
+
+    /// Sets the FMU's state from `bytes` of [`Component::get_state`] (fmi3DeserializeFMUState,
+    /// fmi3SetFMUState; the state freed again).
+    pub(crate) fn set_state(&mut self, bytes: &[u8]) -> Result<(), String> {
+        let f = &self.binary.api.functions;
+        let (Some(deserialize), Some(set), Some(free)) = (f.deserialize_fmu_state, f.set_fmu_state, f.free_fmu_state) else {
+            return Err(format!("{}: the FMU does not export fmi3DeserializeFMUState and fmi3SetFMUState", self.name));
+        };
+        let mut state: c::FmuState = std::ptr::null_mut();
+        trace::enter(Call::Fmi3SetFmuState, f64::NAN);
+        // SAFETY: `bytes.len()` readable bytes; `state` receives the FMU's handle.
+        let status = unsafe { deserialize(self.instance, bytes.as_ptr(), bytes.len(), &mut state) };
+        self.check("fmi3DeserializeFMUState", status)?;
+        // SAFETY: a state this instance made.
+        let status = unsafe { set(self.instance, state) };
+        let result = self.check("fmi3SetFMUState", status);
+        // SAFETY: freed once.
+        unsafe { free(self.instance, &mut state) };
+        result?;
+        self.terminate_allowed = true;
+        self.instantiated = false;
         Ok(())
     }
 

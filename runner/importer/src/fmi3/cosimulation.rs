@@ -5,7 +5,7 @@
 
 use std::ffi::{c_void, CString};
 
-use super::component::Component;
+use super::component::{Component, OK, WARNING};
 use super::{log_message, Binary, CoSimulationApi, Environment};
 use crate::logging::LogContext;
 use crate::trace::{self, Call};
@@ -32,7 +32,7 @@ impl<'a> CoSimulation<'a> {
         trace::enter(Call::Fmi3Instantiate, f64::NAN);
         // SAFETY: every pointer is valid for the call; the environment outlives the instance.
         let instance = unsafe {
-            (cs.instantiate)(
+            (cs.instantiate_co_simulation)(
                 c_name.as_ptr(),
                 fmu.token.as_ptr(),
                 fmu.resource_uri.as_ptr(),
@@ -96,6 +96,21 @@ impl<'a> CoSimulation<'a> {
         ))
     }
 
+    /// fmi3Reset: back to the state right after instantiation.
+    pub fn reset(&mut self) -> Result<(), String> {
+        self.component.reset()
+    }
+
+    /// The FMU's state, serialized.
+    pub fn get_state(&mut self) -> Result<Vec<u8>, String> {
+        self.component.get_state()
+    }
+
+    /// Sets the FMU's state from bytes of [`CoSimulation::get_state`].
+    pub fn set_state(&mut self, bytes: &[u8]) -> Result<(), String> {
+        self.component.set_state(bytes)
+    }
+
     /// Reads a String variable, each element of an array (fmi3GetString).
     pub fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String> {
         self.component.get_string(variable)
@@ -119,6 +134,19 @@ impl<'a> CoSimulation<'a> {
         self.component.set_reals(vrs, values)
     }
 
+    /// fmi3GetOutputDerivatives: `out[k]` = the `orders[k]`-th time derivative of the Float64
+    /// output `vrs[k]` (FMUs with `maxOutputDerivativeOrder` > 0).
+    pub fn get_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], out: &mut [f64]) -> Result<(), String> {
+        let Some(get) = self.component.binary.api.functions.get_output_derivatives else {
+            return Err(format!("{}: the FMU does not export fmi3GetOutputDerivatives", self.component.name));
+        };
+        let n = vrs.len().min(orders.len()).min(out.len());
+        trace::enter(Call::Fmi3Get, f64::NAN);
+        // SAFETY: `n` value references of scalars and orders, room for `n` values.
+        let status = unsafe { get(self.component.instance, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr(), n) };
+        self.component.check("fmi3GetOutputDerivatives", status)
+    }
+
     /// One `fmi3DoStep` from `t` over `h`: [`Step::Done`] at `t + h`; [`Step::Event`] when the
     /// FMU needs event handling (at `t + h`, or earlier when it returned early), which
     /// [`CoSimulation::handle_event`] then does; [`Step::Ended`] when the FMU terminates.
@@ -128,7 +156,9 @@ impl<'a> CoSimulation<'a> {
         let (mut event, mut terminate, mut early, mut last) = (false, false, false, t);
         trace::enter(Call::Fmi3DoStep, t);
         let status = unsafe { (self.cs.do_step)(self.component.instance, t, h, true, &mut event, &mut terminate, &mut early, &mut last) };
-        self.component.check("fmi3DoStep", status)?;
+        if status != OK && status != WARNING {
+            return Err(self.component.refused_at("fmi3DoStep", t, status));
+        }
         if event || terminate || early {
             return self.stopped_step(t, t + h, event, terminate, early, last);
         }

@@ -10,11 +10,11 @@ use std::ffi::{c_char, c_int, c_void};
 use std::path::Path;
 
 use fmi_c::fmi3 as c;
-use libloading::os::unix::{Library, Symbol, RTLD_LOCAL, RTLD_NOW};
+use fmi_c::Library;
 
 pub use cosimulation::CoSimulation;
 pub use description::describe;
-pub(crate) use model_exchange::instantiate as instantiate_model_exchange;
+pub(crate) use model_exchange::{instantiate as instantiate_model_exchange, state_structure};
 pub use model_exchange::{Exchange3, ModelExchange};
 
 use crate::fmi2::c_text;
@@ -43,91 +43,68 @@ pub(crate) unsafe extern "C" fn log_message(env: *mut c_void, status: c_int, cat
     });
 }
 
-/// The function `name` of `library` as the C signature `F`.
-fn symbol<F: Copy>(library: &Library, name: &str) -> Result<F, String> {
-    // SAFETY: the caller names a function whose C signature the FMI standard fixes as `F`.
-    let found: Result<Symbol<F>, _> = unsafe { library.get(name.as_bytes()) };
-    found.map(|s| *s).map_err(|_| format!("the binary does not export the function {name}"))
-}
-
-macro_rules! api {
-    ($(#[$doc:meta])* $api:ident { $($field:ident: $ty:ident = $name:literal,)+ }) => {
-        $(#[$doc])*
-        #[derive(Clone, Copy)]
-        pub(crate) struct $api {
-            $(pub(crate) $field: c::$ty,)+
-        }
-
-        impl $api {
-            fn resolve(lib: &Library) -> Result<$api, String> {
-                Ok($api { $($field: symbol(lib, $name)?,)+ })
-            }
-        }
-    };
-}
-
-api! {
-    /// The FMI 3.0 functions of both interfaces the importer calls, resolved once per loaded binary.
-    Common {
-        free_instance: FreeInstance = "fmi3FreeInstance",
-        enter_initialization_mode: EnterInitializationMode = "fmi3EnterInitializationMode",
-        exit_initialization_mode: ExitInitializationMode = "fmi3ExitInitializationMode",
-        enter_configuration_mode: EnterConfigurationMode = "fmi3EnterConfigurationMode",
-        exit_configuration_mode: ExitConfigurationMode = "fmi3ExitConfigurationMode",
-        enter_event_mode: EnterEventMode = "fmi3EnterEventMode",
-        update_discrete_states: UpdateDiscreteStates = "fmi3UpdateDiscreteStates",
-        terminate: Terminate = "fmi3Terminate",
-        get_float32: GetFloat32 = "fmi3GetFloat32",
-        get_float64: GetFloat64 = "fmi3GetFloat64",
-        get_int8: GetInt8 = "fmi3GetInt8",
-        get_uint8: GetUInt8 = "fmi3GetUInt8",
-        get_int16: GetInt16 = "fmi3GetInt16",
-        get_uint16: GetUInt16 = "fmi3GetUInt16",
-        get_int32: GetInt32 = "fmi3GetInt32",
-        get_uint32: GetUInt32 = "fmi3GetUInt32",
-        get_int64: GetInt64 = "fmi3GetInt64",
-        get_uint64: GetUInt64 = "fmi3GetUInt64",
-        get_boolean: GetBoolean = "fmi3GetBoolean",
-        get_string: GetString = "fmi3GetString",
-        get_binary: GetBinary = "fmi3GetBinary",
-        set_float32: SetFloat32 = "fmi3SetFloat32",
-        set_float64: SetFloat64 = "fmi3SetFloat64",
-        set_int8: SetInt8 = "fmi3SetInt8",
-        set_uint8: SetUInt8 = "fmi3SetUInt8",
-        set_int16: SetInt16 = "fmi3SetInt16",
-        set_uint16: SetUInt16 = "fmi3SetUInt16",
-        set_int32: SetInt32 = "fmi3SetInt32",
-        set_uint32: SetUInt32 = "fmi3SetUInt32",
-        set_int64: SetInt64 = "fmi3SetInt64",
-        set_uint64: SetUInt64 = "fmi3SetUInt64",
-        set_boolean: SetBoolean = "fmi3SetBoolean",
-        set_string: SetString = "fmi3SetString",
-        set_binary: SetBinary = "fmi3SetBinary",
+fmi_c::view! {
+    /// The FMI 3.0 functions of both interfaces the importer calls.
+    pub(crate) struct Common from c::Functions {
+        free_instance: c::FreeInstance,
+        enter_initialization_mode: c::EnterInitializationMode,
+        exit_initialization_mode: c::ExitInitializationMode,
+        enter_configuration_mode: c::EnterConfigurationMode,
+        exit_configuration_mode: c::ExitConfigurationMode,
+        enter_event_mode: c::EnterEventMode,
+        update_discrete_states: c::UpdateDiscreteStates,
+        terminate: c::Terminate,
+        get_float32: c::GetFloat32,
+        get_float64: c::GetFloat64,
+        get_int8: c::GetInt8,
+        get_uint8: c::GetUInt8,
+        get_int16: c::GetInt16,
+        get_uint16: c::GetUInt16,
+        get_int32: c::GetInt32,
+        get_uint32: c::GetUInt32,
+        get_int64: c::GetInt64,
+        get_uint64: c::GetUInt64,
+        get_boolean: c::GetBoolean,
+        get_string: c::GetString,
+        get_binary: c::GetBinary,
+        set_float32: c::SetFloat32,
+        set_float64: c::SetFloat64,
+        set_int8: c::SetInt8,
+        set_uint8: c::SetUInt8,
+        set_int16: c::SetInt16,
+        set_uint16: c::SetUInt16,
+        set_int32: c::SetInt32,
+        set_uint32: c::SetUInt32,
+        set_int64: c::SetInt64,
+        set_uint64: c::SetUInt64,
+        set_boolean: c::SetBoolean,
+        set_string: c::SetString,
+        set_binary: c::SetBinary,
     }
 }
 
-api! {
+fmi_c::view! {
     /// The Co-Simulation functions the importer calls.
-    CoSimulationApi {
-        instantiate: InstantiateCoSimulation = "fmi3InstantiateCoSimulation",
-        enter_step_mode: EnterStepMode = "fmi3EnterStepMode",
-        do_step: DoStep = "fmi3DoStep",
+    pub(crate) struct CoSimulationApi from c::Functions {
+        instantiate_co_simulation: c::InstantiateCoSimulation,
+        enter_step_mode: c::EnterStepMode,
+        do_step: c::DoStep,
     }
 }
 
-api! {
+fmi_c::view! {
     /// The Model Exchange functions the importer calls.
-    ModelExchangeApi {
-        instantiate: InstantiateModelExchange = "fmi3InstantiateModelExchange",
-        enter_continuous_time_mode: EnterContinuousTimeMode = "fmi3EnterContinuousTimeMode",
-        completed_integrator_step: CompletedIntegratorStep = "fmi3CompletedIntegratorStep",
-        set_time: SetTime = "fmi3SetTime",
-        set_continuous_states: SetContinuousStates = "fmi3SetContinuousStates",
-        get_continuous_state_derivatives: GetContinuousStateDerivatives = "fmi3GetContinuousStateDerivatives",
-        get_event_indicators: GetEventIndicators = "fmi3GetEventIndicators",
-        get_continuous_states: GetContinuousStates = "fmi3GetContinuousStates",
-        get_number_of_continuous_states: GetNumberOfContinuousStates = "fmi3GetNumberOfContinuousStates",
-        get_number_of_event_indicators: GetNumberOfEventIndicators = "fmi3GetNumberOfEventIndicators",
+    pub(crate) struct ModelExchangeApi from c::Functions {
+        instantiate_model_exchange: c::InstantiateModelExchange,
+        enter_continuous_time_mode: c::EnterContinuousTimeMode,
+        completed_integrator_step: c::CompletedIntegratorStep,
+        set_time: c::SetTime,
+        set_continuous_states: c::SetContinuousStates,
+        get_continuous_state_derivatives: c::GetContinuousStateDerivatives,
+        get_event_indicators: c::GetEventIndicators,
+        get_continuous_states: c::GetContinuousStates,
+        get_number_of_continuous_states: c::GetNumberOfContinuousStates,
+        get_number_of_event_indicators: c::GetNumberOfEventIndicators,
     }
 }
 
@@ -135,6 +112,8 @@ api! {
 /// binary was loaded for.
 pub(crate) struct Api {
     common: Common,
+    /// The whole table, for the functions called only when an FMU has them.
+    pub(crate) functions: c::Functions,
     pub(crate) co_simulation: Option<CoSimulationApi>,
     pub(crate) model_exchange: Option<ModelExchangeApi>,
 }
@@ -159,19 +138,21 @@ impl Binary {
     /// common ones and those of `interface`.
     pub fn load(path: &Path, interface: Interface) -> Result<Binary, String> {
         // SAFETY: loading runs the library's initializers: the price of running any FMU.
-        let library =
-            unsafe { Library::open(Some(path), RTLD_NOW | RTLD_LOCAL) }.map_err(|e| format!("cannot load {}: {e}", path.display()))?;
-        let resolve = || -> Result<Api, String> {
-            let co_simulation = interface == Interface::CoSimulation;
+        let library = unsafe { crate::open_binary(path) }?;
+        let functions = c::Functions::resolve(&library);
+        let co_simulation = interface == Interface::CoSimulation;
+        let api = (|| {
             Ok(Api {
-                common: Common::resolve(&library)?,
-                co_simulation: co_simulation.then(|| CoSimulationApi::resolve(&library)).transpose()?,
-                model_exchange: (!co_simulation).then(|| ModelExchangeApi::resolve(&library)).transpose()?,
+                common: Common::take(&functions)?,
+                co_simulation: co_simulation.then(|| CoSimulationApi::take(&functions)).transpose()?,
+                model_exchange: (!co_simulation).then(|| ModelExchangeApi::take(&functions)).transpose()?,
+                functions,
             })
-        };
-        let api = resolve().map_err(|e| format!("{e} (FMI 3.0 requires it of a {interface} FMU)"))?;
+        })()
+        .map_err(|name: &str| format!("the binary does not export the function {name} (FMI 3.0 requires it of a {interface} FMU)"))?;
+        let get_version = functions.get_version.ok_or("the binary does not export the function fmi3GetVersion")?;
         // SAFETY: a static C string per the standard.
-        let version = unsafe { c_text(symbol::<c::GetVersion>(&library, "fmi3GetVersion")?()).into_owned() };
+        let version = unsafe { c_text(get_version()).into_owned() };
         if !(version == "3.0" || version.starts_with("3.0.")) {
             return Err(format!("fmi3GetVersion returned {version:?}, not \"3.0\""));
         }

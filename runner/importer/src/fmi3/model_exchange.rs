@@ -8,9 +8,11 @@ use std::ffi::{c_int, c_void, CString};
 
 use fmi_c::fmi3 as c;
 
+use fmi_schema::fmi3 as schema;
+
 use super::component::Component;
 use super::{log_message, Binary, Environment, ModelExchangeApi};
-use crate::exchange::{EventUpdate, Exchange, Names};
+use crate::exchange::{EventUpdate, Exchange, Names, StateStructure};
 use crate::logging::LogContext;
 use crate::trace::{self, Call};
 use crate::{Fmu, Reader, Value, Variable};
@@ -23,6 +25,36 @@ pub struct Exchange3<'a> {
     component: Component<'a>,
     api: ModelExchangeApi,
     needs_completed_integrator_step: bool,
+    /// `fmi3GetDirectionalDerivative`, when the FMU declares providesDirectionalDerivatives.
+    directional: Option<c::GetDirectionalDerivative>,
+}
+
+/// The states of an FMI 3.0 description for the implicit methods' Jacobian: the ModelStructure's
+/// `ContinuousStateDerivative`s mapped to their states' value references, and each
+/// derivative's dependencies on the states (others are constant during integration). `None`
+/// when a derivative names no state, or a state is an array (whose elements the value
+/// references do not tell apart).
+pub(crate) fn state_structure(md: &schema::ModelDescription) -> Option<StateStructure> {
+    let derivatives = &md.model_structure.continuous_state_derivatives;
+    let mut structure = StateStructure { pattern: Some(Vec::new()), ..StateStructure::default() };
+    for unknown in derivatives {
+        let derivative = md.variable_by_reference(unknown.value_reference)?;
+        let state = md.variable_by_reference(derivative.derivative()?)?;
+        if !derivative.dimensions.is_empty() || !state.dimensions.is_empty() {
+            return None;
+        }
+        structure.derivatives.push(derivative.value_reference);
+        structure.states.push(state.value_reference);
+    }
+    for unknown in derivatives {
+        let row =
+            unknown.dependencies.as_ref().map(|deps| deps.iter().filter_map(|d| structure.states.iter().position(|s| s == d)).collect());
+        match (row, structure.pattern.as_mut()) {
+            (Some(row), Some(pattern)) => pattern.push(row),
+            _ => structure.pattern = None,
+        }
+    }
+    Some(structure)
 }
 
 /// fmi3InstantiateModelExchange; `debug_logging` sets loggingOn.
@@ -33,7 +65,7 @@ pub(crate) fn instantiate<'a>(fmu: &'a Fmu, binary: &'a Binary, name: &str, debu
     trace::enter(Call::Fmi3InstantiateModelExchange, f64::NAN);
     // SAFETY: every pointer is valid for the call; the environment outlives the instance.
     let instance = unsafe {
-        (api.instantiate)(
+        (api.instantiate_model_exchange)(
             c_name.as_ptr(),
             fmu.token.as_ptr(),
             fmu.resource_uri.as_ptr(),
@@ -44,9 +76,13 @@ pub(crate) fn instantiate<'a>(fmu: &'a Fmu, binary: &'a Binary, name: &str, debu
         )
     };
     let component = Component::new(binary, name, instance, env, "fmi3InstantiateModelExchange")?;
-    let needs = fmu.description.model_exchange.as_ref().is_some_and(|me| me.needs_completed_integrator_step);
+    let capabilities = fmu.description.model_exchange.as_ref();
+    let needs = capabilities.is_some_and(|me| me.needs_completed_integrator_step);
+    let directional =
+        binary.api.functions.get_directional_derivative.filter(|_| capabilities.is_some_and(|me| me.provides_directional_derivative));
     let (nx, nz) = (fmu.description.number_of_continuous_states, fmu.description.number_of_event_indicators);
-    Ok(crate::exchange::ModelExchange::new(Exchange3 { component, api, needs_completed_integrator_step: needs }, nx, nz))
+    let exchange = Exchange3 { component, api, needs_completed_integrator_step: needs, directional };
+    Ok(crate::exchange::ModelExchange::new(exchange, nx, nz, fmu.states.clone()))
 }
 
 impl Exchange for Exchange3<'_> {
@@ -60,8 +96,21 @@ impl Exchange for Exchange3<'_> {
         update_discrete_states: (Call::Fmi3UpdateDiscreteStates, "fmi3UpdateDiscreteStates"),
         enter_continuous_time_mode: (Call::Fmi3EnterContinuousTimeMode, "fmi3EnterContinuousTimeMode"),
         completed_integrator_step: (Call::Fmi3CompletedIntegratorStep, "fmi3CompletedIntegratorStep"),
+        get_directional_derivative: (Call::Fmi3GetDirectionalDerivative, "fmi3GetDirectionalDerivative"),
         again_flag: "discreteStatesNeedUpdate",
     };
+
+    fn reset(&mut self) -> Result<(), String> {
+        self.component.reset()
+    }
+
+    fn get_state(&mut self) -> Result<Vec<u8>, String> {
+        self.component.get_state()
+    }
+
+    fn set_state(&mut self, bytes: &[u8]) -> Result<(), String> {
+        self.component.set_state(bytes)
+    }
 
     fn status_name(status: c_int) -> &'static str {
         c::status_name(status)
@@ -166,6 +215,28 @@ impl Exchange for Exchange3<'_> {
     #[inline]
     fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
         self.component.set_reals(vrs, values)
+    }
+
+    fn provides_directional_derivative(&self) -> bool {
+        self.directional.is_some()
+    }
+
+    fn directional_derivative(&self, unknowns: &[u32], knowns: &[u32], seed: &[f64], out: &mut [f64]) -> c_int {
+        let Some(f) = self.directional else { return crate::exchange::ERROR };
+        // SAFETY: arrays of the lengths passed (scalar unknowns and knowns: one value each).
+        unsafe {
+            f(
+                self.component.instance,
+                unknowns.as_ptr(),
+                unknowns.len(),
+                knowns.as_ptr(),
+                knowns.len(),
+                seed.as_ptr(),
+                seed.len(),
+                out.as_mut_ptr(),
+                out.len(),
+            )
+        }
     }
 
     /// fmi3GetNumberOfContinuousStates and fmi3GetNumberOfEventIndicators (allowed in Event

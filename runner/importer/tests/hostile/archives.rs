@@ -134,7 +134,7 @@ pub fn hostile_archives() -> Vec<(String, Vec<u8>, &'static str)> {
         ("absolute.fmu", vec![xml(), so(), Raw::stored("/tmp/escaped.txt", b"x")], "absolute path"),
         ("symlink.fmu", vec![xml(), symlink("binaries/linux64/m.so", "/lib/x86_64-linux-gnu/libc.so.6")], "symbolic link"),
         ("symlink-dir.fmu", vec![xml(), symlink("resources", "/tmp"), Raw::stored("resources/escaped.txt", b"x")], "symbolic link"),
-        ("duplicate.fmu", vec![xml(), so(), Raw::stored("modelDescription.xml", b"<x/>")], "more than once"),
+        ("duplicate.fmu", vec![xml(), so(), Raw::stored("modelDescription.xml", b"<x/>")], "different contents"),
         ("huge-declared-size.fmu", vec![xml(), so(), huge], "limit"),
         ("lying-size.fmu", vec![xml(), lying], "declared"),
         (

@@ -1,428 +1,595 @@
-//! The FMI 2.0 set of checks: the static ones on the description and the binary's exports,
-//! then the dynamic probes, each in its own child process, for each declared interface.
-//! (FMI 3.0 gets a module of its own beside this one, with its own tables and probes.)
+//! FMI 2.0: its state table, its description, and its C calls behind the probes' [`Binary`]
+//! and [`Instance`] traits (any call in any state, with any arguments, NULL arrays included).
 
-mod model;
-mod probes;
-mod raw;
+pub(crate) mod description;
 mod rules;
-mod run;
-mod table;
+pub(crate) mod table;
 
-use std::collections::BTreeMap;
-use std::ffi::OsString;
-use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::ffi::{c_char, c_int, c_void, CStr, CString};
+use std::path::Path;
 
-use fmi_schema::fmi2::ModelDescription;
+use fmi_c::fmi2 as c;
+use fmi_c::Library;
 
-use crate::isolation::{self, CallRecord, End, Message, Progress};
-use crate::report::{Finding, Report, Severity};
-use crate::Options;
-use model::Model;
-use probes::Ctx;
-pub(crate) use probes::Out;
-use table::{Function, Interface, State};
+use crate::fmi::{Code, Fmi, Interface, Op, Outcome, Type};
+use crate::instance::{Binary, Core, EventUpdate, Exports, FmuState, Instance, Log, StepResult, Tracer};
+use crate::isolation::CallRecord;
+use crate::model::{Grid, Model};
+use crate::table::Table;
 
 /// FMI 2.0's platform folder for this machine (the importer's).
-const PLATFORM: &str = fmi_importer::fmi2::PLATFORM;
+pub(crate) const PLATFORM: &str = fmi_importer::fmi2::PLATFORM;
 
-/// The message of an interrupted validation (the command line exits with 130 on it).
-pub(crate) const INTERRUPTED: &str = "interrupted";
-
-/// Validates the FMI 2.0 FMU unpacked in `dir` (its description `xml`), adding to `report`;
-/// `Err` when the validation could not run.
-pub(crate) fn validate(xml: &str, dir: &Path, work: &Path, options: &Options, report: &mut Report) -> Result<(), String> {
-    let md = match ModelDescription::from_xml(xml) {
-        Ok(md) => md,
-        Err(e) => {
-            report.findings.push(Finding::error("description.xml", format!("modelDescription.xml cannot be read: {}", e.message())));
-            report.findings.push(Finding::skipped("dynamic checks", "not run: there is no usable modelDescription.xml"));
-            return Ok(());
-        }
-    };
-    report.fmi_version = Some(md.fmi_version.clone());
-    report.model_name = Some(md.model_name.clone());
-    report.findings.push(Finding::passed("description.xml", "modelDescription.xml is a well-formed FMI 2.0 description"));
-    rules::check(&md, &mut report.findings);
-    let declared: Vec<(Interface, String)> = [
-        (Interface::CoSimulation, md.co_simulation.as_ref().map(|c| c.common.model_identifier.clone())),
-        (Interface::ModelExchange, md.model_exchange.as_ref().map(|m| m.common.model_identifier.clone())),
-    ]
-    .into_iter()
-    .filter_map(|(i, id)| Some((i, id?)))
-    .collect();
-    report.interfaces = declared.iter().map(|(i, _)| i.title().to_owned()).collect();
-    for interface in [Interface::CoSimulation, Interface::ModelExchange] {
-        if !declared.iter().any(|(i, _)| *i == interface) {
-            let skipped = Finding::skipped("dynamic checks", format!("the FMU does not offer {}", interface.title()));
-            report.findings.push(skipped.interface(Some(interface.title())));
-        }
-    }
-    // The binaries, by file (both interfaces may share one).
-    let mut binaries: BTreeMap<PathBuf, Vec<Interface>> = BTreeMap::new();
-    for (interface, id) in &declared {
-        // The identifier names a file: with a '/' it could name any library on disk.
-        if id.is_empty() || id.contains(['/', '\\', '\0']) || id == "." || id == ".." {
-            report.findings.push(Finding::error(
-                "archive.binary",
-                format!(
-                    "the {} modelIdentifier {:?} is not a file name, so no binary can be loaded",
-                    interface.title(),
-                    fmi_schema::escaped_and_cut(id, 100, "...")
-                ),
-            ));
-            continue;
-        }
-        let relative = format!("binaries/{PLATFORM}/{id}.so");
-        if dir.join(&relative).is_file() {
-            binaries.entry(dir.join(&relative)).or_default().push(*interface);
-        } else {
-            report.findings.push(
-                Finding::error(
-                    "archive.binary",
-                    format!("no binary for this platform: {relative} is missing (binaries present: {})", platforms(dir)),
-                )
-                .interface(Some(interface.title())),
-            );
-        }
-    }
-    if !binaries.is_empty() && binaries.values().map(Vec::len).sum::<usize>() == declared.len() {
-        let names: Vec<String> = binaries.keys().map(|p| p.strip_prefix(dir).unwrap_or(p).display().to_string()).collect();
-        report.findings.push(Finding::passed("archive.binary", format!("a binary for this platform: {}", names.join(", "))));
-    }
-    let runs = work.join("runs");
-    std::fs::create_dir_all(&runs).map_err(|e| format!("cannot create {}: {e}", runs.display()))?;
-    let mut prober = Prober { options, work, dir, runs: &runs, report };
-    let mut usable = Vec::new();
-    for (binary, interfaces) in &binaries {
-        let list = interfaces.iter().map(|i| i.arg()).collect::<Vec<_>>().join(",");
-        let before = prober.report.findings.len();
-        prober.probe(None, "binary", binary, &list)?;
-        let loaded = !prober.report.findings[before..].iter().any(|f| f.check == "binary.load" && f.severity == Severity::Error);
-        if loaded {
-            usable.extend(interfaces.iter().map(|i| (*i, binary.clone())));
-        }
-    }
-    usable.sort_by_key(|(i, _)| *i != Interface::CoSimulation);
-    for (interface, binary) in usable {
-        prober.interface(interface, &binary)?;
-    }
-    Ok(())
+/// A loaded FMI 2.0 binary.
+pub(crate) struct Fmi2 {
+    api: c::Functions,
+    /// Keeps the binary loaded while its functions are called.
+    _library: Library,
+    model: &'static Model,
+    tracer: Tracer,
+    resource_uri: CString,
 }
 
-/// The platform folders under binaries/, for messages.
-fn platforms(dir: &Path) -> String {
-    let mut found: Vec<String> = std::fs::read_dir(dir.join("binaries"))
-        .map(|d| d.filter_map(|e| e.ok()).map(|e| e.file_name().to_string_lossy().into_owned()).collect())
-        .unwrap_or_default();
-    found.sort();
-    if found.is_empty() {
-        "none".to_owned()
-    } else {
-        found.join(", ")
+impl Fmi2 {
+    /// The binary `library` of the FMU unpacked in `dir`, described by `model`, with its FMI
+    /// 2.0 functions.
+    pub(crate) fn new(library: Library, model: &'static Model, dir: &Path, tracer: Tracer) -> Result<Fmi2, String> {
+        let resource_uri = CString::new(format!("file://{}/", dir.join("resources").display()))
+            .map_err(|_| "the temporary directory's path contains a NUL byte".to_owned())?;
+        Ok(Fmi2 { api: c::Functions::resolve(&library), _library: library, model, tracer, resource_uri })
     }
 }
 
-/// Runs probes in child processes and gathers what they find.
-struct Prober<'a> {
-    options: &'a Options,
-    work: &'a Path,
-    dir: &'a Path,
-    runs: &'a Path,
-    report: &'a mut Report,
+/// Receives the FMU's log messages, already formatted by the C shim.
+unsafe extern "C" fn forward(context: *mut c_void, instance: *const c_char, status: c_int, category: *const c_char, text: *const c_char) {
+    // Inside the FMU's call: must not unwind into C.
+    let _ = std::panic::catch_unwind(|| {
+        if context.is_null() {
+            return;
+        }
+        let log = &*(context as *const Log);
+        let text_of = |p: *const c_char| if p.is_null() { String::new() } else { CStr::from_ptr(p).to_string_lossy().into_owned() };
+        let text = text_of(text);
+        let line = fmi_schema::printable(format!("[{}] {} ({}): {text}", text_of(instance), c::status_name(status), text_of(category)));
+        log.receive(&line, &text);
+    });
 }
 
-impl Prober<'_> {
-    /// Every dynamic check of one interface: the lifecycle first, then, if it produced a
-    /// reference run, the probes that build on it.
-    fn interface(&mut self, interface: Interface, binary: &Path) -> Result<(), String> {
-        let arg = interface.arg();
-        self.probe(Some(interface), "lifecycle", binary, arg)?;
-        let reference = self.runs.join(format!("{arg}-reference.bin"));
-        let mut probes: Vec<String> = vec!["reproducible".into()];
-        probes.extend(State::reachable(interface).iter().map(|s| format!("state-machine:{}", s.name())));
-        probes.extend(["arguments", "strings", "fmu-state", "serialize"].map(String::from));
-        if interface == Interface::CoSimulation {
-            probes.push("variable-step".into());
-        }
-        probes.push("threads".into());
-        if !reference.is_file() {
-            let skipped = Finding::skipped(
-                "dynamic checks",
-                "the state machine, arguments, capability and reproducibility checks did not run: the basic run failed (see lifecycle)",
-            );
-            self.report.findings.push(skipped.interface(Some(interface.title())));
-            return Ok(());
-        }
-        for probe in &probes {
-            self.probe(Some(interface), probe, binary, arg)?;
-        }
-        if interface == Interface::CoSimulation {
-            let skipped = Finding::skipped(
-                "state-machine.legal",
-                "StepFailed, StepCanceled and StepInProgress are not probed call by call: the validator steps synchronously and cannot make a model fail a step",
-            );
-            self.report.findings.push(skipped.interface(Some(interface.title())));
-        }
-        Ok(())
+/// The callbacks of one instance, at a fixed address while it lives.
+struct Callbacks {
+    functions: c::CallbackFunctions,
+    _forwarder: Box<c::LogForwarder>,
+}
+
+// The callbacks point at the instance's own log; they move with the instance to the thread
+// that uses it (the threads probe), one thread at a time.
+unsafe impl Send for Callbacks {}
+
+impl Callbacks {
+    fn new(log: &Log) -> Box<Callbacks> {
+        let forwarder = Box::new(c::LogForwarder { forward, context: log as *const Log as *mut c_void });
+        let functions = c::CallbackFunctions::forwarding_to(&forwarder);
+        Box::new(Callbacks { functions, _forwarder: forwarder })
+    }
+}
+
+impl Binary for Fmi2 {
+    fn fmi(&self) -> Fmi {
+        Fmi::Fmi2
     }
 
-    /// Runs `probe` in children until it finishes, resuming after a crash where the probe
-    /// allows it.
-    fn probe(&mut self, interface: Option<Interface>, probe: &str, binary: &Path, interfaces: &str) -> Result<(), String> {
-        let timeout = self.options.timeout;
-        let mut resume = 0;
-        let mut failures = 0;
-        let mut timeouts = 0;
-        loop {
-            let args: Vec<OsString> = [
-                "--fmi".into(),
-                "2".into(),
-                "--dir".into(),
-                self.dir.as_os_str().to_owned(),
-                "--runs".into(),
-                self.runs.as_os_str().to_owned(),
-                "--binary".into(),
-                binary.as_os_str().to_owned(),
-                "--interface".into(),
-                interfaces.into(),
-                "--timeout-ms".into(),
-                (timeout.as_millis().max(1) as u64).to_string().into(),
-                "--probe".into(),
-                probe.into(),
-                "--resume".into(),
-                resume.to_string().into(),
-            ]
-            .to_vec();
-            let child = isolation::run_child(&self.options.launcher, &args, self.work, timeout, &self.options.cancelled)?;
-            let mut cell: Option<(String, usize, Severity)> = None;
-            for message in child.messages {
-                match message {
-                    Message::Cell { check, index, crash } => cell = Some((check, index, crash)),
-                    Message::Finding(f) => self.report.findings.push(f),
-                    Message::Done => {}
-                    Message::Internal(e) => return Err(format!("the validator failed in its probe process ({probe}): {e}")),
-                }
-            }
-            if child.end == End::Finished {
-                return Ok(());
-            }
-            if child.end == End::Cancelled {
-                return Err(INTERRUPTED.to_owned());
-            }
-            let (check, index, severity) = cell.unwrap_or_else(|| (probes::first_check(probe).to_owned(), resume, Severity::Error));
-            let finding = death(&child.end, child.in_call.as_ref(), child.last_call.as_ref(), timeout, &check, severity)
-                .log(child.log_tail)
-                .interface(interface.map(|i| i.title()));
-            self.report.findings.push(finding);
-            failures += 1;
-            timeouts += (child.end == End::TimedOut) as usize;
-            // A probe whose cells are independent resumes after the one that died, within
-            // bounds: an FMU that hangs in every call would otherwise cost a timeout per cell.
-            if !probes::resumable(probe) || failures >= 20 || timeouts >= 2 {
-                if probes::resumable(probe) && (failures >= 20 || timeouts >= 2) {
-                    self.report.findings.push(
-                        Finding::skipped(&check, format!("the rest of the {probe} probe was not run after {failures} crashes or hangs"))
-                            .interface(interface.map(|i| i.title())),
+    fn model(&self) -> &'static Model {
+        self.model
+    }
+
+    fn table(&self) -> &'static Table {
+        &table::TABLE
+    }
+
+    fn tracer(&self) -> Tracer {
+        self.tracer
+    }
+
+    fn instantiate(
+        &'static self,
+        name: &str,
+        interface: Interface,
+        token: &str,
+        slot: usize,
+    ) -> Result<Box<dyn Instance>, (Code, Option<String>)> {
+        let Some(instantiate) = self.api.instantiate else { return Err((Code::missing(Fmi::Fmi2), None)) };
+        let log = Box::new(Log::default());
+        let callbacks = Callbacks::new(&log);
+        let c_name = CString::new(name).expect("instance names are ours, without NUL");
+        let guid = CString::new(token).map_err(|_| (Code::error_of(Fmi::Fmi2), Some("the GUID contains a NUL byte".to_owned())))?;
+        let record = CallRecord {
+            call: "fmi2Instantiate".to_owned(),
+            state: "(no instance)".to_owned(),
+            variable: None,
+            value: Some(format!("instanceName {name:?}, fmuType {}, GUID {token}", interface.title())),
+        };
+        let fmu_type = match interface {
+            Interface::CoSimulation => c::CO_SIMULATION,
+            Interface::ModelExchange => c::MODEL_EXCHANGE,
+        };
+        let tracer = self.tracer.in_slot(slot);
+        // SAFETY: every pointer is valid for the call; the callbacks outlive the component.
+        let component = tracer.traced(&record, || unsafe {
+            instantiate(c_name.as_ptr(), fmu_type, guid.as_ptr(), self.resource_uri.as_ptr(), &callbacks.functions, c::FALSE, c::FALSE)
+        });
+        if component.is_null() {
+            return Err((Code::error_of(Fmi::Fmi2), log.take()));
+        }
+        Ok(Box::new(Fmi2Instance { core: Core::new(self, interface, component, log, tracer), api: &self.api, _callbacks: callbacks }))
+    }
+
+    fn exports(&self, name: &str) -> bool {
+        self.api.exports(name)
+    }
+
+    /// Every function of each declared interface, even for capabilities it lacks.
+    fn required_exports(&self, interfaces: &[Interface]) -> Exports {
+        let mut required: Vec<(&'static str, String)> = Vec::new();
+        for &interface in interfaces {
+            for op in table::TABLE.functions(interface) {
+                let name = table::TABLE.name(op, interface);
+                if !required.iter().any(|(n, _)| *n == name) {
+                    let why = format!(
+                        ", which {} requires (FMI 2.0: every function of a declared interface, even for capabilities it lacks)",
+                        interface.title()
                     );
+                    required.push((name, why));
                 }
-                return Ok(());
             }
-            resume = index + 1;
         }
+        let titles = interfaces.iter().map(|i| i.title()).collect::<Vec<_>>().join(" and ");
+        Exports { passed: format!("all {} functions of {titles} exported", required.len()), required }
     }
-}
 
-/// The finding for a probe process that died or was killed.
-pub(crate) fn death(
-    end: &End,
-    in_call: Option<&CallRecord>,
-    last_call: Option<&CallRecord>,
-    timeout: Duration,
-    check: &str,
-    severity: Severity,
-) -> Finding {
-    let during = |record: Option<&CallRecord>| match record {
-        Some(r) => format!("in {} ({})", r.call, r.state),
-        None => "before its first FMI call".to_owned(),
-    };
-    let message = match end {
-        End::Crashed(signal) => match (in_call, last_call) {
-            // The arguments it was given, where the record has them: they may be the problem (a
-            // NULL the probe passed).
-            (Some(r), _) => match &r.value {
-                Some(value) => format!("the FMU crashed with {signal} in {} ({value})", r.call),
-                None => format!("the FMU crashed with {signal} in {}", r.call),
-            },
-            (None, Some(r)) => format!("the probe process crashed with {signal} after {} returned", r.call),
-            (None, None) => format!("the probe process crashed with {signal} before its first FMI call"),
-        },
-        End::Exited(code) => format!("the FMU ended the probe process (exit code {code}) {}", during(in_call.or(last_call))),
-        End::TimedOut => match in_call {
-            Some(r) => format!("{} did not return within {} s (--timeout); the probe process was killed", r.call, timeout.as_secs_f64()),
-            None => "the probe process stopped making progress between FMI calls and was killed".to_owned(),
-        },
-        End::Finished | End::Cancelled => unreachable!("not a death"),
-    };
-    let mut finding = Finding::new(check, severity, message);
-    if let Some(r) = in_call.or(last_call) {
-        finding.call = Some(r.call.clone());
-        finding.state = Some(r.state.clone());
-        finding.variable = r.variable.clone();
-        finding.value = r.value.clone();
-    }
-    finding
-}
-
-/// The arguments of a probe process.
-struct ProbeArgs {
-    progress: PathBuf,
-    dir: PathBuf,
-    runs: PathBuf,
-    binary: PathBuf,
-    interfaces: Vec<Interface>,
-    timeout: Duration,
-    probe: String,
-    resume: usize,
-}
-
-impl ProbeArgs {
-    fn parse(args: &[OsString]) -> Result<ProbeArgs, String> {
-        let mut map = std::collections::HashMap::new();
-        let mut it = args.iter();
-        while let Some(key) = it.next() {
-            let key = key.to_string_lossy().into_owned();
-            let value = it.next().ok_or_else(|| format!("{key} needs a value"))?;
-            map.insert(key, value.clone());
-        }
-        let take = |key: &str| map.get(key).cloned().ok_or_else(|| format!("the probe needs {key}"));
-        let text = |key: &str| take(key).map(|v| v.to_string_lossy().into_owned());
-        let interfaces = text("--interface")?
-            .split(',')
-            .map(|a| Interface::from_arg(a).ok_or_else(|| format!("unknown interface {a:?}")))
-            .collect::<Result<Vec<_>, _>>()?;
-        if text("--fmi")? != "2" {
-            return Err("an FMI 2.0 probe was started for another FMI version".to_owned());
-        }
-        let probe = text("--probe")?;
-        if probe != "binary" && !probes::known(&probe) {
-            return Err(format!("unknown probe {probe:?}"));
-        }
-        Ok(ProbeArgs {
-            progress: take("--progress")?.into(),
-            dir: take("--dir")?.into(),
-            runs: take("--runs")?.into(),
-            binary: take("--binary")?.into(),
-            interfaces,
-            timeout: Duration::from_millis(text("--timeout-ms")?.parse().map_err(|_| "--timeout-ms needs a number")?),
-            probe,
-            resume: text("--resume")?.parse().map_err(|_| "--resume needs a number")?,
+    fn query(&self, op: Op) -> Option<Option<String>> {
+        let getter = match op {
+            Op::GetVersion => self.api.get_version,
+            Op::GetTypesPlatform => self.api.get_types_platform,
+            _ => None,
+        }?;
+        // SAFETY: both return a static C string per the standard (NULL is checked).
+        Some(unsafe {
+            let p = getter();
+            (!p.is_null()).then(|| CStr::from_ptr(p).to_string_lossy().into_owned())
         })
     }
 }
 
-/// The writer of a probe process's messages.
-pub(crate) fn probes_out(file: std::fs::File) -> Out {
-    Out::new(file)
+/// One live FMI 2.0 instance.
+struct Fmi2Instance {
+    core: Core,
+    api: &'static c::Functions,
+    _callbacks: Box<Callbacks>,
 }
 
-/// The probe process: runs one probe on the FMU unpacked by the parent.
-pub(crate) fn child(args: &[OsString], out: &Out) -> Result<(), String> {
-    let args = ProbeArgs::parse(args)?;
-    let xml = std::fs::read_to_string(args.dir.join("modelDescription.xml")).map_err(|e| format!("cannot read the description: {e}"))?;
-    let md = ModelDescription::from_xml(&xml).map_err(|e| e.message().to_owned())?;
-    let model = Model::new(md);
-    let progress = Progress::open(&args.progress)?;
-    let shown = args.binary.strip_prefix(&args.dir).unwrap_or(&args.binary).display().to_string();
-    if args.probe == "binary" {
-        out.send(&Message::Cell { check: "binary.load".into(), index: 0, crash: Severity::Error });
-    }
-    // Loading runs the library's initializers: a call like any other, bounded by the timeout.
-    let record = CallRecord { call: "dlopen".into(), state: "(loading the binary)".into(), variable: None, value: Some(shown.clone()) };
-    progress.begin(0, &record, args.timeout);
-    let loaded = raw::Api::load(&args.binary);
-    progress.end(0);
-    let api = match loaded {
-        Ok(api) => api,
-        Err(e) => {
-            let check = if args.probe == "binary" { "binary.load" } else { probes::first_check(&args.probe) };
-            out.send(&Message::Finding(Finding::error(check, format!("{shown} cannot be loaded: {e}"))));
-            return Ok(());
+impl Drop for Fmi2Instance {
+    fn drop(&mut self) {
+        if !self.core.is_fatal() {
+            self.free();
         }
-    };
-    if args.probe == "binary" {
-        binary(&api, &model, &args.interfaces, &shown, &progress, args.timeout, out);
-        return Ok(());
     }
-    let interface = *args.interfaces.first().ok_or("no interface")?;
-    let fmu = raw::Fmu::new(api, model, interface, &args.dir, progress, args.timeout)?;
-    let mut ctx = Ctx::new(&fmu, out, &args.runs, args.resume);
-    probes::run(&args.probe, &mut ctx)
 }
 
-/// The binary: loadable, every function its interfaces require exported, the version and
-/// types platform FMI 2.0 fixes.
-fn binary(api: &raw::Api, model: &Model, interfaces: &[Interface], shown: &str, progress: &Progress, timeout: Duration, out: &Out) {
-    let send = |f: Finding| out.send(&Message::Finding(f));
-    send(Finding::passed("binary.load", format!("{shown} loads")));
-    out.send(&Message::Cell { check: "binary.exports".into(), index: 1, crash: Severity::Error });
-    let mut missing = 0;
-    let mut required = 0;
-    let mut seen = std::collections::HashSet::new();
-    for interface in interfaces {
-        for f in Function::of(*interface) {
-            if !seen.insert(f) {
-                continue;
-            }
-            required += 1;
-            if !api.exports(f.name()) {
-                missing += 1;
-                send(
-                    Finding::error(
-                        "binary.exports",
-                        format!(
-                            "{shown} does not export {}, which {} requires (FMI 2.0: every function of a declared interface, even for capabilities it lacks)",
-                            f.name(),
-                            interface.title()
-                        ),
-                    )
-                    .call(f.name()),
-                );
-            }
+/// `values` as a record shows them.
+fn listed(values: &[f64]) -> String {
+    values.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(", ")
+}
+
+impl Instance for Fmi2Instance {
+    fn core(&self) -> &Core {
+        &self.core
+    }
+
+    fn core_mut(&mut self) -> &mut Core {
+        &mut self.core
+    }
+
+    fn setup_experiment(&mut self, grid: &Grid) -> Option<Outcome<()>> {
+        let (tolerance, start, stop) = (grid.tolerance, grid.start, grid.stop);
+        let value = format!("tolerance {}, start {start}, stop {stop}", tolerance.map_or("undefined".to_owned(), |t| t.to_string()));
+        let api = self.api;
+        Some(self.core.status(Op::SetupExperiment, None, Some(value), |h| {
+            // SAFETY: scalar arguments only.
+            api.setup_experiment.map(|f| unsafe { f(h, tolerance.is_some() as c_int, tolerance.unwrap_or(0.0), start, c::TRUE, stop) })
+        }))
+    }
+
+    fn enter_initialization_mode(&mut self, _grid: &Grid) -> Outcome<()> {
+        self.simple(Op::EnterInitializationMode)
+    }
+
+    fn simple(&mut self, op: Op) -> Outcome<()> {
+        let api = self.api;
+        if op == Op::FreeInstance {
+            // Only with a NULL component, which the FMU must ignore: a real free goes through free().
+            assert!(self.core.null_instance, "FreeInstance of a live instance goes through free()");
+            let ok = Code::ok_of(Fmi::Fmi2).status;
+            // SAFETY: a NULL component.
+            return self.core.status(op, None, None, |h| api.free_instance.map(|f| unsafe { f(h) }).map(|()| ok));
         }
-    }
-    if missing == 0 {
-        send(Finding::passed(
-            "binary.exports",
-            format!("all {required} functions of {} exported", interfaces.iter().map(|i| i.title()).collect::<Vec<_>>().join(" and ")),
-        ));
-    }
-    out.send(&Message::Cell { check: "binary.version".into(), index: 2, crash: Severity::Error });
-    let mut fine = true;
-    for (f, expected) in [(Function::GetVersion, "2.0"), (Function::GetTypesPlatform, "default")] {
-        let getter = if f == Function::GetVersion { api.get_version } else { api.get_types_platform };
-        let Some(getter) = getter else { continue };
-        let record = CallRecord { call: f.name().into(), state: "(no instance)".into(), variable: None, value: None };
-        progress.begin(0, &record, timeout);
-        // SAFETY: both return a static C string per the standard (NULL is checked).
-        let text = unsafe {
-            let p = getter();
-            (!p.is_null()).then(|| std::ffi::CStr::from_ptr(p).to_string_lossy().into_owned())
+        let f = match op {
+            Op::EnterInitializationMode => api.enter_initialization_mode,
+            Op::ExitInitializationMode => api.exit_initialization_mode,
+            Op::Terminate => api.terminate,
+            Op::Reset => api.reset,
+            Op::EnterEventMode => api.enter_event_mode,
+            Op::EnterContinuousTimeMode => api.enter_continuous_time_mode,
+            Op::CancelStep => api.cancel_step,
+            _ => unreachable!("{op:?} is not an FMI 2.0 call on the component alone"),
         };
-        progress.end(0);
-        if text.as_deref() != Some(expected) {
-            fine = false;
-            let shown_text = text.map_or("NULL".to_owned(), |t| format!("{:?}", fmi_schema::escaped_and_cut(&t, 60, "...")));
-            send(
-                Finding::error("binary.version", format!("{} returned {shown_text}, not \"{expected}\"", f.name()))
-                    .call(f.name())
-                    .value(shown_text),
-            );
+        self.core.plain(op, f)
+    }
+
+    fn set_debug_logging(&mut self, on: bool) -> Outcome<()> {
+        let api = self.api;
+        self.core.status(Op::SetDebugLogging, None, Some(format!("loggingOn {on}, no categories")), |h| {
+            // SAFETY: no categories: a NULL array of length 0.
+            api.set_debug_logging.map(|f| unsafe { f(h, on as c::Boolean, 0, std::ptr::null()) })
+        })
+    }
+
+    fn free(&mut self) {
+        self.core.free(self.api.free_instance);
+    }
+
+    fn get_numbers(&mut self, ty: Type, vrs: &[u32], names: &str) -> Outcome<Vec<f64>> {
+        let (api, n) = (self.api, vrs.len());
+        let value = Some(format!("{n} value reference(s)"));
+        // SAFETY (each arm): arrays of n elements.
+        match ty {
+            Type::Real => self.core.call(
+                Op::Get(ty),
+                Some(names),
+                value,
+                |h| {
+                    let mut out = vec![0.0f64; n];
+                    api.get_real.map(|f| (unsafe { f(h, vrs.as_ptr(), n, out.as_mut_ptr()) }, out))
+                },
+                Vec::new(),
+            ),
+            Type::Integer => self.core.call(
+                Op::Get(ty),
+                Some(names),
+                value,
+                |h| {
+                    let mut out = vec![0 as c::Integer; n];
+                    api.get_integer
+                        .map(|f| (unsafe { f(h, vrs.as_ptr(), n, out.as_mut_ptr()) }, out.iter().map(|&v| f64::from(v)).collect()))
+                },
+                Vec::new(),
+            ),
+            Type::Boolean => self.core.call(
+                Op::Get(ty),
+                Some(names),
+                value,
+                |h| {
+                    let mut out = vec![0 as c::Boolean; n];
+                    api.get_boolean.map(|f| {
+                        (unsafe { f(h, vrs.as_ptr(), n, out.as_mut_ptr()) }, out.iter().map(|&v| (v != 0) as i32 as f64).collect())
+                    })
+                },
+                Vec::new(),
+            ),
+            Type::String => unreachable!("strings are read with get_strings"),
         }
     }
-    if fine {
-        send(Finding::passed("binary.version", "fmi2GetVersion returns \"2.0\" and fmi2GetTypesPlatform \"default\""));
+
+    fn get_strings(&mut self, vrs: &[u32], names: &str) -> Outcome<Vec<Option<String>>> {
+        let (api, n) = (self.api, vrs.len());
+        self.core.call(
+            Op::Get(Type::String),
+            Some(names),
+            Some(format!("{n} value reference(s)")),
+            |h| {
+                let mut out: Vec<c::FmiString> = vec![std::ptr::null(); n];
+                // SAFETY: arrays of n elements; the returned strings are read before the next call.
+                api.get_string.map(|f| {
+                    let code = unsafe { f(h, vrs.as_ptr(), n, out.as_mut_ptr()) };
+                    let texts = out
+                        .iter()
+                        .map(|&p| if p.is_null() { None } else { Some(unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()) })
+                        .collect();
+                    (code, texts)
+                })
+            },
+            Vec::new(),
+        )
     }
-    let _ = model;
+
+    fn set_numbers(&mut self, ty: Type, vrs: &[u32], values: &[f64], names: &str) -> Outcome<()> {
+        let (api, n) = (self.api, vrs.len());
+        // SAFETY (each arm): arrays of n elements.
+        match ty {
+            Type::Real => self.core.status(Op::Set(ty), Some(names), Some(listed(values)), |h| {
+                api.set_real.map(|f| unsafe { f(h, vrs.as_ptr(), n, values.as_ptr()) })
+            }),
+            Type::Integer => {
+                let ints: Vec<c::Integer> = values.iter().map(|&v| v as c::Integer).collect();
+                self.core.status(Op::Set(ty), Some(names), Some(listed(values)), |h| {
+                    api.set_integer.map(|f| unsafe { f(h, vrs.as_ptr(), n, ints.as_ptr()) })
+                })
+            }
+            Type::Boolean => {
+                let bools: Vec<c::Boolean> = values.iter().map(|&v| (v != 0.0) as c::Boolean).collect();
+                let shown = bools.iter().map(|&b| if b != 0 { "true" } else { "false" }).collect::<Vec<_>>().join(", ");
+                self.core.status(Op::Set(ty), Some(names), Some(shown), |h| {
+                    api.set_boolean.map(|f| unsafe { f(h, vrs.as_ptr(), n, bools.as_ptr()) })
+                })
+            }
+            Type::String => unreachable!("strings are set with set_strings"),
+        }
+    }
+
+    fn set_strings(&mut self, vrs: &[u32], values: &[String], names: &str) -> Outcome<()> {
+        let texts: Vec<CString> = values.iter().map(|v| CString::new(v.replace('\0', " ")).expect("NUL removed")).collect();
+        let pointers: Vec<c::FmiString> = texts.iter().map(|t| t.as_ptr()).collect();
+        let (api, n) = (self.api, vrs.len());
+        self.core.status(Op::Set(Type::String), Some(names), Some(format!("{values:?}")), |h| {
+            // SAFETY: arrays of n elements of NUL-terminated strings alive for the call.
+            api.set_string.map(|f| unsafe { f(h, vrs.as_ptr(), n, pointers.as_ptr()) })
+        })
+    }
+
+    fn raw_access(
+        &mut self,
+        op: Op,
+        null_vrs: bool,
+        null_values: bool,
+        n: usize,
+        vr: u32,
+        variable: Option<&str>,
+        value: Option<String>,
+    ) -> Outcome<()> {
+        let (ty, get) = op.access().expect("a get or a set");
+        let vrs = [vr];
+        let vr_ptr = if null_vrs { std::ptr::null() } else { vrs.as_ptr() };
+        // An 8-byte buffer holds one value of any type; the String one points at a valid text.
+        let text = CString::new("runner validate").expect("no NUL");
+        let mut buffer: [u64; 1] = match ty {
+            Type::Real => [1.5f64.to_bits()],
+            Type::String => [text.as_ptr() as u64],
+            _ => [1],
+        };
+        let values: *mut c_void = if null_values { std::ptr::null_mut() } else { buffer.as_mut_ptr() as *mut c_void };
+        let api = self.api;
+        self.core.status(op, variable, value, |h| {
+            // SAFETY: the arrays are either NULL (what is being probed) or valid for n <= 1.
+            unsafe {
+                match (ty, get) {
+                    (Type::Real, true) => api.get_real.map(|g| g(h, vr_ptr, n, values as *mut f64)),
+                    (Type::Integer, true) => api.get_integer.map(|g| g(h, vr_ptr, n, values as *mut c::Integer)),
+                    (Type::Boolean, true) => api.get_boolean.map(|g| g(h, vr_ptr, n, values as *mut c::Boolean)),
+                    (Type::String, true) => api.get_string.map(|g| g(h, vr_ptr, n, values as *mut c::FmiString)),
+                    (Type::Real, false) => api.set_real.map(|g| g(h, vr_ptr, n, values as *const f64)),
+                    (Type::Integer, false) => api.set_integer.map(|g| g(h, vr_ptr, n, values as *const c::Integer)),
+                    (Type::Boolean, false) => api.set_boolean.map(|g| g(h, vr_ptr, n, values as *const c::Boolean)),
+                    (Type::String, false) => api.set_string.map(|g| g(h, vr_ptr, n, values as *const c::FmiString)),
+                }
+            }
+        })
+    }
+
+    fn set_string_pointer(&mut self, vr: u32, text: *const c_char, variable: &str, value: String) -> Outcome<()> {
+        let (api, vrs, texts) = (self.api, [vr], [text]);
+        self.core.status(Op::Set(Type::String), Some(variable), Some(value), |h| {
+            // SAFETY: arrays of one element; the text is the caller's (or a NULL being probed).
+            api.set_string.map(|f| unsafe { f(h, vrs.as_ptr(), 1, texts.as_ptr()) })
+        })
+    }
+
+    fn get_string_pointer(&mut self, vr: u32, variable: &str) -> Outcome<(*const c_char, Option<String>)> {
+        let (api, vrs) = (self.api, [vr]);
+        self.core.call(
+            Op::Get(Type::String),
+            Some(variable),
+            Some("1 value reference".to_owned()),
+            |h| {
+                let mut out: [c::FmiString; 1] = [std::ptr::null()];
+                // SAFETY: arrays of one element; the text is read before the next call.
+                api.get_string.map(|f| {
+                    let code = unsafe { f(h, vrs.as_ptr(), 1, out.as_mut_ptr()) };
+                    let text = (!out[0].is_null()).then(|| unsafe { CStr::from_ptr(out[0]) }.to_string_lossy().into_owned());
+                    (code, (out[0], text))
+                })
+            },
+            (std::ptr::null(), None),
+        )
+    }
+
+    fn get_fmu_state(&mut self) -> Outcome<FmuState> {
+        self.core.get_fmu_state(self.api.get_fmu_state)
+    }
+
+    fn get_fmu_state_into_null(&mut self) -> Outcome<()> {
+        self.core.get_fmu_state_into_null(self.api.get_fmu_state)
+    }
+
+    fn set_fmu_state(&mut self, state: FmuState) -> Outcome<()> {
+        self.core.set_fmu_state(self.api.set_fmu_state, state)
+    }
+
+    fn free_fmu_state(&mut self, state: &mut FmuState) -> Outcome<()> {
+        self.core.free_fmu_state(self.api.free_fmu_state, state)
+    }
+
+    fn serialized_fmu_state_size(&mut self, state: FmuState) -> Outcome<usize> {
+        self.core.serialized_fmu_state_size(self.api.serialized_fmu_state_size, state)
+    }
+
+    fn serialize_fmu_state(&mut self, state: FmuState, bytes: &mut [u8]) -> Outcome<()> {
+        let api = self.api;
+        self.core.status(Op::SerializeFmuState, None, Some(format!("{} bytes", bytes.len())), |h| {
+            // SAFETY: a buffer of the size the FMU asked for.
+            api.serialize_fmu_state.map(|f| unsafe { f(h, state, bytes.as_mut_ptr() as *mut c::Byte, bytes.len()) })
+        })
+    }
+
+    fn deserialize_fmu_state(&mut self, bytes: &[u8]) -> Outcome<FmuState> {
+        let api = self.api;
+        self.core.call(
+            Op::DeserializeFmuState,
+            None,
+            Some(format!("{} bytes", bytes.len())),
+            |h| {
+                let mut state: c::FmuState = std::ptr::null_mut();
+                // SAFETY: the bytes the FMU serialized, and a valid out pointer.
+                api.de_serialize_fmu_state.map(|f| (unsafe { f(h, bytes.as_ptr() as *const c::Byte, bytes.len(), &mut state) }, state))
+            },
+            std::ptr::null_mut(),
+        )
+    }
+
+    fn do_step(&mut self, t: f64, h: f64) -> Outcome<StepResult> {
+        let api = self.api;
+        self.core.call(
+            Op::DoStep,
+            None,
+            Some(format!("currentCommunicationPoint {t}, communicationStepSize {h}")),
+            // SAFETY: scalar arguments.
+            |c| api.do_step.map(|f| (unsafe { f(c, t, h, c::TRUE) }, StepResult::default())),
+            StepResult::default(),
+        )
+    }
+
+    fn terminated(&mut self) -> Outcome<bool> {
+        let api = self.api;
+        self.core.call(
+            Op::Status(Some(Type::Boolean)),
+            None,
+            Some("fmi2Terminated".to_owned()),
+            |h| {
+                let mut value: c::Boolean = 0;
+                // SAFETY: a valid out pointer.
+                api.get_boolean_status.map(|f| (unsafe { f(h, c::TERMINATED, &mut value) }, value != 0))
+            },
+            false,
+        )
+    }
+
+    fn set_time(&mut self, t: f64) -> Outcome<()> {
+        self.core.set_time(self.api.set_time, t)
+    }
+
+    fn set_continuous_states(&mut self, x: &[f64]) -> Outcome<()> {
+        self.core.set_continuous_states(self.api.set_continuous_states, x)
+    }
+
+    fn get_vector(&mut self, op: Op, n: usize) -> Outcome<Vec<f64>> {
+        let f = self.vector_function(op);
+        self.core.get_vector(op, f, n)
+    }
+
+    fn null_vector(&mut self, op: Op, n: usize) -> Outcome<()> {
+        let get = (op != Op::SetContinuousStates).then(|| self.vector_function(op)).flatten();
+        self.core.null_vector(op, get, self.api.set_continuous_states, n)
+    }
+
+    fn update_discrete_states(&mut self) -> Outcome<EventUpdate> {
+        let api = self.api;
+        let got = self.core.call(
+            Op::UpdateDiscreteStates,
+            None,
+            None,
+            |h| {
+                let mut info = c::EventInfo::default();
+                // SAFETY: a valid out pointer.
+                api.new_discrete_states.map(|f| (unsafe { f(h, &mut info) }, info))
+            },
+            c::EventInfo::default(),
+        );
+        let info = got.value;
+        Outcome {
+            code: got.code,
+            value: EventUpdate {
+                again: info.new_discrete_states_needed != 0,
+                terminate: info.terminate_simulation != 0,
+                values_changed: info.values_of_continuous_states_changed != 0,
+                next_event_time: (info.next_event_time_defined != 0).then_some(info.next_event_time),
+            },
+            log: got.log,
+        }
+    }
+
+    fn completed_integrator_step(&mut self) -> Outcome<(bool, bool)> {
+        let api = self.api;
+        self.core.call(
+            Op::CompletedIntegratorStep,
+            None,
+            None,
+            |h| {
+                let (mut enter, mut terminate): (c::Boolean, c::Boolean) = (0, 0);
+                // SAFETY: valid out pointers.
+                api.completed_integrator_step.map(|f| (unsafe { f(h, c::TRUE, &mut enter, &mut terminate) }, (enter != 0, terminate != 0)))
+            },
+            (false, false),
+        )
+    }
+
+    fn number_of(&mut self, _op: Op, _null: bool) -> Outcome<usize> {
+        // FMI 2.0 has no size queries: the description's sizes hold.
+        Outcome { code: Code::missing(Fmi::Fmi2), value: 0, log: None }
+    }
+
+    fn other(&mut self, op: Op) -> Outcome<()> {
+        let api = self.api;
+        let no_variables = Some("no variables".to_owned());
+        match op {
+            Op::GetDirectionalDerivative => self.core.status(op, None, Some("no unknowns, no knowns".to_owned()), |h| {
+                // SAFETY: zero-length arrays: the FMU reads no element.
+                api.get_directional_derivative.map(|g| unsafe { g(h, [].as_ptr(), 0, [].as_ptr(), 0, [].as_ptr(), [].as_mut_ptr()) })
+            }),
+            Op::SetInputDerivatives => self.core.status(op, None, no_variables, |h| {
+                // SAFETY: zero-length arrays.
+                api.set_real_input_derivatives.map(|g| unsafe { g(h, [].as_ptr(), 0, [].as_ptr(), [].as_ptr()) })
+            }),
+            Op::GetOutputDerivatives => self.core.status(op, None, no_variables, |h| {
+                // SAFETY: zero-length arrays.
+                api.get_real_output_derivatives.map(|g| unsafe { g(h, [].as_ptr(), 0, [].as_ptr(), [].as_mut_ptr()) })
+            }),
+            Op::Status(ty) => {
+                // The status kind that fits each type.
+                let (kind, name) = match ty {
+                    Some(Type::Real) => (c::LAST_SUCCESSFUL_TIME, "fmi2LastSuccessfulTime"),
+                    Some(Type::Boolean) => (c::TERMINATED, "fmi2Terminated"),
+                    Some(Type::String) => (c::PENDING_STATUS, "fmi2PendingStatus"),
+                    _ => (c::DO_STEP_STATUS, "fmi2DoStepStatus"),
+                };
+                self.core.status(op, None, Some(name.to_owned()), |h| {
+                    let mut buffer = [0u64; 1];
+                    let out = buffer.as_mut_ptr() as *mut c_void;
+                    // SAFETY: an 8-byte, 8-aligned buffer holds any of the five value types.
+                    unsafe {
+                        match ty {
+                            None => api.get_status.map(|g| g(h, kind, out as *mut c_int)),
+                            Some(Type::Real) => api.get_real_status.map(|g| g(h, kind, out as *mut f64)),
+                            Some(Type::Integer) => api.get_integer_status.map(|g| g(h, kind, out as *mut c::Integer)),
+                            Some(Type::Boolean) => api.get_boolean_status.map(|g| g(h, kind, out as *mut c::Boolean)),
+                            Some(Type::String) => api.get_string_status.map(|g| g(h, kind, out as *mut c::FmiString)),
+                        }
+                    }
+                })
+            }
+            _ => unreachable!("{op:?} is not among FMI 2.0's other calls"),
+        }
+    }
+}
+
+/// The type of FMI 2.0's vector getters.
+type VectorGetter = Option<unsafe extern "C" fn(c::Component, *mut f64, usize) -> c_int>;
+
+impl Fmi2Instance {
+    fn vector_function(&self, op: Op) -> VectorGetter {
+        match op {
+            Op::GetDerivatives => self.api.get_derivatives,
+            Op::GetEventIndicators => self.api.get_event_indicators,
+            Op::GetContinuousStates => self.api.get_continuous_states,
+            Op::GetNominalsOfContinuousStates => self.api.get_nominals_of_continuous_states,
+            _ => unreachable!("{op:?} does not fill a vector"),
+        }
+    }
 }

@@ -8,13 +8,13 @@
 //! of one `runner sweep` point and its transmissibility is the same number. Prints one JSON
 //! object: per-run cost, the transmissibility and the right-hand-side evaluations per speed.
 //!
-//! Usage: bare_loop SPEEDS (comma list or START:STOP:STEP) [RTOL]
+//! Usage: bare_loop SPEEDS (comma list or START:STOP:STEP) \[RTOL\]
 
 use std::time::Instant;
 
-use fmu_export::core::Equations;
+use fmu_export::core::System;
 use fmu_export::solvers::{Integrator, Method, Settings};
-use fmu_export::Model;
+use fmu_export::{Equations, Lift, Model};
 use quarter_car::QuarterCar;
 
 const STOP: f64 = 10.0;
@@ -32,8 +32,9 @@ fn transmissibility(speed: f64, rtol: f64) -> (f64, u64) {
     let mut system = QuarterCar::default();
     system.speed = speed;
     let mut system = std::hint::black_box(system);
-    // As the FMU at the end of initialization: checks the parameters, derives what the
-    // right-hand side needs of them, and gives the initial state.
+    // As the FMU at the end of initialization: derives what the right-hand side needs of the
+    // parameters, checks them, and gives the initial state.
+    system.refresh();
     let mut x = [0.0; QuarterCar::N_STATES];
     system.initial_state(&mut x).expect("the handbook's parameters are valid");
     let settings = Settings { method: Method::Dopri5, fixed_step: INTERVAL, rtol, atol: ATOL, max_step: 0.0 };
@@ -47,7 +48,7 @@ fn transmissibility(speed: f64, rtol: f64) -> (f64, u64) {
         // The runner's grid: t_i = i h, and the FMU ends its step at t_i + (t_{i+1} - t_i).
         let (t_i, t_next) = (i as f64 * INTERVAL, if i + 1 == steps { STOP } else { (i + 1) as f64 * INTERVAL });
         let t_end = t_i + (t_next - t_i);
-        integrator.advance(Equations::of(&system), &mut t, &mut x, t_end).expect("quarter_car integrates at these settings");
+        integrator.advance(System::of(&system), &mut t, &mut x, t_end).expect("quarter_car integrates at these settings");
         t = t_end;
         // Compares, as the runner's accumulators do (f64::max's NaN rule costs more, and the
         // integrator hands out finite values only).

@@ -1,0 +1,237 @@
+//! Inputs that follow a polynomial in time over a Co-Simulation step
+//! (`fmi2SetRealInputDerivatives`, `canInterpolateInputs`).
+//!
+//! An importer that knows how an input moves gives its time derivatives at the current
+//! communication point; the input is then, from that time t_a on,
+//! u(t) = u_a + u'_a (t - t_a) + u''_a (t - t_a)^2 / 2 + u'''_a (t - t_a)^3 / 6,
+//! and the solver sees that value at every stage of every internal step, not the value held
+//! from the step's start. Derivatives up to [`MAX_ORDER`] are taken. The polynomial goes on
+//! until the importer sets the input or its derivatives again: a set re-anchors it at the
+//! current time (its value the new one, its derivatives those the polynomial has there), so
+//! the order in which an importer sets an input and its derivatives at a point does not matter.
+//! An input whose derivatives are all zero is held, by the same code and arithmetic as an
+//! input that never had any (a run that sets none is bit for bit what it was).
+//!
+//! After a step, the input's variable holds the polynomial's value at the FMU's time: the
+//! outputs read there, and their derivatives ([`crate::core::derivatives`]), see the input
+//! the step ended with.
+
+use serde::{Deserialize, Serialize};
+use solvers::OdeSystem;
+
+use super::{CallResult, Core, Failure, System};
+use crate::model::{Access, Causality, Model, Variability};
+use crate::table::Slot;
+
+/// The highest order of the input derivatives these FMUs take, and of the output derivatives
+/// they give (`maxOutputDerivativeOrder`).
+pub const MAX_ORDER: usize = 3;
+
+/// One input's polynomial: its value and derivatives at the anchor time.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct Drive {
+    /// The input's row in the table (its value reference).
+    pub row: usize,
+    pub anchor: f64,
+    pub value: f64,
+    /// The first [`MAX_ORDER`] time derivatives at the anchor.
+    pub derivatives: [f64; MAX_ORDER],
+}
+
+impl Drive {
+    /// The value at `t`: the Taylor polynomial in Horner form.
+    #[inline]
+    pub fn at(&self, t: f64) -> f64 {
+        let s = t - self.anchor;
+        let [d1, d2, d3] = self.derivatives;
+        self.value + s * (d1 + s * (d2 / 2.0 + s * (d3 / 6.0)))
+    }
+
+    /// The derivatives at `t` (the polynomial's, shifted from the anchor).
+    pub fn derivatives_at(&self, t: f64) -> [f64; MAX_ORDER] {
+        let s = t - self.anchor;
+        let [d1, d2, d3] = self.derivatives;
+        [d1 + s * (d2 + s * (d3 / 2.0)), d2 + s * d3, d3]
+    }
+
+    /// Moves the anchor to `t`, the polynomial unchanged.
+    pub fn shift_to(&mut self, t: f64) {
+        if t != self.anchor {
+            (self.value, self.derivatives) = (self.at(t), self.derivatives_at(t));
+            self.anchor = t;
+        }
+    }
+}
+
+/// A Real input's setter, from the variable table.
+type Setter<M> = fn(&mut M, f64);
+
+/// The model with its driven inputs, as the solver's ODE system: each evaluation sets the
+/// inputs to their polynomials' values at its time first. The model is borrowed mutably for
+/// the step (a `RefCell`: the solver's calls take `&self`).
+pub(crate) struct Driven<'a, M> {
+    model: std::cell::RefCell<&'a mut M>,
+    inputs: Vec<(Setter<M>, &'a Drive)>,
+}
+
+impl<'a, M: Model> Driven<'a, M> {
+    pub fn new(model: &'a mut M, drives: &'a [Drive], rows: &[crate::table::Row<M>]) -> Driven<'a, M> {
+        let inputs = drives
+            .iter()
+            .map(|d| match rows[d.row].slot {
+                Slot::Model(Access::Real { set: Some(set), .. }) => (set, d),
+                _ => unreachable!("only settable Real inputs are driven"),
+            })
+            .collect();
+        Driven { model: std::cell::RefCell::new(model), inputs }
+    }
+
+    /// The model with its inputs at `t`.
+    #[inline]
+    fn at(&self, t: f64) -> std::cell::RefMut<'_, &'a mut M> {
+        let mut model = self.model.borrow_mut();
+        for (set, drive) in &self.inputs {
+            set(&mut **model, drive.at(t));
+        }
+        model
+    }
+}
+
+impl<M: Model> OdeSystem for Driven<'_, M> {
+    fn dim(&self) -> usize {
+        M::N_STATES
+    }
+    fn rhs(&self, t: f64, x: &[f64], dx: &mut [f64]) {
+        let model = self.at(t);
+        System::of(&**model).rhs(t, x, dx)
+    }
+    fn n_event_indicators(&self) -> usize {
+        M::N_EVENT_INDICATORS
+    }
+    fn event_indicators(&self, t: f64, x: &[f64], z: &mut [f64]) {
+        let model = self.at(t);
+        Model::event_indicators(&**model, t, x, z)
+    }
+}
+
+impl<M: Model> Core<M> {
+    /// `fmi2SetRealInputDerivatives`: the `orders[i]`-th time derivative of input `vrs[i]` at
+    /// the current time is `values[i]`. Each variable must be a continuous Real input, each
+    /// order from 1 to [`MAX_ORDER`], each value finite; all or nothing, as a set. `function`
+    /// names the call in messages.
+    pub fn set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64], function: &str) -> CallResult {
+        for ((&vr, &order), &value) in vrs.iter().zip(orders).zip(values) {
+            let Some(row) = self.table.rows.get(vr as usize) else {
+                return Err(Failure::error(format!("{function}: value reference {vr} is not a variable of this FMU")));
+            };
+            let input = row.causality == Causality::Input
+                && row.variability == Variability::Continuous
+                && matches!(row.slot, Slot::Model(Access::Real { set: Some(_), .. }));
+            if !input {
+                return Err(Failure::error(format!(
+                    "{function}: '{}' (value reference {vr}) is not a continuous Real input: only those have time derivatives to set",
+                    row.name
+                )));
+            }
+            if !(1..=MAX_ORDER as i32).contains(&order) {
+                return Err(Failure::error(format!(
+                    "{function}: order {order} of '{}' refused: this FMU interpolates inputs with derivatives of order 1 to {MAX_ORDER}",
+                    row.name
+                )));
+            }
+            if !value.is_finite() {
+                return Err(Failure::error(format!(
+                    "{function}: derivative {order} of '{}' = {value} refused: it must be finite",
+                    row.name
+                )));
+            }
+        }
+        let t = self.state.t;
+        let mut changed = false;
+        for ((&vr, &order), &value) in vrs.iter().zip(orders).zip(values) {
+            let row = vr as usize;
+            let drives = &mut self.state.drives;
+            let i = match drives.iter().position(|d| d.row == row) {
+                Some(i) => i,
+                None => {
+                    let Slot::Model(Access::Real { get, .. }) = self.table.rows[row].slot else { unreachable!("checked above") };
+                    drives.push(Drive { row, anchor: t, value: get(&self.state.model), derivatives: [0.0; MAX_ORDER] });
+                    drives.len() - 1
+                }
+            };
+            let drive = &mut drives[i];
+            drive.shift_to(t);
+            let old = std::mem::replace(&mut drive.derivatives[order as usize - 1], value);
+            changed |= old.to_bits() != value.to_bits();
+        }
+        // An input with no derivative left is held, as one that never had any.
+        self.state.drives.retain(|d| d.derivatives != [0.0; MAX_ORDER]);
+        self.version += 1;
+        if changed {
+            if let Some(integrator) = self.state.integrator.as_mut() {
+                integrator.invalidate();
+            }
+        }
+        Ok(())
+    }
+
+    /// Re-anchors the polynomial of an input just set to `value` at the current time.
+    #[inline]
+    pub(super) fn input_set(&mut self, row: usize, value: f64) {
+        let t = self.state.t;
+        if let Some(drive) = self.state.drives.iter_mut().find(|d| d.row == row) {
+            drive.shift_to(t);
+            drive.value = value;
+        }
+    }
+
+    /// Moves every polynomial's anchor to `t` (the start time, when it is set).
+    pub(super) fn anchor_inputs(&mut self, t: f64) {
+        for drive in &mut self.state.drives {
+            drive.anchor = t;
+        }
+    }
+
+    /// The driven inputs' variables at their polynomials' values at the current time (after
+    /// the solver moved it).
+    pub(super) fn sync_inputs(&mut self) {
+        let (model, t) = (&mut self.state.model, self.state.t);
+        for drive in &self.state.drives {
+            if let Slot::Model(Access::Real { set: Some(set), .. }) = self.table.rows[drive.row].slot {
+                set(model, drive.at(t));
+            }
+        }
+        self.state.outputs_dirty = true;
+    }
+
+    /// The driven inputs' fields with their derivatives at the current time, for the output
+    /// derivatives.
+    pub(super) fn input_derivatives(&self) -> Vec<(usize, [f64; MAX_ORDER])> {
+        let t = self.state.t;
+        self.state.drives.iter().filter_map(|d| self.table.rows[d.row].field.map(|f| (f, d.derivatives_at(t)))).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The Taylor polynomial of a cubic is the cubic: values and derivatives anywhere, and
+    /// after the anchor moves, are those of p(t) = 1 + 2 t + 3 t^2 + 4 t^3 (exact in binary:
+    /// small integers and halves).
+    #[test]
+    fn a_drive_is_the_cubic_its_derivatives_give() {
+        let p = |t: f64| 1.0 + 2.0 * t + 3.0 * t * t + 4.0 * t * t * t;
+        let dp = |t: f64| [2.0 + 6.0 * t + 12.0 * t * t, 6.0 + 24.0 * t, 24.0];
+        let mut d = Drive { row: 0, anchor: 0.0, value: 1.0, derivatives: dp(0.0) };
+        for t in [0.0, 0.5, 1.0, -2.0, 3.5] {
+            assert_eq!(d.at(t), p(t), "value at {t}");
+            assert_eq!(d.derivatives_at(t), dp(t), "derivatives at {t}");
+        }
+        d.shift_to(1.5);
+        assert_eq!((d.anchor, d.value, d.derivatives), (1.5, p(1.5), dp(1.5)));
+        for t in [0.0, 2.0, 2.5] {
+            assert_eq!(d.at(t), p(t), "value at {t} after the shift");
+        }
+    }
+}

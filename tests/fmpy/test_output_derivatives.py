@@ -1,0 +1,78 @@
+"""Output derivatives and input interpolation through the C boundary, driven by fmpy's own
+bindings, against closed forms (independent of the toolkit's dual numbers).
+
+- The road (profile 0, a = 0.04 m, wavelength 3 m, 30 m/s) gives z_r_dot = a w cos(w t),
+  w = 2 pi v / wavelength: its first three time derivatives are -a w^2 sin(w t),
+  -a w^3 cos(w t) and a w^4 sin(w t). Both FMI versions (fmi2GetRealOutputDerivatives,
+  fmi3GetOutputDerivatives) after 13 steps of 1 ms must give them to 1e-12 of each order's scale
+  a w^(k+1): the wheel's position is integrated exactly (x' = v), so only the rounding of
+  sin and cos at w t = 0.82 rad remains.
+- The quarter car on no road of its own (speed 0) integrates its input into z_r. Given
+  z_r_dot_ext = 0 with the derivatives 0.3 m/s^2 and -0.6 m/s^3 at t = 0 once
+  (fmi2SetRealInputDerivatives), the input is 0.3 t - 0.3 t^2 and z_r = 0.15 t^2 - 0.1 t^3 over
+  every later step (to 1e-9: the car's DOPRI5 integrates a quadratic rate exactly but for
+  rounding, whatever its tolerance); a held input (what the FMU did before it interpolated)
+  leaves z_r at 0."""
+
+import math
+
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi3 import FMU3Slave
+
+from conftest import fmu_path
+
+
+def instance(model, version):
+    path = fmu_path(model, version)
+    md = read_model_description(str(path))
+    cls = FMU3Slave if version == "3.0" else FMU2Slave
+    slave = cls(guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier=md.coSimulation.modelIdentifier,
+                instanceName=model)
+    slave.instantiate()
+    return slave, {v.name: v.valueReference for v in md.modelVariables}, md
+
+
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+def test_the_road_rate_derivatives_are_the_closed_form(version):
+    slave, vr, md = instance("road", version)
+    assert md.coSimulation.maxOutputDerivativeOrder == 3
+    if version == "3.0":
+        slave.enterInitializationMode(startTime=0)
+    else:
+        slave.setupExperiment(startTime=0)
+        slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    h, n = 1e-3, 13
+    for k in range(n):
+        slave.doStep(k * h, h)
+    t, a, v = n * h, 0.04, 30.0
+    w = 2 * math.pi * v / 3.0
+    get = slave.getOutputDerivatives if version == "3.0" else slave.getRealOutputDerivatives
+    got = get([vr["z_r_dot"]] * 3, [1, 2, 3])
+    want = [-a * w**2 * math.sin(w * t), -a * w**3 * math.cos(w * t), a * w**4 * math.sin(w * t)]
+    for k, (g, e) in enumerate(zip(got, want), 1):
+        assert abs(g - e) <= 1e-12 * a * w ** (k + 1), (k, g, e)
+    slave.terminate()
+    slave.freeInstance()
+
+
+def test_the_car_integrates_its_input_polynomial():
+    slave, vr, md = instance("quarter_car", "2.0")
+    assert md.coSimulation.canInterpolateInputs
+    slave.setupExperiment(startTime=0)
+    slave.setReal([vr["speed"]], [0.0])
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    slave.setReal([vr["z_r_dot_ext"]], [0.0])
+    slave.setRealInputDerivatives([vr["z_r_dot_ext"]] * 2, [1, 2], [0.3, -0.6])
+    h = 0.05
+    for k in range(20):
+        slave.doStep(k * h, h)
+        t = (k + 1) * h
+        z_r, rate = slave.getReal([vr["z_r"], vr["z_r_dot_ext"]])
+        assert abs(z_r - (0.15 * t**2 - 0.1 * t**3)) <= 1e-9, (t, z_r)
+        assert abs(rate - (0.3 * t - 0.3 * t**2)) <= 1e-15, (t, rate)
+    slave.terminate()
+    slave.freeInstance()

@@ -1,0 +1,165 @@
+"""Local sweeps in the runner's sandbox worker processes (the default): a point whose FMU
+crashes or hangs is a row whose status says so and the sweep goes on, as on the command line;
+in_process=True gives the same numbers on threads; out/resume keep and continue a sweep's rows.
+tests/c_fmu/faulty.c is the FMU that crashes (fault 1: SIGSEGV), hangs (3) or exits (4) in
+fmi2DoStep at t = 0.31 on request; fault 0 is the Dahlquist equation x' = -k x, x(0) = 1,
+stepped with its exact solution, so a good point's metric is exp(-k t) at the end."""
+
+import math
+import os
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import fmurunner
+from fmurunner_helpers import EX4_METRICS, EX4_SPEEDS, faulty_fmu, fmu_path
+
+RunnerError = fmurunner.RunnerError
+
+
+@pytest.fixture(scope="module")
+def faulty(tmp_path_factory):
+    return faulty_fmu(tmp_path_factory.mktemp("faulty"))
+
+
+def test_a_crashing_or_hanging_point_is_a_failed_row_and_the_sweep_goes_on(faulty):
+    frame = fmurunner.sweep(faulty, {"fault": [0, 1, 0, 3, 4, 0]}, {"x_end": "final(x)"}, stop_time=1.0,
+                            output_interval=0.01, threads=2, point_timeout=1.0)
+    status = list(frame["status"])
+    assert status[0] == status[2] == status[5] == "ok", status
+    assert "crashed: SIGSEGV in fmi2DoStep at t = 0.31" in status[1], status[1]
+    assert "timed out after 1 s in fmi2DoStep at t = 0.31" in status[3], status[3]
+    assert "exit" in status[4] and "fmi2DoStep" in status[4], status[4]
+    # The good points: x(1) = exp(-1) (the FMU's exact solution, to rounding over 100 steps).
+    assert np.allclose(frame["x_end"][[0, 2, 5]], math.exp(-1.0), rtol=1e-12, atol=0)
+    assert frame["x_end"][[1, 3, 4]].isna().all()
+
+
+def test_a_point_past_worker_memory_is_a_failed_row_and_the_sweep_goes_on(faulty):
+    """worker_memory limits each worker process: fault 5 leaks 10 MB per step (1 GB over the
+    run), so its point runs out of a 256 MiB limit (the FMU's own malloc fails, unchecked, and
+    it crashes, as the command line's test has it) while the point before it is computed."""
+    frame = fmurunner.sweep(faulty, {"fault": [0, 5]}, {"x_end": "final(x)"}, start_values={"leak_mb": 10.0},
+                            stop_time=1.0, output_interval=0.01, threads=1, worker_memory=256)
+    status = list(frame["status"])
+    assert status[0] == "ok" and frame["x_end"][0] == pytest.approx(math.exp(-1.0), rel=1e-12), status
+    assert status[1].startswith("crashed: SIGSEGV in fmi2DoStep at t = "), status[1]
+
+
+def test_isolated_and_in_process_give_the_same_bits():
+    """The Ex. 4 sweep in worker processes and on threads of this process: same engine, so the
+    same doubles; worker processes are the default."""
+    isolated = fmurunner.sweep("quarter_car", {"speed": EX4_SPEEDS[:20]}, EX4_METRICS, threads=2)
+    threads = fmurunner.sweep("quarter_car", {"speed": EX4_SPEEDS[:20]}, EX4_METRICS, threads=2, in_process=True)
+    pd.testing.assert_frame_equal(isolated, threads, check_exact=True)
+
+
+def test_options_that_do_not_fit_are_refused(faulty):
+    with pytest.raises(RunnerError, match="drop in_process=True"):
+        fmurunner.sweep(faulty, {"k": [1.0]}, {"x": "final(x)"}, in_process=True, point_timeout=1.0)
+    with pytest.raises(RunnerError, match="worker_memory must be a whole number"):
+        fmurunner.sweep(faulty, {"k": [1.0]}, {"x": "final(x)"}, worker_memory=0)
+    with pytest.raises(RunnerError, match="point_timeout"):
+        fmurunner.sweep(faulty, {"k": [1.0]}, {"x": "final(x)"}, point_timeout=-1.0)
+    with pytest.raises(RunnerError, match="resume needs out"):
+        fmurunner.sweep(faulty, {"k": [1.0]}, {"x": "final(x)"}, resume=True)
+
+
+def test_a_sweep_to_a_file_resumes_where_it_stopped(faulty, tmp_path):
+    """A sweep with out= writes its CSV; one cut short (its partial file holding the first rows)
+    continues with resume=True, running only the points not in the file: the rows kept are read
+    back (a value planted in them survives, so they were not run again), the others run."""
+    params = {"k": [0.5, 1.0, 1.5, 2.0, 2.5, 3.0]}
+    metrics = {"x_end": "final(x)"}
+    out = tmp_path / "sweep.csv"
+    full = fmurunner.sweep(faulty, params, metrics, stop_time=1.0, threads=2, out=out)
+    on_disk = pd.read_csv(out, keep_default_na=False)
+    assert on_disk["x_end"].tolist() == full["x_end"].tolist()
+    assert np.allclose(full["x_end"], np.exp(-np.array(params["k"])), rtol=1e-12, atol=0)
+
+    # Cut short after 2 rows (and half a third line, as a kill mid-write leaves it); plant 42.
+    lines = out.read_text().splitlines(keepends=True)
+    planted = lines[1].split(",")
+    planted[1] = "42.0"
+    (tmp_path / "sweep.csv.partial").write_text(lines[0] + ",".join(planted) + lines[2] + lines[3][:5])
+    out.unlink()
+    with pytest.raises(RunnerError, match="resume=True"):
+        fmurunner.sweep(faulty, params, metrics, stop_time=1.0, threads=2, out=out)
+    resumed = fmurunner.sweep(faulty, params, metrics, stop_time=1.0, threads=2, out=out, resume=True)
+    assert resumed["x_end"][0] == 42.0
+    assert resumed["x_end"][1:].tolist() == full["x_end"][1:].tolist()
+    assert out.exists() and not (tmp_path / "sweep.csv.partial").exists()
+    assert pd.read_csv(out)["x_end"].tolist() == resumed["x_end"].tolist()
+
+    # A different sweep is not resumed from this record.
+    (tmp_path / "sweep.csv.partial").write_text(lines[0] + lines[1])
+    with pytest.raises(RunnerError, match="is not from this sweep"):
+        fmurunner.sweep(faulty, {"k": [9.0, 8.0]}, metrics, stop_time=1.0, out=out, resume=True)
+
+
+def test_sweep_results_carry_units():
+    frame = fmurunner.sweep(fmu_path("quarter_car"), {"speed": [2.0, 4.0]}, ["peak=max(z_s)"], stop_time=1.0, threads=2)
+    assert frame.attrs["units"]["speed"] == "m/s"
+    assert frame.attrs["model_name"] == "quarter_car"
+
+
+def test_a_sweep_interrupted_with_ctrl_c_keeps_its_rows_and_resumes(faulty, tmp_path):
+    """A sweep to a file in another Python process, sent SIGINT (Ctrl-C) once rows are on disk:
+    it stops with KeyboardInterrupt, leaving the partial file and no CSV; resume=True runs the
+    rest, and the whole table is the one an uninterrupted sweep gives, bit for bit."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    params = {"k": [0.01 * i for i in range(1, 3001)]}
+    kwargs = dict(stop_time=10.0, output_interval=0.001, threads=2)
+    out = tmp_path / "sweep.csv"
+    partial = tmp_path / "sweep.csv.partial"
+    script = (f"import fmurunner\nfmurunner.sweep({str(faulty)!r}, {params!r}, {{'x_end': 'final(x)'}}, "
+              f"out={str(out)!r}, **{kwargs!r})\n")
+    child = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and child.poll() is None:
+        if partial.exists() and partial.read_text().count("\n") > 20:
+            break
+        time.sleep(0.02)
+    assert child.poll() is None, "the sweep ended before it could be interrupted"
+    child.send_signal(signal.SIGINT)
+    _, stderr = child.communicate(timeout=60)
+    assert child.returncode != 0 and "KeyboardInterrupt" in stderr, stderr
+    assert partial.exists() and not out.exists()
+    kept = partial.read_text().count("\n") - 1
+    assert 20 <= kept < 3000, kept
+    resumed = fmurunner.sweep(faulty, params, {"x_end": "final(x)"}, out=out, resume=True, **kwargs)
+    whole = fmurunner.sweep(faulty, params, {"x_end": "final(x)"}, **kwargs)
+    pd.testing.assert_frame_equal(resumed, whole, check_exact=True)
+
+
+@pytest.mark.parametrize("in_process", [True, False])
+def test_rows_are_not_handed_again_after_writing_them_failed(in_process):
+    """A sweep to a file hands its finished rows to a writer as they come; when the writer fails
+    part way (Ctrl-C while it writes, a full disk) it may have written some of them, so it must
+    not be handed the same rows again at the end: the file would hold them twice, every later
+    row in another point's place (what tests/python's Ctrl-C test caught now and then). Here the
+    writer fails at its first call, while points still run: it is called once, and the sweep
+    raises its error."""
+
+    from fmurunner import _engine, _worker
+
+    # Long enough (a second or more) that the writer is first called while points still run.
+    path, grid, sets = fmurunner._resolve("quarter_car", "sweep", 1.0, 0.01, None, None)
+    spec, n, _ = _engine.plan_sweep(path, grid, sets, [("speed", [1.0 + 0.02 * s for s in range(2000)])], ["p=max(z_s)"])
+    calls = []
+
+    def on_rows(first, data, failures):
+        calls.append(first)
+        raise OSError("no space left on device")
+
+    with pytest.raises(RunnerError, match="writing the finished rows failed: OSError: no space left on device"):
+        if in_process:
+            _engine.Model(path).run_points(spec, 0, n, 1, on_rows)
+        else:
+            _engine.run_points_isolated(path, spec, 0, n, 1, _worker.command("sweep"), on_rows=on_rows)
+    assert calls == [0], calls

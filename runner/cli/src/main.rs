@@ -301,7 +301,8 @@ enum Cmd {
     /// work-precision table (CSV) and plot (SVG) of each model. With several models it also
     /// prints their step counts side by side: Ex. 4's discussion question 1. Under
     /// --interface model-exchange the runner's own integrator runs the methods, on any Model
-    /// Exchange FMU.
+    /// Exchange FMU, and n_rhs counts its derivative evaluations plus the implicit methods'
+    /// directional-derivative calls.
     ///
     /// Example: `runner compare quarter_car second_order --target-error 1e-6`
     Compare(CompareArgs),

@@ -5,7 +5,7 @@
 //! differences of its own derivatives and outputs (two evaluations per state and input), and
 //! saying which. An output that is a state itself has the unit row it is by definition.
 
-use super::{Exchange, ModelExchange};
+use super::{Exchange, ModelExchange, StateStructure};
 use crate::trace;
 use crate::Reader;
 
@@ -69,28 +69,42 @@ impl<C: Exchange> ModelExchange<C> {
     /// FMU provides them, else by central differences. The FMU is left at the time, states
     /// and inputs it had.
     pub fn linearize(&mut self, ports: Ports, prefer: JacobianSource) -> Result<Jacobians, String> {
-        let name = self.component.name().to_owned();
+        // The structure is lent for the call rather than cloned: for a small model a clone's
+        // allocations cost as much as the FMU's directional derivatives (tests/bench/jacobian).
+        let structure = self.structure.take();
+        let result = self.linearize_over(structure.as_ref(), ports, prefer);
+        self.structure = structure;
+        result
+    }
+
+    fn linearize_over(&mut self, structure: Option<&StateStructure>, ports: Ports, prefer: JacobianSource) -> Result<Jacobians, String> {
         if self.integrator.is_none() {
-            return Err(format!("{name}: the instance is not initialized"));
+            return Err(format!("{}: the instance is not initialized", self.component.name()));
         }
-        let structure = match &self.structure {
-            Some(s) if s.states.len() == self.nx => s.clone(),
+        let empty = StateStructure::default();
+        let structure = match structure {
+            Some(s) if s.states.len() == self.nx => s,
             Some(s) => {
                 return Err(format!(
-                    "{name}: the ModelStructure names {} state derivatives but the instance has {} continuous states",
+                    "{}: the ModelStructure names {} state derivatives but the instance has {} continuous states",
+                    self.component.name(),
                     s.states.len(),
                     self.nx
                 ))
             }
-            None if self.nx == 0 => Default::default(),
+            None if self.nx == 0 => &empty,
             None => {
                 return Err(format!(
-                    "{name}: the modelDescription does not say which variables are the states (no ModelStructure derivative with a 'derivative' attribute), so the states cannot be named"
+                    "{}: the modelDescription does not say which variables are the states (no ModelStructure derivative with a 'derivative' attribute), so the states cannot be named",
+                    self.component.name()
                 ))
             }
         };
         if ports.inputs.len() != ports.input_values.len() || ports.reader.len() != ports.outputs.len() {
-            return Err(format!("{name}: the inputs' values or the outputs' reader do not match the inputs and outputs"));
+            return Err(format!(
+                "{}: the inputs' values or the outputs' reader do not match the inputs and outputs",
+                self.component.name()
+            ));
         }
         self.place()?;
         let (nx, nu, ny) = (self.nx, ports.inputs.len(), ports.outputs.len());
@@ -135,11 +149,14 @@ impl<C: Exchange> ModelExchange<C> {
     ) -> Result<(), String> {
         let nx = self.nx;
         let computed: Vec<usize> = (0..ports.outputs.len()).filter(|&r| state_of[r].is_none()).collect();
-        let unknowns: Vec<u32> = derivatives.iter().copied().chain(computed.iter().map(|&r| ports.outputs[r])).collect();
+        let unknowns: std::borrow::Cow<[u32]> = if computed.is_empty() {
+            derivatives.into()
+        } else {
+            derivatives.iter().copied().chain(computed.iter().map(|&r| ports.outputs[r])).collect::<Vec<_>>().into()
+        };
         let mut out = vec![0.0; unknowns.len()];
         let call = C::NAMES.get_directional_derivative.1;
-        let knowns = j.states.iter().chain(ports.inputs).copied().enumerate().collect::<Vec<_>>();
-        for (column, known) in knowns {
+        for (column, &known) in j.states.iter().chain(ports.inputs).enumerate() {
             trace::enter(C::NAMES.get_directional_derivative.0, self.t);
             let status = self.component.directional_derivative(&unknowns, &[known], &[1.0], &mut out);
             self.component.check(call, status)?;

@@ -1,10 +1,12 @@
 //! The FMI C interface shared by the export toolkit, the importer and the validator: the types,
-//! status codes and function signatures of FMI 2.0 ([`fmi2`]) and FMI 3.0 ([`fmi3`]); the words
+//! status codes and function signatures of FMI 1.0 ([`fmi1`]), FMI 2.0 ([`fmi2`]) and FMI 3.0
+//! ([`fmi3`]); the words
 //! every side shares ([`FmiVersion`], [`Interface`], [`Status`]); (feature `symbols`) the one
 //! table of each version's functions a loaded binary exports ([`fmi2::Functions`],
 //! [`fmi3::Functions`], [`Library`], [`view!`]); and (feature `logger-shim`) the variadic
 //! FMI 2.0 logger an importer hands to FMUs.
 
+pub mod fmi1;
 pub mod fmi2;
 pub mod fmi3;
 mod functions;
@@ -22,6 +24,8 @@ use serde::{Deserialize, Serialize};
 pub enum FmiVersion {
     Fmi2,
     Fmi3,
+    /// Last, so the serialized numbers of the others stay as they were.
+    Fmi1,
 }
 
 /// An FMI interface: who integrates the model. Declared in the order of FMI 2.0's `fmi2Type`
@@ -99,7 +103,7 @@ impl Status {
             (2, _) => Status::Discard,
             (3, _) => Status::Error,
             (4, _) => Status::Fatal,
-            (5, FmiVersion::Fmi2) => Status::Pending,
+            (5, FmiVersion::Fmi2 | FmiVersion::Fmi1) => Status::Pending,
             _ => return None,
         })
     }
@@ -119,6 +123,12 @@ impl Status {
             (FmiVersion::Fmi3, Status::Error) => "fmi3Error",
             (FmiVersion::Fmi3, Status::Fatal) => "fmi3Fatal",
             (FmiVersion::Fmi3, Status::Pending) => "fmi3Pending (not an FMI 3.0 status)",
+            (FmiVersion::Fmi1, Status::Ok) => "fmiOK",
+            (FmiVersion::Fmi1, Status::Warning) => "fmiWarning",
+            (FmiVersion::Fmi1, Status::Discard) => "fmiDiscard",
+            (FmiVersion::Fmi1, Status::Error) => "fmiError",
+            (FmiVersion::Fmi1, Status::Fatal) => "fmiFatal",
+            (FmiVersion::Fmi1, Status::Pending) => "fmiPending",
         }
     }
 }

@@ -135,6 +135,59 @@ fn compare_runs_the_methods_on_fmi1_model_exchange() {
     assert!(error < 1e-6, "{rk4}");
 }
 
+/// FMI 1.0 components in an SSP system: the oscillator (Co-Simulation) feeding the Reference
+/// FMU Feedthrough (FMI 2.0), beside the ball (Model Exchange). Each FMI 1.0 component gives the
+/// same bits as its run alone, and under the default Jacobi master Feedthrough's output is the
+/// oscillator's output of the step before.
+#[test]
+fn fmi1_components_run_in_systems() {
+    let feedthrough = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference-fmus/fmi2/Feedthrough.fmu");
+    if !feedthrough.is_file() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (linear, bouncing) = (build(d, "linear", true), build(d, "bouncing", false));
+    let root = d.join("system");
+    std::fs::create_dir_all(root.join("resources")).unwrap();
+    for (file, from) in [("lin.fmu", &linear), ("ball.fmu", &bouncing), ("ft.fmu", &feedthrough)] {
+        std::fs::copy(from, root.join("resources").join(file)).unwrap();
+    }
+    let connector = |name: &str, kind: &str| format!(r#"<ssd:Connector name="{name}" kind="{kind}"><ssc:Real/></ssd:Connector>"#);
+    let component = |name: &str, connectors: String| {
+        format!(
+            r#"<ssd:Component name="{name}" source="resources/{name}.fmu"><ssd:Connectors>{connectors}</ssd:Connectors></ssd:Component>"#
+        )
+    };
+    let ssd = format!(
+        r#"<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" version="1.0" name="fmi1">
+<ssd:System name="s"><ssd:Elements>{}{}{}</ssd:Elements><ssd:Connections>
+<ssd:Connection startElement="lin" startConnector="y" endElement="ft" endConnector="Float64_continuous_input"/>
+</ssd:Connections></ssd:System>
+</ssd:SystemStructureDescription>"#,
+        component("lin", connector("y", "output")),
+        component("ball", connector("h", "output")),
+        component("ft", connector("Float64_continuous_input", "input") + &connector("Float64_continuous_output", "output")),
+    );
+    std::fs::write(root.join("SystemStructure.ssd"), ssd).unwrap();
+    let grid = ["--stop-time", "2", "--output-interval", "0.01"];
+    let run = |path: &Path, out: &str| {
+        let mut args = vec!["simulate", path.to_str().unwrap(), "--out", out];
+        args.extend(grid);
+        ok(runner(d, &args));
+        read_csv(&d.join(out))
+    };
+    let (header, rows) = run(&root, "system.csv");
+    let (lin_header, lin_rows) = run(&linear, "lin.csv");
+    let (ball_header, ball_rows) = run(&bouncing, "ball.csv");
+    assert_eq!(column(&header, &rows, "lin.y"), column(&lin_header, &lin_rows, "y"));
+    assert_eq!(column(&header, &rows, "ball.h"), column(&ball_header, &ball_rows, "h"));
+    let (y, fed) = (column(&header, &rows, "lin.y"), column(&header, &rows, "ft.Float64_continuous_output"));
+    assert_eq!(fed[1..], y[..y.len() - 1]);
+}
+
 /// Bad FMI 1.0 input is refused with a message naming the problem.
 #[test]
 fn bad_fmi1_input_gets_a_clear_error() {

@@ -135,8 +135,9 @@ impl Status {
 
 #[cfg(test)]
 mod tests {
-    /// FMI 2.0 has 44 functions, FMI 3.0 75: the name lists are what `runner validate` and
-    /// the export tests check exports against, so a missing or doubled name matters.
+    /// FMI 1.0 has 39 functions, FMI 2.0 44, FMI 3.0 75: the name lists are what `runner
+    /// validate` and the export tests check exports against, so a missing or doubled name
+    /// matters.
     #[test]
     fn function_lists_are_complete_and_distinct() {
         let mut two: Vec<&str> = super::fmi2::COMMON_FUNCTIONS.to_vec();
@@ -146,7 +147,12 @@ mod tests {
         three.extend(super::fmi3::MODEL_EXCHANGE_FUNCTIONS);
         three.extend(super::fmi3::CO_SIMULATION_FUNCTIONS);
         three.extend(super::fmi3::SCHEDULED_EXECUTION_FUNCTIONS);
-        for (list, n) in [(&mut two, 44), (&mut three, 75)] {
+        // FMI 1.0: 10 functions of both interfaces, 14 of Model Exchange, 15 of Co-Simulation
+        // (fmiModelFunctions.h, fmiFunctions.h).
+        let mut one: Vec<&str> = super::fmi1::COMMON_FUNCTIONS.to_vec();
+        one.extend(super::fmi1::MODEL_EXCHANGE_FUNCTIONS);
+        one.extend(super::fmi1::CO_SIMULATION_FUNCTIONS);
+        for (list, n) in [(&mut one, 39), (&mut two, 44), (&mut three, 75)] {
             list.sort();
             list.dedup();
             assert_eq!(list.len(), n);
@@ -166,6 +172,7 @@ mod tests {
         assert_eq!(super::fmi2::status_name(3), "fmi2Error");
         assert_eq!(super::fmi3::status_name(5), "an unknown fmi3Status");
         assert_eq!(super::fmi2::status_name(-1), "an unknown fmi2Status");
+        assert_eq!((super::fmi1::status_name(3), super::fmi1::status_name(5)), ("fmiError", "fmiPending"));
     }
 
     #[test]

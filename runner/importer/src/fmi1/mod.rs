@@ -108,12 +108,13 @@ impl Binary {
         if version != "1.0" {
             return Err(format!("{identifier}_fmiGetVersion returned {version:?}, not \"1.0\""));
         }
-        let (name, types) = match (&api.slave, &api.model) {
-            (Some(slave), _) => ("fmiGetTypesPlatform", unsafe { c_text((slave.get_types_platform)()).into_owned() }),
-            (_, Some(model)) => ("fmiGetModelTypesPlatform", unsafe { c_text((model.get_model_types_platform)()).into_owned() }),
-            _ => unreachable!("one interface is resolved"),
+        // SAFETY: as fmiGetVersion.
+        let types = match (&api.slave, &api.model) {
+            (Some(slave), _) => Some(("fmiGetTypesPlatform", unsafe { c_text((slave.get_types_platform)()).into_owned() })),
+            (None, Some(model)) => Some(("fmiGetModelTypesPlatform", unsafe { c_text((model.get_model_types_platform)()).into_owned() })),
+            (None, None) => None,
         };
-        if types != "standard32" {
+        if let Some((name, types)) = types.filter(|(_, types)| types != "standard32") {
             return Err(format!("{identifier}_{name} returned {types:?}; only the \"standard32\" types are supported"));
         }
         INSTALL_SINK.call_once(|| c::set_log_sink(sink));

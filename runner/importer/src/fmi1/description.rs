@@ -112,3 +112,33 @@ pub fn describe(md: &s::ModelDescription) -> Description {
         number_of_event_indicators: md.number_of_event_indicators as usize,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// FMI 1.0's words in the importer's model: a `parameter` is a fixed parameter whatever its
+    /// causality but output, `internal` and `none` are locals, an input stays one; a negated
+    /// alias is left out; no Implementation element means Model Exchange.
+    #[test]
+    fn causality_variability_and_aliases_in_the_importers_words() {
+        let xml = r#"<fmiModelDescription fmiVersion="1.0" modelName="m" modelIdentifier="m" guid="g" numberOfContinuousStates="1">
+  <ModelVariables>
+    <ScalarVariable name="k" valueReference="0" variability="parameter"><Real start="2"/></ScalarVariable>
+    <ScalarVariable name="u" valueReference="1" causality="input"><Real start="0"/></ScalarVariable>
+    <ScalarVariable name="x" valueReference="2" causality="none"><Real/></ScalarVariable>
+    <ScalarVariable name="minus_x" valueReference="2" alias="negatedAlias"><Real/></ScalarVariable>
+    <ScalarVariable name="y" valueReference="3" causality="output" variability="discrete"><Integer/></ScalarVariable>
+  </ModelVariables>
+</fmiModelDescription>"#;
+        let d = describe(&s::ModelDescription::from_xml(xml).unwrap());
+        let of = |name: &str| d.variable(name).map(|v| (v.causality, v.variability, v.kind));
+        assert_eq!(of("k"), Some((Causality::Parameter, Variability::Fixed, Kind::Real)));
+        assert_eq!(of("u"), Some((Causality::Input, Variability::Continuous, Kind::Real)));
+        assert_eq!(of("x"), Some((Causality::Local, Variability::Continuous, Kind::Real)));
+        assert_eq!(of("minus_x"), None, "a negated alias reads the other sign");
+        assert_eq!(of("y"), Some((Causality::Output, Variability::Discrete, Kind::Integer)));
+        assert!(d.co_simulation.is_none() && d.model_exchange.as_ref().is_some_and(|me| me.model_identifier == "m"));
+        assert_eq!((d.fmi_version, d.number_of_continuous_states), (FmiVersion::Fmi1, 1));
+    }
+}

@@ -1,4 +1,4 @@
-//! Compiles `src/logger.c`, the variadic FMI 2.0 logger callback that stable Rust cannot define,
+//! Compiles `src/logger.c`, the variadic FMI 1.0 and 2.0 logger callbacks that stable Rust cannot define,
 //! when the `logger-shim` feature asks for it.
 
 fn main() {

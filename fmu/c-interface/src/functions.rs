@@ -128,6 +128,13 @@ macro_rules! functions {
                 unsafe { Functions { $($( $field: library.function::<$ty>(concat!($name, "\0")), )*)* } }
             }
 
+            /// Looks every function up in `library` under `<prefix>_<name>`, as FMI 1.0 names
+            /// them after the modelIdentifier.
+            pub fn resolve_prefixed(library: &$crate::functions::Library, prefix: &str) -> Functions {
+                // SAFETY: as for `resolve`, under the prefixed name.
+                unsafe { Functions { $($( $field: library.function::<$ty>(&format!("{prefix}_{}\0", $name)), )*)* } }
+            }
+
             /// Whether the binary exports the function of this version called `name` (false
             /// for a name that is not one).
             pub fn exports(&self, name: &str) -> bool {

@@ -1,10 +1,12 @@
 //! The FMI C interface shared by the export toolkit, the importer and the validator: the types,
-//! status codes and function signatures of FMI 2.0 ([`fmi2`]) and FMI 3.0 ([`fmi3`]); the words
+//! status codes and function signatures of FMI 1.0 ([`fmi1`]), FMI 2.0 ([`fmi2`]) and FMI 3.0
+//! ([`fmi3`]); the words
 //! every side shares ([`FmiVersion`], [`Interface`], [`Status`]); (feature `symbols`) the one
 //! table of each version's functions a loaded binary exports ([`fmi2::Functions`],
 //! [`fmi3::Functions`], [`Library`], [`view!`]); and (feature `logger-shim`) the variadic
 //! FMI 2.0 logger an importer hands to FMUs.
 
+pub mod fmi1;
 pub mod fmi2;
 pub mod fmi3;
 mod functions;
@@ -22,6 +24,8 @@ use serde::{Deserialize, Serialize};
 pub enum FmiVersion {
     Fmi2,
     Fmi3,
+    /// Last, so the serialized numbers of the others stay as they were.
+    Fmi1,
 }
 
 /// An FMI interface: who integrates the model. Declared in the order of FMI 2.0's `fmi2Type`
@@ -99,7 +103,7 @@ impl Status {
             (2, _) => Status::Discard,
             (3, _) => Status::Error,
             (4, _) => Status::Fatal,
-            (5, FmiVersion::Fmi2) => Status::Pending,
+            (5, FmiVersion::Fmi2 | FmiVersion::Fmi1) => Status::Pending,
             _ => return None,
         })
     }
@@ -119,14 +123,21 @@ impl Status {
             (FmiVersion::Fmi3, Status::Error) => "fmi3Error",
             (FmiVersion::Fmi3, Status::Fatal) => "fmi3Fatal",
             (FmiVersion::Fmi3, Status::Pending) => "fmi3Pending (not an FMI 3.0 status)",
+            (FmiVersion::Fmi1, Status::Ok) => "fmiOK",
+            (FmiVersion::Fmi1, Status::Warning) => "fmiWarning",
+            (FmiVersion::Fmi1, Status::Discard) => "fmiDiscard",
+            (FmiVersion::Fmi1, Status::Error) => "fmiError",
+            (FmiVersion::Fmi1, Status::Fatal) => "fmiFatal",
+            (FmiVersion::Fmi1, Status::Pending) => "fmiPending",
         }
     }
 }
 
 #[cfg(test)]
 mod tests {
-    /// FMI 2.0 has 44 functions, FMI 3.0 75: the name lists are what `runner validate` and
-    /// the export tests check exports against, so a missing or doubled name matters.
+    /// FMI 1.0 has 39 functions, FMI 2.0 44, FMI 3.0 75: the name lists are what `runner
+    /// validate` and the export tests check exports against, so a missing or doubled name
+    /// matters.
     #[test]
     fn function_lists_are_complete_and_distinct() {
         let mut two: Vec<&str> = super::fmi2::COMMON_FUNCTIONS.to_vec();
@@ -136,7 +147,12 @@ mod tests {
         three.extend(super::fmi3::MODEL_EXCHANGE_FUNCTIONS);
         three.extend(super::fmi3::CO_SIMULATION_FUNCTIONS);
         three.extend(super::fmi3::SCHEDULED_EXECUTION_FUNCTIONS);
-        for (list, n) in [(&mut two, 44), (&mut three, 75)] {
+        // FMI 1.0: 10 functions of both interfaces, 14 of Model Exchange, 15 of Co-Simulation
+        // (fmiModelFunctions.h, fmiFunctions.h).
+        let mut one: Vec<&str> = super::fmi1::COMMON_FUNCTIONS.to_vec();
+        one.extend(super::fmi1::MODEL_EXCHANGE_FUNCTIONS);
+        one.extend(super::fmi1::CO_SIMULATION_FUNCTIONS);
+        for (list, n) in [(&mut one, 39), (&mut two, 44), (&mut three, 75)] {
             list.sort();
             list.dedup();
             assert_eq!(list.len(), n);
@@ -156,6 +172,7 @@ mod tests {
         assert_eq!(super::fmi2::status_name(3), "fmi2Error");
         assert_eq!(super::fmi3::status_name(5), "an unknown fmi3Status");
         assert_eq!(super::fmi2::status_name(-1), "an unknown fmi2Status");
+        assert_eq!((super::fmi1::status_name(3), super::fmi1::status_name(5)), ("fmiError", "fmiPending"));
     }
 
     #[test]

@@ -1,4 +1,5 @@
-//! modelDescription.xml of FMI 2.0 ([`fmi2`]) and FMI 3.0 (`fmi3`, beside it): typed models,
+//! modelDescription.xml of FMI 2.0 ([`fmi2`]) and FMI 3.0 (`fmi3`, beside it), and FMI 1.0's read
+//! only ([`fmi1`]): typed models,
 //! XML reading and writing, and `check()`, the self-check of a description against the
 //! standard's rules. The importer reads any tool's descriptions with it; the export toolkit
 //! writes ours with it.
@@ -154,6 +155,7 @@ pub fn fmi_version(xml: &str) -> Result<String, DescriptionError> {
     }
 }
 
+pub mod fmi1;
 pub mod fmi2;
 pub mod fmi3;
 mod tree;

@@ -13,7 +13,7 @@ use runner::integration::{self, Integration};
 use runner::interrupt;
 use runner::report::progress;
 
-/// Build and run FMUs (FMI 2.0 and 3.0; Co-Simulation, and Model Exchange with the runner's
+/// Build and run FMUs (FMI 1.0, 2.0 and 3.0; Co-Simulation, and Model Exchange with the runner's
 /// solvers) and SSP systems of them.
 #[derive(Parser)]
 #[command(name = "runner", version, about)]

@@ -215,7 +215,7 @@ impl InputTable {
             }
         }
         let derivatives = interface == Interface::CoSimulation
-            && description.fmi_version == FmiVersion::Fmi2
+            && matches!(description.fmi_version, FmiVersion::Fmi1 | FmiVersion::Fmi2)
             && description.co_simulation.as_ref().is_some_and(|c| c.can_interpolate_inputs);
         let variable_steps = match interface {
             Interface::CoSimulation => description.co_simulation.as_ref().is_some_and(|c| c.can_handle_variable_communication_step_size),

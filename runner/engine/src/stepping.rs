@@ -177,9 +177,9 @@ pub fn value_of(description: &Description, variable: &Variable, given: &Given) -
     }
 }
 
-/// FMI 2.0 Integers and Enumerations are 32 bits (`Value::Integer`).
+/// FMI 1.0 and 2.0 Integers and Enumerations are 32 bits (`Value::Integer`).
 fn variable_is_fmi2_int(kind: Kind, description: &Description) -> bool {
-    kind == Kind::Integer || description.fmi_version == FmiVersion::Fmi2
+    kind == Kind::Integer || matches!(description.fmi_version, FmiVersion::Fmi1 | FmiVersion::Fmi2)
 }
 
 fn kind_name(kind: Kind) -> String {

@@ -1,13 +1,13 @@
 //! The FMU importer: unpacks any `.fmu` safely ([`archive`]), reads its description into one
 //! model whatever its FMI version ([`model`]), loads its binary and drives instances of it
-//! through the FMI bindings ([`fmi2`], [`fmi3`]), and integrates Model Exchange FMUs of either
-//! version with the toolkit's solvers ([`exchange`]). One [`Instance`] type runs an FMU whatever
+//! through the FMI bindings ([`fmi1`], [`fmi2`], [`fmi3`]), and integrates Model Exchange FMUs of
+//! any version with the toolkit's solvers ([`exchange`]). One [`Instance`] type runs an FMU whatever
 //! its version and interface. It depends on the FMI C interface and schema only, never on our
 //! exporter.
 //!
 //! # Example
 //!
-//! Load an FMU (any FMI 2.0 or 3.0 FMU; Co-Simulation when it offers it, else Model Exchange,
+//! Load an FMU (any FMI 1.0, 2.0 or 3.0 FMU; Co-Simulation when it offers it, else Model Exchange,
 //! which the toolkit's solvers integrate), run it on a grid and read a variable:
 //!
 //! ```no_run
@@ -35,6 +35,7 @@
 
 pub mod archive;
 pub mod exchange;
+pub mod fmi1;
 pub mod fmi2;
 pub mod fmi3;
 mod logging;
@@ -135,7 +136,9 @@ impl Default for Solver {
 pub struct Unpacked {
     /// The description, in the importer's model.
     pub description: Description,
-    /// The FMI 2.0 description as written (for checks that need the raw schema).
+    /// The FMI 1.0 description as written (for checks that need the raw schema).
+    pub fmi1: Option<fmi_schema::fmi1::ModelDescription>,
+    /// The FMI 2.0 description as written.
     pub fmi2: Option<fmi_schema::fmi2::ModelDescription>,
     /// The FMI 3.0 description as written.
     pub fmi3: Option<fmi_schema::fmi3::ModelDescription>,
@@ -172,6 +175,7 @@ impl Unpacked {
         let found = inspect(path, dir.path(), interface)?;
         Ok(Unpacked {
             description: found.description,
+            fmi1: found.fmi1,
             fmi2: found.fmi2,
             fmi3: found.fmi3,
             interface: found.interface,
@@ -187,6 +191,7 @@ impl Unpacked {
 struct Inspected {
     states: Option<exchange::StateStructure>,
     description: Description,
+    fmi1: Option<fmi_schema::fmi1::ModelDescription>,
     fmi2: Option<fmi_schema::fmi2::ModelDescription>,
     fmi3: Option<fmi_schema::fmi3::ModelDescription>,
     interface: Interface,
@@ -201,13 +206,16 @@ fn inspect(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Insp
     let xml = std::fs::read_to_string(&xml_path).map_err(|e| format!("{}: no readable modelDescription.xml: {e}", path.display()))?;
     let at = |e: &dyn std::fmt::Display| format!("{}: modelDescription.xml: {e}", path.display());
     let version = fmi_schema::fmi_version(&xml).map_err(|e| at(&e))?;
-    let (description, fmi2, fmi3) = if version.starts_with("3.") {
+    let (description, fmi1, fmi2, fmi3) = if version.starts_with("3.") {
         let raw = fmi_schema::fmi3::ModelDescription::from_xml(&xml).map_err(|e| at(&e))?;
         refuse_unsupported_fmi3(&raw).map_err(|e| format!("{}: {e}", path.display()))?;
-        (fmi3::describe(&raw), None, Some(raw))
+        (fmi3::describe(&raw), None, None, Some(raw))
+    } else if version.starts_with("1.") {
+        let raw = fmi_schema::fmi1::ModelDescription::from_xml(&xml).map_err(|e| at(&e))?;
+        (fmi1::describe(&raw), Some(raw), None, None)
     } else {
         let raw = fmi_schema::fmi2::ModelDescription::from_xml(&xml).map_err(|e| at(&e))?;
-        (fmi2::describe(&raw), Some(raw), None)
+        (fmi2::describe(&raw), None, Some(raw), None)
     };
     let offered: Vec<Interface> =
         [Interface::CoSimulation, Interface::ModelExchange].into_iter().filter(|&i| description.interface(i).is_some()).collect();
@@ -225,6 +233,12 @@ fn inspect(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Insp
         }
     };
     let caps = description.interface(interface).expect("offered");
+    if description.fmi_version == FmiVersion::Fmi1 && caps.needs_execution_tool {
+        return Err(format!(
+            "{}: this FMI 1.0 Co-Simulation FMU wraps a simulation tool (CoSimulation_Tool): its binary only talks to that tool, which the runner cannot provide",
+            path.display()
+        ));
+    }
     if interface == Interface::ModelExchange && caps.needs_execution_tool {
         return Err(format!(
             "{}: this Model Exchange FMU needs an external simulation tool (needsExecutionTool=\"true\"): its binary only talks to that tool, which the runner cannot provide",
@@ -237,6 +251,7 @@ fn inspect(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Insp
         return Err(format!("{}: modelIdentifier {identifier:?} is not a file name (FMI requires a C identifier)", path.display()));
     }
     let platform = match description.fmi_version {
+        FmiVersion::Fmi1 => fmi1::PLATFORM,
         FmiVersion::Fmi2 => fmi2::PLATFORM,
         FmiVersion::Fmi3 => fmi3::PLATFORM,
     };
@@ -253,7 +268,7 @@ fn inspect(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Insp
         (_, Some(md)) => fmi3::state_structure(md),
         _ => None,
     };
-    Ok(Inspected { states, description, fmi2, fmi3, interface, identifier, binary })
+    Ok(Inspected { states, description, fmi1, fmi2, fmi3, interface, identifier, binary })
 }
 
 /// Refuses the FMI 3.0 features the runner does not simulate, naming them: Scheduled Execution
@@ -287,6 +302,7 @@ pub fn platforms(binaries: &Path) -> String {
 /// The loaded binary of an FMU, by FMI version (boxed: each holds its version's whole table of
 /// functions).
 enum Binding {
+    Fmi1(Box<fmi1::Binary>),
     Fmi2(Box<fmi2::Binary>),
     Fmi3(Box<fmi3::Binary>),
 }
@@ -302,7 +318,8 @@ pub struct Fmu {
     /// The interface instances are created for.
     pub interface: Interface,
     /// Where the FMU's resources are, as instantiation wants it: a `file://` URI for FMI 2.0,
-    /// a directory path with a trailing separator for FMI 3.0.
+    /// a directory path with a trailing separator for FMI 3.0, the unpacked FMU's `file://` URI
+    /// for FMI 1.0 (fmuLocation).
     pub(crate) resource_uri: CString,
     /// GUID (FMI 2.0) or instantiation token (FMI 3.0), as instantiation wants it.
     pub(crate) token: CString,
@@ -347,6 +364,9 @@ impl Fmu {
         owned: Option<tempfile::TempDir>,
     ) -> Result<Fmu, String> {
         let loaded = match description.fmi_version {
+            FmiVersion::Fmi1 => {
+                Binding::Fmi1(Box::new(fmi1::Binary::load(binary, interface, &identifier).map_err(|e| format!("{}: {e}", path.display()))?))
+            }
             FmiVersion::Fmi2 => {
                 Binding::Fmi2(Box::new(fmi2::Binary::load(binary, interface).map_err(|e| format!("{}: {e}", path.display()))?))
             }
@@ -356,6 +376,8 @@ impl Fmu {
         };
         let resources = dir.join("resources");
         let resource_uri = match description.fmi_version {
+            // FMI 1.0's fmuLocation: the unpacked FMU itself, not its resources.
+            FmiVersion::Fmi1 => format!("file://{}", dir.display()),
             FmiVersion::Fmi2 => format!("file://{}/", resources.display()),
             FmiVersion::Fmi3 => format!("{}/", resources.display()),
         };
@@ -373,6 +395,12 @@ impl Fmu {
     /// A new instance named `name`; `debug_logging` turns the FMU's debug logging on.
     pub fn instantiate(&self, name: &str, debug_logging: bool) -> Result<Instance<'_>, String> {
         match &self.binding {
+            Binding::Fmi1(binary) => Ok(match self.interface {
+                Interface::CoSimulation => Instance::Fmi1Cs(fmi1::CoSimulation::new(self, binary, name, debug_logging)?),
+                Interface::ModelExchange => {
+                    Instance::Fmi1Me(Box::new(fmi1::instantiate_model_exchange(self, binary, name, debug_logging)?))
+                }
+            }),
             Binding::Fmi2(binary) => Ok(match self.interface {
                 Interface::CoSimulation => Instance::Fmi2Cs(fmi2::CoSimulation::new(self, binary, name, debug_logging)?),
                 Interface::ModelExchange => {
@@ -442,6 +470,9 @@ pub enum Instance<'a> {
     Fmi3Cs(fmi3::CoSimulation<'a>),
     /// Integrated by the runner, as FMI 2.0's.
     Fmi3Me(Box<fmi3::ModelExchange<'a>>),
+    Fmi1Cs(fmi1::CoSimulation<'a>),
+    /// Integrated by the runner, as FMI 2.0's.
+    Fmi1Me(Box<fmi1::ModelExchange<'a>>),
 }
 
 impl Instance<'_> {
@@ -449,8 +480,9 @@ impl Instance<'_> {
     /// a Co-Simulation FMU integrates itself and ignores it.
     pub fn set_solver(&mut self, solver: Solver) {
         match self {
-            Instance::Fmi2Cs(_) | Instance::Fmi3Cs(_) => {}
+            Instance::Fmi2Cs(_) | Instance::Fmi1Cs(_) | Instance::Fmi3Cs(_) => {}
             Instance::Fmi2Me(i) => i.set_solver(solver),
+            Instance::Fmi1Me(i) => i.set_solver(solver),
             Instance::Fmi3Me(i) => i.set_solver(solver),
         }
     }
@@ -459,8 +491,10 @@ impl Instance<'_> {
     pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.setup_experiment(tolerance, start, stop),
+            Instance::Fmi1Cs(i) => i.setup_experiment(tolerance, start, stop),
             Instance::Fmi3Cs(i) => i.setup_experiment(tolerance, start, stop),
             Instance::Fmi2Me(i) => i.setup_experiment(tolerance, start, stop),
+            Instance::Fmi1Me(i) => i.setup_experiment(tolerance, start, stop),
             Instance::Fmi3Me(i) => i.setup_experiment(tolerance, start, stop),
         }
     }
@@ -469,8 +503,10 @@ impl Instance<'_> {
     pub fn enter_initialization_mode(&mut self) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.enter_initialization_mode(),
+            Instance::Fmi1Cs(i) => i.enter_initialization_mode(),
             Instance::Fmi3Cs(i) => i.enter_initialization_mode(),
             Instance::Fmi2Me(i) => i.enter_initialization_mode(),
+            Instance::Fmi1Me(i) => i.enter_initialization_mode(),
             Instance::Fmi3Me(i) => i.enter_initialization_mode(),
         }
     }
@@ -479,8 +515,10 @@ impl Instance<'_> {
     pub fn exit_initialization_mode(&mut self) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.exit_initialization_mode(),
+            Instance::Fmi1Cs(i) => i.exit_initialization_mode(),
             Instance::Fmi3Cs(i) => i.exit_initialization_mode(),
             Instance::Fmi2Me(i) => i.exit_initialization_mode(),
+            Instance::Fmi1Me(i) => i.exit_initialization_mode(),
             Instance::Fmi3Me(i) => i.exit_initialization_mode(),
         }
     }
@@ -489,8 +527,10 @@ impl Instance<'_> {
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.set(variable, value),
+            Instance::Fmi1Cs(i) => i.set(variable, value),
             Instance::Fmi3Cs(i) => i.set(variable, value),
             Instance::Fmi2Me(i) => i.set(variable, value),
+            Instance::Fmi1Me(i) => i.set(variable, value),
             Instance::Fmi3Me(i) => i.set(variable, value),
         }
     }
@@ -500,8 +540,10 @@ impl Instance<'_> {
     pub fn get_string(&mut self, variable: &Variable) -> Result<Vec<String>, String> {
         match self {
             Instance::Fmi2Cs(i) => i.get_string(variable).map(|text| vec![text]),
+            Instance::Fmi1Cs(i) => i.get_string(variable).map(|text| vec![text]),
             Instance::Fmi3Cs(i) => i.get_string(variable),
             Instance::Fmi2Me(i) => i.get_string(variable),
+            Instance::Fmi1Me(i) => i.get_string(variable),
             Instance::Fmi3Me(i) => i.get_string(variable),
         }
     }
@@ -511,8 +553,11 @@ impl Instance<'_> {
     pub fn set_input_derivative(&mut self, variable: &Variable, derivative: f64) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.set_input_derivative(variable, derivative),
-            Instance::Fmi2Me(_) | Instance::Fmi3Cs(_) | Instance::Fmi3Me(_) => {
-                Err(format!("{}: input derivatives are passed to FMI 2.0 Co-Simulation FMUs only", variable.name))
+            Instance::Fmi1Cs(i) => i
+                .set_input_derivatives(&[variable.value_reference], &[1], &[derivative])
+                .map_err(|e| format!("{e} (the derivative of {})", variable.name)),
+            Instance::Fmi2Me(_) | Instance::Fmi1Me(_) | Instance::Fmi3Cs(_) | Instance::Fmi3Me(_) => {
+                Err(format!("{}: input derivatives are passed to FMI 1.0 and 2.0 Co-Simulation FMUs only", variable.name))
             }
         }
     }
@@ -522,8 +567,9 @@ impl Instance<'_> {
     pub fn set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64]) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.set_input_derivatives(vrs, orders, values),
-            Instance::Fmi2Me(_) | Instance::Fmi3Cs(_) | Instance::Fmi3Me(_) => {
-                Err("input derivatives are passed to FMI 2.0 Co-Simulation FMUs only".to_owned())
+            Instance::Fmi1Cs(i) => i.set_input_derivatives(vrs, orders, values),
+            Instance::Fmi2Me(_) | Instance::Fmi1Me(_) | Instance::Fmi3Cs(_) | Instance::Fmi3Me(_) => {
+                Err("input derivatives are passed to FMI 1.0 and 2.0 Co-Simulation FMUs only".to_owned())
             }
         }
     }
@@ -533,8 +579,11 @@ impl Instance<'_> {
     pub fn get_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], out: &mut [f64]) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.get_output_derivatives(vrs, orders, out),
+            Instance::Fmi1Cs(i) => i.get_output_derivatives(vrs, orders, out),
             Instance::Fmi3Cs(i) => i.get_output_derivatives(vrs, orders, out),
-            Instance::Fmi2Me(_) | Instance::Fmi3Me(_) => Err("output derivatives come from Co-Simulation FMUs only".to_owned()),
+            Instance::Fmi2Me(_) | Instance::Fmi1Me(_) | Instance::Fmi3Me(_) => {
+                Err("output derivatives come from Co-Simulation FMUs only".to_owned())
+            }
         }
     }
 
@@ -545,8 +594,10 @@ impl Instance<'_> {
     pub fn read(&mut self, reader: &mut Reader, out: &mut [f64]) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.read(reader, out),
+            Instance::Fmi1Cs(i) => i.read(reader, out),
             Instance::Fmi3Cs(i) => i.read(reader, out),
             Instance::Fmi2Me(i) => i.read(reader, out),
+            Instance::Fmi1Me(i) => i.read(reader, out),
             Instance::Fmi3Me(i) => i.read(reader, out),
         }
     }
@@ -557,8 +608,10 @@ impl Instance<'_> {
     pub fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.set_reals(vrs, values),
+            Instance::Fmi1Cs(i) => i.set_reals(vrs, values),
             Instance::Fmi3Cs(i) => i.set_reals(vrs, values),
             Instance::Fmi2Me(i) => i.set_reals(vrs, values),
+            Instance::Fmi1Me(i) => i.set_reals(vrs, values),
             Instance::Fmi3Me(i) => i.set_reals(vrs, values),
         }
     }
@@ -568,7 +621,9 @@ impl Instance<'_> {
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         match self {
             Instance::Fmi2Cs(i) => i.do_step(t, h),
+            Instance::Fmi1Cs(i) => i.do_step(t, h),
             Instance::Fmi2Me(i) => i.do_step(t, h),
+            Instance::Fmi1Me(i) => i.do_step(t, h),
             Instance::Fmi3Me(i) => i.do_step(t, h),
             Instance::Fmi3Cs(i) => i.do_step(t, h),
         }
@@ -579,8 +634,9 @@ impl Instance<'_> {
     /// Co-Simulation, whose FMU does the integration).
     pub fn counters(&self) -> Option<exchange::Counters> {
         match self {
-            Instance::Fmi2Cs(_) | Instance::Fmi3Cs(_) => None,
+            Instance::Fmi2Cs(_) | Instance::Fmi1Cs(_) | Instance::Fmi3Cs(_) => None,
             Instance::Fmi2Me(i) => Some(i.solver_counters()),
+            Instance::Fmi1Me(i) => Some(i.solver_counters()),
             Instance::Fmi3Me(i) => Some(i.solver_counters()),
         }
     }
@@ -590,8 +646,10 @@ impl Instance<'_> {
     pub fn set_between_steps(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.set(variable, value),
+            Instance::Fmi1Cs(i) => i.set(variable, value),
             Instance::Fmi3Cs(i) => i.set(variable, value),
             Instance::Fmi2Me(i) => i.set_between_steps(variable, value),
+            Instance::Fmi1Me(i) => i.set_between_steps(variable, value),
             Instance::Fmi3Me(i) => i.set_between_steps(variable, value),
         }
     }
@@ -601,8 +659,10 @@ impl Instance<'_> {
     pub fn reset(&mut self) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.reset(),
+            Instance::Fmi1Cs(i) => i.reset(),
             Instance::Fmi3Cs(i) => i.reset(),
             Instance::Fmi2Me(i) => i.reset(),
+            Instance::Fmi1Me(i) => i.reset(),
             Instance::Fmi3Me(i) => i.reset(),
         }
     }
@@ -612,8 +672,10 @@ impl Instance<'_> {
     pub fn save_state(&mut self, time: f64) -> Result<state::SavedState, String> {
         let (time, next_event_time, fmu) = match self {
             Instance::Fmi2Cs(i) => (time, None, i.get_state()?),
+            Instance::Fmi1Cs(i) => (time, None, i.get_state()?),
             Instance::Fmi3Cs(i) => (time, None, i.get_state()?),
             Instance::Fmi2Me(i) => i.get_state()?,
+            Instance::Fmi1Me(i) => i.get_state()?,
             Instance::Fmi3Me(i) => i.get_state()?,
         };
         Ok(state::SavedState { time, next_event_time, fmu })
@@ -623,8 +685,10 @@ impl Instance<'_> {
     pub fn restore_state(&mut self, saved: &state::SavedState) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.set_state(&saved.fmu),
+            Instance::Fmi1Cs(i) => i.set_state(&saved.fmu),
             Instance::Fmi3Cs(i) => i.set_state(&saved.fmu),
             Instance::Fmi2Me(i) => i.set_state(saved.time, saved.next_event_time, &saved.fmu),
+            Instance::Fmi1Me(i) => i.set_state(saved.time, saved.next_event_time, &saved.fmu),
             Instance::Fmi3Me(i) => i.set_state(saved.time, saved.next_event_time, &saved.fmu),
         }
     }
@@ -634,8 +698,9 @@ impl Instance<'_> {
     pub fn linearize(&mut self, ports: exchange::Ports, prefer: exchange::JacobianSource) -> Result<exchange::Jacobians, String> {
         match self {
             Instance::Fmi2Me(i) => i.linearize(ports, prefer),
+            Instance::Fmi1Me(i) => i.linearize(ports, prefer),
             Instance::Fmi3Me(i) => i.linearize(ports, prefer),
-            Instance::Fmi2Cs(_) | Instance::Fmi3Cs(_) => {
+            Instance::Fmi2Cs(_) | Instance::Fmi1Cs(_) | Instance::Fmi3Cs(_) => {
                 Err("linearization needs the FMU's Model Exchange interface (the states and their derivatives)".to_owned())
             }
         }
@@ -645,7 +710,7 @@ impl Instance<'_> {
     /// the simulation there.
     pub fn handle_event(&mut self, time: f64) -> Result<Option<String>, String> {
         match self {
-            Instance::Fmi2Cs(_) | Instance::Fmi2Me(_) | Instance::Fmi3Me(_) => Ok(None),
+            Instance::Fmi2Cs(_) | Instance::Fmi2Me(_) | Instance::Fmi1Cs(_) | Instance::Fmi1Me(_) | Instance::Fmi3Me(_) => Ok(None),
             Instance::Fmi3Cs(i) => i.handle_event(time),
         }
     }

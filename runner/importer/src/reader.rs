@@ -22,6 +22,8 @@ pub(crate) enum Buffer {
     IntBool(Vec<i32>),
     /// FMI 3.0 `fmi3Boolean` (a C bool).
     Bool(Vec<bool>),
+    /// FMI 1.0 `fmiBoolean` (a C char).
+    CharBool(Vec<std::ffi::c_char>),
     /// Strings, copied out of the FMU's memory at each read.
     Text(Vec<String>),
     /// Binary values, copied out at each read.
@@ -41,11 +43,14 @@ impl Buffer {
             Kind::UInt32 => Buffer::U32(vec![0; n]),
             Kind::Int64 => Buffer::I64(vec![0; n]),
             Kind::UInt64 => Buffer::U64(vec![0; n]),
-            // FMI 2.0 enumerations are Integers, FMI 3.0's Int64.
-            Kind::Enumeration if version == FmiVersion::Fmi2 => Buffer::I32(vec![0; n]),
-            Kind::Enumeration => Buffer::I64(vec![0; n]),
-            Kind::Boolean if version == FmiVersion::Fmi2 => Buffer::IntBool(vec![0; n]),
-            Kind::Boolean => Buffer::Bool(vec![false; n]),
+            // FMI 1.0 and 2.0 enumerations are Integers, FMI 3.0's Int64.
+            Kind::Enumeration if version == FmiVersion::Fmi3 => Buffer::I64(vec![0; n]),
+            Kind::Enumeration => Buffer::I32(vec![0; n]),
+            Kind::Boolean => match version {
+                FmiVersion::Fmi1 => Buffer::CharBool(vec![0; n]),
+                FmiVersion::Fmi2 => Buffer::IntBool(vec![0; n]),
+                FmiVersion::Fmi3 => Buffer::Bool(vec![false; n]),
+            },
             Kind::String => Buffer::Text(vec![String::new(); n]),
             Kind::Binary | Kind::Clock => Buffer::Bytes(vec![Vec::new(); n]),
         }
@@ -66,6 +71,7 @@ impl Buffer {
             Buffer::U64(v) => v[i] as f64,
             Buffer::IntBool(v) => (v[i] != 0) as i32 as f64,
             Buffer::Bool(v) => v[i] as i32 as f64,
+            Buffer::CharBool(v) => (v[i] != 0) as i32 as f64,
             Buffer::Text(_) | Buffer::Bytes(_) => f64::NAN,
         }
     }

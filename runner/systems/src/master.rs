@@ -287,7 +287,7 @@ impl<'a> Bound<'a> {
             && tr.variable.variability == Variability::Continuous
             && tr.variable.causality == Causality::Input;
         let interpolates = target.interface == Interface::CoSimulation
-            && target.description.fmi_version == FmiVersion::Fmi2
+            && matches!(target.description.fmi_version, FmiVersion::Fmi1 | FmiVersion::Fmi2)
             && target.description.co_simulation.as_ref().is_some_and(|c| c.can_interpolate_inputs);
         let derivatives = match (&source.interface, &source.description.co_simulation) {
             (Interface::CoSimulation, Some(c)) => c.max_output_derivative_order as usize,

@@ -18,6 +18,10 @@ use crate::probe::{first_check, known, Ctx};
 use crate::report::{Finding, Severity};
 use crate::{fmi2, fmi3, probes};
 
+/// FMI 1.0 FMUs get no probes: their checks are the description's and a lifecycle run
+/// ([`crate::fmi1`]).
+const FMI1_IN_PROCESS: &str = "FMI 1.0 FMUs are not probed (their lifecycle is checked through the importer)";
+
 /// The probe process: serves the supervisor's jobs, one probe each (a fresh process for each,
 /// the sandbox's `one job per worker`).
 pub(crate) fn serve() -> Result<(), String> {
@@ -55,11 +59,15 @@ pub(crate) fn serve() -> Result<(), String> {
 /// `progress`; its messages go to `out`.
 fn run(job: &Job, progress: Progress<'static>, out: &Out) -> Result<(), String> {
     let fmi = job.fmi;
+    if fmi == Fmi::Fmi1 {
+        return crate::fmi1::lifecycle(job, progress, out);
+    }
     let xml = std::fs::read_to_string(job.dir.join("modelDescription.xml")).map_err(|e| format!("cannot read the description: {e}"))?;
     // The probe process lives for one probe: what every instance refers to lives as long.
     let model: &'static Model = Box::leak(Box::new(match fmi {
         Fmi::Fmi2 => fmi2::description::model(&xml)?,
         Fmi::Fmi3 => fmi3::description::model(&xml)?,
+        Fmi::Fmi1 => return Err(FMI1_IN_PROCESS.to_owned()),
     }));
     let tracer = Tracer { progress, slot: 0, timeout: job.timeout };
     let shown = job.binary.strip_prefix(&job.dir).unwrap_or(&job.binary).display().to_string();
@@ -100,6 +108,7 @@ fn load(fmi: Fmi, path: &Path, model: &'static Model, dir: &Path, tracer: Tracer
     Ok(match fmi {
         Fmi::Fmi2 => Box::leak(Box::new(Fmi2::new(library, model, dir, tracer)?)),
         Fmi::Fmi3 => Box::leak(Box::new(Fmi3::new(library, model, dir, tracer)?)),
+        Fmi::Fmi1 => return Err(FMI1_IN_PROCESS.to_owned()),
     })
 }
 

@@ -43,6 +43,7 @@ pub(crate) trait Version: Copy {
 impl Version for Fmi {
     fn prefix(self) -> &'static str {
         match self {
+            Fmi::Fmi1 => "fmi",
             Fmi::Fmi2 => "fmi2",
             Fmi::Fmi3 => "fmi3",
         }
@@ -50,6 +51,7 @@ impl Version for Fmi {
 
     fn status_name(self, code: c_int) -> &'static str {
         match self {
+            Fmi::Fmi1 => fmi_c::fmi1::status_name(code),
             Fmi::Fmi2 => fmi_c::fmi2::status_name(code),
             Fmi::Fmi3 => fmi_c::fmi3::status_name(code),
         }
@@ -59,18 +61,20 @@ impl Version for Fmi {
         match self {
             Fmi::Fmi2 => &[(Op::GetVersion, "2.0"), (Op::GetTypesPlatform, "default")],
             Fmi::Fmi3 => &[(Op::GetVersion, "3.0")],
+            Fmi::Fmi1 => &[(Op::GetVersion, "1.0")],
         }
     }
 
     fn token(self) -> &'static str {
         match self {
-            Fmi::Fmi2 => "GUID",
+            Fmi::Fmi2 | Fmi::Fmi1 => "GUID",
             Fmi::Fmi3 => "instantiationToken",
         }
     }
 
     fn instance_type(self) -> &'static str {
         match self {
+            Fmi::Fmi1 => "fmiComponent",
             Fmi::Fmi2 => "fmi2Component",
             Fmi::Fmi3 => "fmi3Instance",
         }
@@ -78,29 +82,29 @@ impl Version for Fmi {
 
     fn instance_word(self) -> &'static str {
         match self {
-            Fmi::Fmi2 => "component",
+            Fmi::Fmi2 | Fmi::Fmi1 => "component",
             Fmi::Fmi3 => "instance",
         }
     }
 
     fn fmu_state_word(self) -> &'static str {
         match self {
-            Fmi::Fmi2 => "FMUstate",
+            Fmi::Fmi2 | Fmi::Fmi1 => "FMUstate",
             Fmi::Fmi3 => "FMUState",
         }
     }
 
     fn wrong_value_reference_section(self) -> &'static str {
         match self {
-            Fmi::Fmi2 => "section 2.1.7",
+            Fmi::Fmi2 | Fmi::Fmi1 => "section 2.1.7",
             Fmi::Fmi3 => "section 2.2.3",
         }
     }
 
     fn fmu_state_flag(self, serialized: bool) -> &'static str {
         match (self, serialized) {
-            (Fmi::Fmi2, false) => "canGetAndSetFMUstate",
-            (Fmi::Fmi2, true) => "canSerializeFMUstate",
+            (Fmi::Fmi2 | Fmi::Fmi1, false) => "canGetAndSetFMUstate",
+            (Fmi::Fmi2 | Fmi::Fmi1, true) => "canSerializeFMUstate",
             (Fmi::Fmi3, false) => "canGetAndSetFMUState",
             (Fmi::Fmi3, true) => "canSerializeFMUState",
         }
@@ -108,6 +112,7 @@ impl Version for Fmi {
 
     fn again_flag(self) -> &'static str {
         match self {
+            Fmi::Fmi1 => "iterationConverged = false",
             Fmi::Fmi2 => "newDiscreteStatesNeeded",
             Fmi::Fmi3 => "discreteStatesNeedUpdate",
         }
@@ -115,7 +120,7 @@ impl Version for Fmi {
 
     fn state_after_error(self) -> State {
         match self {
-            Fmi::Fmi2 => State::Error,
+            Fmi::Fmi2 | Fmi::Fmi1 => State::Error,
             Fmi::Fmi3 => State::Terminated,
         }
     }

@@ -32,6 +32,7 @@ mod child;
 mod exchange;
 mod failure;
 mod fmi;
+mod fmi1;
 mod fmi2;
 mod fmi3;
 mod instance;
@@ -116,6 +117,12 @@ pub fn validate(path: &Path, options: &Options) -> Result<Report, String> {
 pub fn description_problems(xml: &str) -> Vec<String> {
     let declared = match fmi_version(xml) {
         Some(v) if v.starts_with('3') => fmi3::description::declared(xml),
+        Some(v) if v.starts_with('1') => {
+            return match fmi_schema::fmi1::ModelDescription::from_xml(xml) {
+                Ok(md) => md.check(),
+                Err(e) => vec![format!("modelDescription.xml cannot be read: {e}")],
+            }
+        }
         _ => fmi2::description::declared(xml),
     };
     match declared {

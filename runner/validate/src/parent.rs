@@ -18,10 +18,11 @@ use crate::{fmi2, fmi3, Options};
 /// The message of an interrupted validation (the command line exits with 130 on it).
 pub(crate) const INTERRUPTED: &str = "interrupted";
 
-/// The version a description's `fmiVersion` names (FMI 2.0 unless it says 3).
+/// The version a description's `fmiVersion` names (FMI 2.0 unless it says 3 or 1).
 pub(crate) fn version_of(fmi_version: Option<&str>) -> Fmi {
     match fmi_version {
         Some(v) if v.starts_with('3') => Fmi::Fmi3,
+        Some(v) if v.starts_with('1') => Fmi::Fmi1,
         _ => Fmi::Fmi2,
     }
 }
@@ -38,6 +39,8 @@ struct Version {
 /// `report`; `Err` when the validation could not run.
 pub(crate) fn validate(fmi: Fmi, xml: &str, dir: &Path, work: &Path, options: &Options, report: &mut Report) -> Result<(), String> {
     let (declared, version) = match fmi {
+        // FMI 1.0 has checks of its own (no probes).
+        Fmi::Fmi1 => return crate::fmi1::validate(xml, dir, work, options, report),
         Fmi::Fmi2 => (fmi2::description::declared(xml), Version { fmi, platform: fmi2::PLATFORM, table: &fmi2::table::TABLE }),
         Fmi::Fmi3 => (fmi3::description::declared(xml), Version { fmi, platform: fmi3::PLATFORM, table: &fmi3::table::TABLE }),
     };
@@ -283,9 +286,10 @@ mod tests {
     }
 
     #[test]
-    fn the_version_is_three_only_when_it_says_so() {
+    fn the_version_is_three_or_one_only_when_it_says_so() {
         assert_eq!(version_of(Some("3.0")), Fmi::Fmi3);
         assert_eq!(version_of(Some("2.0")), Fmi::Fmi2);
+        assert_eq!(version_of(Some("1.0")), Fmi::Fmi1);
         assert_eq!(version_of(None), Fmi::Fmi2);
     }
 }

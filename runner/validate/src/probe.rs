@@ -46,7 +46,7 @@ pub(crate) fn resumable(probe: &str) -> bool {
 /// The check of instantiation with the FMU's own token (and a wrong one).
 pub(crate) fn instantiate_check(fmi: Fmi) -> &'static str {
     match fmi {
-        Fmi::Fmi2 => "lifecycle.guid",
+        Fmi::Fmi2 | Fmi::Fmi1 => "lifecycle.guid",
         Fmi::Fmi3 => "lifecycle.instantiate",
     }
 }

@@ -108,7 +108,8 @@ impl Binary for Fake {
 
     fn table(&self) -> &'static Table {
         match self.fmi {
-            Fmi::Fmi2 => &crate::fmi2::table::TABLE,
+            // FMI 1.0 gets no probes: the fakes never speak it.
+            Fmi::Fmi2 | Fmi::Fmi1 => &crate::fmi2::table::TABLE,
             Fmi::Fmi3 => &crate::fmi3::table::TABLE,
         }
     }

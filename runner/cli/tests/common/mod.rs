@@ -72,6 +72,42 @@ pub fn write_zip(dest: &Path, items: &[ZipItem]) {
     zip.finish().unwrap();
 }
 
+/// The element that makes an FMI 1.0 description a Co-Simulation FMU's.
+pub const FMI1_IMPLEMENTATION: &str = "  <Implementation>
+    <CoSimulation_StandAlone>
+      <Capabilities canHandleVariableCommunicationStepSize=\"true\" canHandleEvents=\"true\"/>
+    </CoSimulation_StandAlone>
+  </Implementation>
+</fmiModelDescription>";
+
+/// Builds the FMI 1.0 test FMU tests/c_fmu/fmi1_<model>.c as `<dir>/<file>`, Co-Simulation
+/// (-DFMI1_CO_SIMULATION, the description with [`FMI1_IMPLEMENTATION`]) or Model Exchange, its
+/// modelDescription.xml passed through `edit`; returns its path.
+pub fn fmi1_fmu(dir: &Path, file: &str, model: &str, co_simulation: bool, edit: impl Fn(&str) -> String) -> PathBuf {
+    let so = dir.join(format!("{file}.so"));
+    let source = c_fmu_dir().join(format!("fmi1_{model}.c"));
+    let flags: &[&str] = if co_simulation { &["-DFMI1_CO_SIMULATION"] } else { &[] };
+    let status = Command::new("cc")
+        .args(["-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-o"])
+        .arg(&so)
+        .arg(&source)
+        .args(flags)
+        .arg("-lm")
+        .status()
+        .expect("the C compiler `cc` runs");
+    assert!(status.success(), "cc failed to compile {}", source.display());
+    let binary = std::fs::read(&so).unwrap();
+    let mut xml = std::fs::read_to_string(c_fmu_dir().join(format!("fmi1_{model}.xml"))).unwrap();
+    if co_simulation {
+        xml = xml.replace("</fmiModelDescription>", FMI1_IMPLEMENTATION);
+    }
+    let xml = edit(&xml);
+    let path = dir.join(file);
+    let entry = format!("binaries/linux64/fmi1_{model}.so");
+    write_zip(&path, &[ZipItem::File("modelDescription.xml", xml.as_bytes()), ZipItem::File(&entry, &binary)]);
+    path
+}
+
 /// Builds the C test FMU (binary for `platform`) as `<dir>/<file>`; returns its path.
 pub fn c_fmu(dir: &Path, file: &str, platform: &str, extra_flags: &[&str]) -> PathBuf {
     let so = dir.join(format!("{file}.so"));

@@ -409,7 +409,9 @@ impl<'a> Component<'a> {
                     }
                     status
                 }
-                Buffer::IntBool(_) => return Err(format!("{}: an FMI 2.0 Boolean buffer in an FMI 3.0 reader", self.name)),
+                Buffer::IntBool(_) | Buffer::CharBool(_) => {
+                    return Err(format!("{}: an FMI 1.0 or 2.0 Boolean buffer in an FMI 3.0 reader", self.name))
+                }
             };
             if !(status == OK || status == WARNING) {
                 return Err(self.refused(&format!("fmi3Get{}", group.kind), status));

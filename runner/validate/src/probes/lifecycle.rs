@@ -147,7 +147,7 @@ fn instantiation(ctx: &mut Ctx) -> bool {
         let failure = match fmi {
             // FMI 2.0: the GUID "is used to check that the modelDescription.xml file is
             // compatible with the C code", which a binary that accepts any GUID does not.
-            Fmi::Fmi2 => (Severity::Error, format!("{call} accepted a wrong GUID: it must refuse a modelDescription.xml that does not belong to its binary")),
+            Fmi::Fmi2 | Fmi::Fmi1 => (Severity::Error, format!("{call} accepted a wrong GUID: it must refuse a modelDescription.xml that does not belong to its binary")),
             // FMI 3.0 lets the FMU check it: a warning.
             Fmi::Fmi3 => (
                 Severity::Warning,

@@ -5,6 +5,7 @@
 
 use std::ops::Range;
 
+use fmi_importer::call_log::CallLogTarget;
 use fmi_importer::{Description, Fmu, Interface, Reader, Unpacked};
 use runner_sandbox::{run_batch, Config, Session, Workers};
 
@@ -93,7 +94,10 @@ impl<'a> Runs<'a> {
         mut sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
     ) -> Result<Outcome, String> {
         let session = match (self.held, self.session.as_mut()) {
-            (Held::Loaded(fmu), _) => return request.bind(&fmu.description, fmu.interface, true)?.run().execute(fmu, sample),
+            (Held::Loaded(fmu), _) => {
+                let bound = request.bind(&fmu.description, fmu.interface, true)?;
+                return fmi_importer::call_log::logging(request.log_fmi_calls.as_ref(), || bound.run().execute(fmu, sample));
+            }
             (Held::Described(_), Some(session)) => session,
             (Held::Described(_), None) => unreachable!("a session is made for a described FMU"),
         };
@@ -115,8 +119,12 @@ impl<'a> Runs<'a> {
                 sample(chunk[0], &chunk[1..], &texts)?;
             }
             Ok(())
-        })?;
-        match outcome {
+        });
+        if outcome.is_err() && request.log_fmi_calls == Some(CallLogTarget::Stderr) {
+            // A worker that died in an FMI call left that call's line unfinished on stderr.
+            eprintln!();
+        }
+        match outcome? {
             WorkerOutcome::Run(result) => {
                 result.map(|end| Outcome { ended_early: end.ended_early, counters: end.counters, final_state: end.final_state })
             }

@@ -141,7 +141,8 @@ fn our_fmu_in_both_versions_and_interfaces() {
                         e.iter().map(|n| format!("fmi2{n}")).collect()
                     }
                     ("fmi3", "co-simulation") => {
-                        let mut e = vec!["InstantiateCoSimulation", "EnterInitializationMode", "ExitInitializationMode"];
+                        // The FMU has Event Mode: the runner enters Step Mode after initialization.
+                        let mut e = vec!["InstantiateCoSimulation", "EnterInitializationMode", "ExitInitializationMode", "EnterStepMode"];
                         e.extend(["DoStep"; 4]);
                         e.extend(["Terminate", "FreeInstance"]);
                         e.iter().map(|n| format!("fmi3{n}")).collect()
@@ -228,9 +229,10 @@ print("\n".join(calls))
     }
 }
 
-/// fault=1 makes the C FMU's fmi2DoStep crash with SIGSEGV at t = 0.31 in the worker: the log,
-/// written call by call, ends with that call, unfinished, and the runner's error names it too.
-/// Without a file the log goes to stderr.
+/// fault=1 makes the C FMU's fmi2DoStep crash with SIGSEGV at t = 0.31. In the worker the log,
+/// written call by call, ends with that call, unfinished, and the runner's error names it too;
+/// in this process, which the crash kills, the log ends the same. Without a file the log goes
+/// to stderr.
 #[test]
 fn the_last_line_names_the_call_that_crashed() {
     let dir = tempfile::tempdir().unwrap();
@@ -246,6 +248,15 @@ fn the_last_line_names_the_call_that_crashed() {
     assert_eq!(last.status, None, "the crashed call never returned: {log}");
     assert_eq!(last.argument("currentCommunicationPoint"), Some("0.31"), "{log}");
     assert!(calls[..calls.len() - 1].iter().all(|c| c.status.as_deref().is_some_and(|s| s == "fmi2OK" || s.starts_with("0x"))), "{log}");
+
+    // In this process the crash ends the runner, and the log still ends with the call.
+    let o = runner(dir.path(), &[&args[..], &["--log-fmi-calls", "in-process.txt", "--in-process"]].concat());
+    assert_eq!(o.status.code(), None, "killed by the FMU's SIGSEGV: {}", stderr(&o));
+    let log = std::fs::read_to_string(dir.path().join("in-process.txt")).unwrap();
+    let calls = parse(&log);
+    let last = calls.last().unwrap();
+    assert_eq!((last.name.as_str(), last.status.as_deref()), ("fmi2DoStep", None), "{log}");
+    assert_eq!(last.argument("currentCommunicationPoint"), Some("0.31"), "{log}");
 
     // To stderr: the same lines among the runner's own.
     let o = runner(dir.path(), &[&args[..], &["--log-fmi-calls"]].concat());
@@ -263,4 +274,19 @@ fn an_unwritable_log_is_refused_before_the_run() {
     let error = fails(runner(dir.path(), &["simulate", f, "--out", "x.csv", "--log-fmi-calls", "no/such/dir/calls.txt"]));
     assert!(error.contains("cannot write the FMI call log no/such/dir/calls.txt"), "{error}");
     assert!(!dir.path().join("x.csv").exists(), "no run, no CSV");
+}
+
+/// `runner linearize` logs too: the Reference FMU VanDerPol (FMI 3.0) through Model Exchange,
+/// its Jacobian from fmi3GetDirectionalDerivative, which it provides; every call OK.
+#[test]
+fn linearize_logs_its_calls() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = reference_fmu("fmi3", "VanDerPol");
+    ok(runner(dir.path(), &["linearize", fmu.to_str().unwrap(), "--log-fmi-calls", "calls.txt"]));
+    let log = std::fs::read_to_string(dir.path().join("calls.txt")).unwrap();
+    let calls = parse(&log);
+    assert_eq!(calls.first().map(|c| c.name.as_str()), Some("fmi3InstantiateModelExchange"), "{log}");
+    assert!(calls.iter().any(|c| c.name == "fmi3GetDirectionalDerivative" && c.results.starts_with("sensitivity=[")), "{log}");
+    assert_eq!(calls.last().map(|c| c.name.as_str()), Some("fmi3FreeInstance"), "{log}");
+    assert!(calls.iter().all(|c| c.status.as_deref().is_some_and(|s| s == "fmi3OK" || s.starts_with("0x") || s == "(void)")), "{log}");
 }

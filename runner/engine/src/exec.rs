@@ -120,10 +120,7 @@ impl<'a> Runs<'a> {
             }
             Ok(())
         });
-        if outcome.is_err() && request.log_fmi_calls == Some(CallLogTarget::Stderr) {
-            // A worker that died in an FMI call left that call's line unfinished on stderr.
-            eprintln!();
-        }
+        end_call_line(&outcome, request.log_fmi_calls.as_ref());
         match outcome? {
             WorkerOutcome::Run(result) => {
                 result.map(|end| Outcome { ended_early: end.ended_early, counters: end.counters, final_state: end.final_state })
@@ -143,11 +140,20 @@ impl<'a> Runs<'a> {
         };
         let name = &request.name;
         let outcome = session
-            .run(Job::Linearize(Box::new(request.clone())), stop, |_| Err(format!("{name}: the worker sent samples while linearizing")))?;
-        match outcome {
+            .run(Job::Linearize(Box::new(request.clone())), stop, |_| Err(format!("{name}: the worker sent samples while linearizing")));
+        end_call_line(&outcome, request.log_fmi_calls.as_ref());
+        match outcome? {
             WorkerOutcome::Linear(result) => result.map(|linear| *linear),
             _ => Err(format!("{name}: the worker answered a linearization with something else")),
         }
+    }
+}
+
+/// After a failed job of a worker logging its FMI calls to stderr, ends the line of the call the
+/// worker may have died in, so the error does not run on from it.
+fn end_call_line<T>(outcome: &Result<T, String>, log: Option<&CallLogTarget>) {
+    if outcome.is_err() && log == Some(&CallLogTarget::Stderr) {
+        eprintln!();
     }
 }
 

@@ -108,20 +108,53 @@ pub(crate) fn enter(name: &'static str, arguments: impl FnOnce() -> String) -> O
     Some(write_entry(name, &arguments()))
 }
 
-/// Adds the status to the line of an [`enter`]ed call.
+/// Adds the status (named only when logging: naming costs a run that does not log) to the line
+/// of an [`enter`]ed call.
 #[inline(always)]
-pub(crate) fn returned(entered: Option<Entered>, status: &str) {
+pub(crate) fn returned(entered: Option<Entered>, status: impl FnOnce() -> &'static str) {
     if let Some(entered) = entered {
-        write_return(entered, status, "");
+        write_return(entered, status(), "");
     }
 }
 
 /// [`returned`] with what the call gave back (`results`, made only when logging).
 #[inline(always)]
-pub(crate) fn returned_with(entered: Option<Entered>, status: &str, results: impl FnOnce() -> String) {
+pub(crate) fn returned_with(entered: Option<Entered>, status: impl FnOnce() -> &'static str, results: impl FnOnce() -> String) {
     if let Some(entered) = entered {
-        write_return(entered, status, &results());
+        write_return(entered, status(), &results());
     }
+}
+
+/// Runs `call` (an FMI function: its status and what it gave back, by value), logged when the log
+/// is on. For the calls of every step: without the log this is one test of a flag before the
+/// call, the logging kept out of line.
+#[inline(always)]
+pub(crate) fn call<R: Copy>(
+    name: &'static str,
+    arguments: impl FnOnce() -> String,
+    call: impl FnOnce() -> R,
+    status: impl FnOnce(R) -> &'static str,
+    results: impl FnOnce(R) -> String,
+) -> R {
+    if !ON.load(Ordering::Relaxed) {
+        return call();
+    }
+    logged(name, arguments, call, status, results)
+}
+
+#[cold]
+#[inline(never)]
+fn logged<R: Copy>(
+    name: &'static str,
+    arguments: impl FnOnce() -> String,
+    call: impl FnOnce() -> R,
+    status: impl FnOnce(R) -> &'static str,
+    results: impl FnOnce(R) -> String,
+) -> R {
+    let entered = write_entry(name, &arguments());
+    let returned = call();
+    write_return(entered, status(returned), &results(returned));
+    returned
 }
 
 /// Adds what an instantiation returned, the instance's address or NULL, to its line.

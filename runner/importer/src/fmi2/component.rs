@@ -144,7 +144,7 @@ impl<'a> Component<'a> {
                 if stop_defined { stop } else { 0.0 },
             )
         };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2SetupExperiment", status)
     }
 
@@ -157,7 +157,7 @@ impl<'a> Component<'a> {
         let entered = call_log::enter("fmi2Reset", String::new);
         // SAFETY: the component is live.
         let status = unsafe { reset(self.raw) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2Reset", status)?;
         self.terminate_allowed = false;
         self.time = f64::NAN;
@@ -178,13 +178,13 @@ impl<'a> Component<'a> {
         let entered = call_log::enter("fmi2GetFMUstate", String::new);
         // SAFETY: the component is live; `state` receives the FMU's handle.
         let status = unsafe { get(self.raw, &mut state) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2GetFMUstate", status)?;
         let mut n = 0usize;
         // SAFETY: a state this component returned, and an out pointer.
         let entered = call_log::enter("fmi2SerializedFMUstateSize", String::new);
         let status = unsafe { size(self.raw, state, &mut n) };
-        call_log::returned_with(entered, c::status_name(status), || format!("size={n}"));
+        call_log::returned_with(entered, || c::status_name(status), || format!("size={n}"));
         let bytes = self.check("fmi2SerializedFMUstateSize", status).and_then(|()| {
             if n > crate::state::MAX_STATE_BYTES {
                 return Err(format!("{}: fmi2SerializedFMUstateSize gave {n} bytes", self.name));
@@ -193,13 +193,13 @@ impl<'a> Component<'a> {
             // SAFETY: `n` writable bytes, as the FMU asked for.
             let entered = call_log::enter("fmi2SerializeFMUstate", || format!("size={n}"));
             let status = unsafe { serialize(self.raw, state, bytes.as_mut_ptr().cast(), n) };
-            call_log::returned(entered, c::status_name(status));
+            call_log::returned(entered, || c::status_name(status));
             self.check("fmi2SerializeFMUstate", status).map(|()| bytes)
         });
         let entered = call_log::enter("fmi2FreeFMUstate", String::new);
         // SAFETY: the state is this component's, freed once.
         let status = unsafe { free(self.raw, &mut state) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         bytes
     }
 
@@ -215,17 +215,17 @@ impl<'a> Component<'a> {
         // SAFETY: `bytes.len()` readable bytes; `state` receives the FMU's handle.
         let entered = call_log::enter("fmi2DeSerializeFMUstate", || format!("size={}", bytes.len()));
         let status = unsafe { deserialize(self.raw, bytes.as_ptr().cast(), bytes.len(), &mut state) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2DeSerializeFMUstate", status)?;
         // SAFETY: a state this component made.
         let entered = call_log::enter("fmi2SetFMUstate", String::new);
         let status = unsafe { set(self.raw, state) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         let result = self.check("fmi2SetFMUstate", status);
         let entered = call_log::enter("fmi2FreeFMUstate", String::new);
         // SAFETY: freed once.
         let status = unsafe { free(self.raw, &mut state) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         result?;
         self.terminate_allowed = true;
         Ok(())
@@ -236,7 +236,7 @@ impl<'a> Component<'a> {
         trace::enter(Call::EnterInitializationMode, self.time);
         let entered = call_log::enter("fmi2EnterInitializationMode", String::new);
         let status = unsafe { (self.binary.api.enter_initialization_mode)(self.raw) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2EnterInitializationMode", status)
     }
 
@@ -245,7 +245,7 @@ impl<'a> Component<'a> {
         trace::enter(Call::ExitInitializationMode, self.time);
         let entered = call_log::enter("fmi2ExitInitializationMode", String::new);
         let status = unsafe { (self.binary.api.exit_initialization_mode)(self.raw) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2ExitInitializationMode", status)?;
         self.terminate_allowed = true;
         Ok(())
@@ -264,21 +264,21 @@ impl<'a> Component<'a> {
                     trace::enter(Call::SetReal, time);
                     let entered = call_log::enter("fmi2SetReal", || format!("vr=[{vr}], nvr=1, value=[{v:?}]"));
                     let status = (api.set_real)(comp, &vr, 1, v);
-                    call_log::returned(entered, c::status_name(status));
+                    call_log::returned(entered, || c::status_name(status));
                     status
                 }
                 Value::Integer(v) => {
                     trace::enter(Call::SetInteger, time);
                     let entered = call_log::enter("fmi2SetInteger", || format!("vr=[{vr}], nvr=1, value=[{v}]"));
                     let status = (api.set_integer)(comp, &vr, 1, v);
-                    call_log::returned(entered, c::status_name(status));
+                    call_log::returned(entered, || c::status_name(status));
                     status
                 }
                 Value::Boolean(v) => {
                     trace::enter(Call::SetBoolean, time);
                     let entered = call_log::enter("fmi2SetBoolean", || format!("vr=[{vr}], nvr=1, value=[{}]", boolean(2, *v)));
                     let status = (api.set_boolean)(comp, &vr, 1, &(*v as c_int));
-                    call_log::returned(entered, c::status_name(status));
+                    call_log::returned(entered, || c::status_name(status));
                     status
                 }
                 Value::String(v) => {
@@ -286,7 +286,7 @@ impl<'a> Component<'a> {
                     let s = CString::new(v.as_str()).map_err(|_| format!("the value of {} contains a NUL byte", variable.name))?;
                     let entered = call_log::enter("fmi2SetString", || format!("vr=[{vr}], nvr=1, value=[{v:?}]"));
                     let status = (api.set_string)(comp, &vr, 1, &s.as_ptr());
-                    call_log::returned(entered, c::status_name(status));
+                    call_log::returned(entered, || c::status_name(status));
                     status
                 }
                 Value::Int(_) | Value::Binary(_) | Value::List(_) => {
@@ -322,7 +322,7 @@ impl<'a> Component<'a> {
         // SAFETY: one value reference and room for one pointer.
         let entered = call_log::enter("fmi2GetString", || format!("vr=[{vr}], nvr=1"));
         let status = unsafe { get(self.raw, &vr, 1, &mut value) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check(&format!("fmi2GetString of {}", variable.name), status)?;
         // SAFETY: a non-NULL pointer from the FMU is a NUL-terminated string until its next call.
         unsafe { crate::text_of(value, &variable.name, "fmi2GetString") }
@@ -335,9 +335,15 @@ impl<'a> Component<'a> {
             // Only Reals (the usual sweep): they are in `out`'s order, so read straight into it.
             if let Some(group) = reader.groups.first() {
                 trace::enter(Call::GetReal, self.time);
-                let entered = call_log::enter("fmi2GetReal", || format!("vr={}, nvr={}", list(&group.vrs), out.len()));
-                let status = unsafe { (self.binary.api.get_real)(self.raw, group.vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
-                call_log::returned_with(entered, c::status_name(status), || format!("value={}", list(out)));
+                let (get_real, raw, vrs, values, n) = (self.binary.api.get_real, self.raw, &group.vrs, out.as_mut_ptr(), out.len());
+                let status = call_log::call(
+                    "fmi2GetReal",
+                    || format!("vr={}, nvr={n}", list(vrs)),
+                    || unsafe { get_real(raw, vrs.as_ptr(), n, values) },
+                    c::status_name,
+                    // SAFETY: the `n` values the call just wrote.
+                    |_| format!("value={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+                );
                 self.check("fmi2GetReal", status)?;
             }
             return Ok(());
@@ -354,10 +360,15 @@ impl<'a> Component<'a> {
         debug_assert_eq!(vrs.len(), values.len());
         trace::enter(Call::SetReal, self.time);
         let n = vrs.len().min(values.len());
-        let entered = call_log::enter("fmi2SetReal", || format!("vr={}, nvr={n}, value={}", list(&vrs[..n]), list(&values[..n])));
-        // SAFETY: `n` value references and as many values, valid for the call.
-        let status = unsafe { (self.binary.api.set_real)(self.raw, vrs.as_ptr(), n, values.as_ptr()) };
-        call_log::returned(entered, c::status_name(status));
+        let (set_real, raw) = (self.binary.api.set_real, self.raw);
+        let status = call_log::call(
+            "fmi2SetReal",
+            || format!("vr={}, nvr={n}, value={}", list(&vrs[..n]), list(&values[..n])),
+            // SAFETY: `n` value references and as many values, valid for the call.
+            || unsafe { set_real(raw, vrs.as_ptr(), n, values.as_ptr()) },
+            c::status_name,
+            |_| String::new(),
+        );
         self.check("fmi2SetReal", status)
     }
 
@@ -375,21 +386,21 @@ impl<'a> Component<'a> {
                         trace::enter(Call::GetReal, time);
                         let entered = call_log::enter("fmi2GetReal", || format!("vr={}, nvr={n}", list(&group.vrs)));
                         let status = (api.get_real)(comp, vrs, n, b.as_mut_ptr());
-                        call_log::returned_with(entered, c::status_name(status), || format!("value={}", list(b)));
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(b)));
                         ("fmi2GetReal", status)
                     }
                     Buffer::I32(b) => {
                         trace::enter(Call::GetInteger, time);
                         let entered = call_log::enter("fmi2GetInteger", || format!("vr={}, nvr={n}", list(&group.vrs)));
                         let status = (api.get_integer)(comp, vrs, n, b.as_mut_ptr());
-                        call_log::returned_with(entered, c::status_name(status), || format!("value={}", list(b)));
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(b)));
                         ("fmi2GetInteger", status)
                     }
                     Buffer::IntBool(b) => {
                         trace::enter(Call::GetBoolean, time);
                         let entered = call_log::enter("fmi2GetBoolean", || format!("vr={}, nvr={n}", list(&group.vrs)));
                         let status = (api.get_boolean)(comp, vrs, n, b.as_mut_ptr());
-                        call_log::returned_with(entered, c::status_name(status), || format!("value={}", list(b)));
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(b)));
                         ("fmi2GetBoolean", status)
                     }
                     Buffer::Text(texts) => {
@@ -407,7 +418,7 @@ impl<'a> Component<'a> {
                                     if p.is_null() { String::new() } else { std::ffi::CStr::from_ptr(p).to_string_lossy().into_owned() };
                             }
                         }
-                        call_log::returned_with(entered, c::status_name(status), || format!("value={}", list(texts)));
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(texts)));
                         ("fmi2GetString", status)
                     }
                     _ => return Err(format!("{}: a {} variable cannot be read from an FMI 2.0 FMU", self.name, group.kind)),
@@ -433,12 +444,12 @@ impl Drop for Component<'_> {
                 trace::enter(Call::Terminate, self.time);
                 let entered = call_log::enter("fmi2Terminate", String::new);
                 let status = (self.binary.api.terminate)(self.raw);
-                call_log::returned(entered, c::status_name(status));
+                call_log::returned(entered, || c::status_name(status));
             }
             trace::enter(Call::FreeInstance, self.time);
             let entered = call_log::enter("fmi2FreeInstance", String::new);
             (self.binary.api.free_instance)(self.raw);
-            call_log::returned(entered, "(void)");
+            call_log::returned(entered, || "(void)");
         }
     }
 }

@@ -84,7 +84,7 @@ impl<'a> CoSimulation<'a> {
             format!("vr={}, nvr={n}, order={}, value={}", list(&vrs[..n]), list(&orders[..n]), list(&values[..n]))
         });
         let status = unsafe { set(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.component.check("fmi2SetRealInputDerivatives", status)
     }
 
@@ -100,7 +100,7 @@ impl<'a> CoSimulation<'a> {
         let entered =
             call_log::enter("fmi2GetRealOutputDerivatives", || format!("vr={}, nvr={n}, order={}", list(&vrs[..n]), list(&orders[..n])));
         let status = unsafe { get(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr()) };
-        call_log::returned_with(entered, c::status_name(status), || format!("value={}", list(&out[..n])));
+        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(&out[..n])));
         self.component.check("fmi2GetRealOutputDerivatives", status)
     }
 
@@ -121,11 +121,14 @@ impl<'a> CoSimulation<'a> {
     #[inline(always)]
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         trace::enter(Call::DoStep, t);
-        let entered = call_log::enter("fmi2DoStep", || {
-            format!("currentCommunicationPoint={t:?}, communicationStepSize={h:?}, noSetFMUStatePriorToCurrentPoint=fmi2True")
-        });
-        let status = unsafe { (self.cs.do_step)(self.component.raw, t, h, c::TRUE) };
-        call_log::returned(entered, c::status_name(status));
+        let (do_step, raw) = (self.cs.do_step, self.component.raw);
+        let status = call_log::call(
+            "fmi2DoStep",
+            || format!("currentCommunicationPoint={t:?}, communicationStepSize={h:?}, noSetFMUStatePriorToCurrentPoint=fmi2True"),
+            || unsafe { do_step(raw, t, h, c::TRUE) },
+            c::status_name,
+            |_| String::new(),
+        );
         if status == DISCARD {
             return self.discarded(t);
         }
@@ -145,7 +148,7 @@ impl<'a> CoSimulation<'a> {
         trace::enter(Call::GetBooleanStatus, t);
         let entered = call_log::enter("fmi2GetBooleanStatus", || "s=fmi2Terminated".to_owned());
         let s = unsafe { get_boolean_status(raw, c::TERMINATED, &mut terminated) };
-        call_log::returned_with(entered, c::status_name(s), || format!("value={}", call_log::boolean(2, terminated != 0)));
+        call_log::returned_with(entered, || c::status_name(s), || format!("value={}", call_log::boolean(2, terminated != 0)));
         self.component.check("fmi2GetBooleanStatus(fmi2Terminated)", s)?;
         let reason = self.component.callbacks.log.take_problem().unwrap_or_else(|| "no reason logged".to_owned());
         if terminated == 0 {
@@ -155,7 +158,7 @@ impl<'a> CoSimulation<'a> {
         trace::enter(Call::GetRealStatus, t);
         let entered = call_log::enter("fmi2GetRealStatus", || "s=fmi2LastSuccessfulTime".to_owned());
         let s = unsafe { get_real_status(raw, c::LAST_SUCCESSFUL_TIME, &mut last) };
-        call_log::returned_with(entered, c::status_name(s), || format!("value={last:?}"));
+        call_log::returned_with(entered, || c::status_name(s), || format!("value={last:?}"));
         let last_time = (s == OK || s == WARNING).then_some(last).filter(|t| t.is_finite());
         let when = match last_time {
             Some(last) => format!("t = {last}"),

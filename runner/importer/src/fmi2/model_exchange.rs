@@ -113,45 +113,67 @@ impl Exchange for Exchange2<'_> {
 
     #[inline(always)]
     fn set_time(&self, t: f64) -> c_int {
-        let entered = call_log::enter("fmi2SetTime", || format!("time={t:?}"));
-        // SAFETY: a live component and a scalar argument.
-        let status = unsafe { (self.api.set_time)(self.component.raw, t) };
-        call_log::returned(entered, c::status_name(status));
-        status
+        let set_time = self.api.set_time;
+        let raw = self.component.raw;
+        call_log::call(
+            "fmi2SetTime",
+            || format!("time={t:?}"),
+            // SAFETY: a live instance and a scalar argument.
+            || unsafe { set_time(raw, t) },
+            c::status_name,
+            |_| String::new(),
+        )
     }
 
     #[inline(always)]
     fn set_continuous_states(&self, x: &[f64]) -> c_int {
-        let entered = call_log::enter("fmi2SetContinuousStates", || format!("x={}, nx={}", list(x), x.len()));
-        // SAFETY: an array of x.len() states.
-        let status = unsafe { (self.api.set_continuous_states)(self.component.raw, x.as_ptr(), x.len()) };
-        call_log::returned(entered, c::status_name(status));
-        status
+        let set_continuous_states = self.api.set_continuous_states;
+        let raw = self.component.raw;
+        call_log::call(
+            "fmi2SetContinuousStates",
+            || format!("x={}, nx={}", list(x), x.len()),
+            // SAFETY: an array of x.len() states.
+            || unsafe { set_continuous_states(raw, x.as_ptr(), x.len()) },
+            c::status_name,
+            |_| String::new(),
+        )
     }
 
     #[inline(always)]
     fn get_derivatives(&self, dx: &mut [f64]) -> c_int {
-        let entered = call_log::enter("fmi2GetDerivatives", || format!("nx={}", dx.len()));
-        // SAFETY: an array of dx.len() derivatives.
-        let status = unsafe { (self.api.get_derivatives)(self.component.raw, dx.as_mut_ptr(), dx.len()) };
-        call_log::returned_with(entered, c::status_name(status), || format!("derivatives={}", list(dx)));
-        status
+        let get_derivatives = self.api.get_derivatives;
+        let (raw, values, n) = (self.component.raw, dx.as_mut_ptr(), dx.len());
+        call_log::call(
+            "fmi2GetDerivatives",
+            || format!("nx={n}"),
+            // SAFETY: an array of n values.
+            || unsafe { get_derivatives(raw, values, n) },
+            c::status_name,
+            // SAFETY: the `n` values the call just wrote.
+            |_| format!("derivatives={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 
     #[inline(always)]
     fn get_event_indicators(&self, z: &mut [f64]) -> c_int {
-        let entered = call_log::enter("fmi2GetEventIndicators", || format!("ni={}", z.len()));
-        // SAFETY: an array of z.len() indicators.
-        let status = unsafe { (self.api.get_event_indicators)(self.component.raw, z.as_mut_ptr(), z.len()) };
-        call_log::returned_with(entered, c::status_name(status), || format!("eventIndicators={}", list(z)));
-        status
+        let get_event_indicators = self.api.get_event_indicators;
+        let (raw, values, n) = (self.component.raw, z.as_mut_ptr(), z.len());
+        call_log::call(
+            "fmi2GetEventIndicators",
+            || format!("ni={n}"),
+            // SAFETY: an array of n values.
+            || unsafe { get_event_indicators(raw, values, n) },
+            c::status_name,
+            // SAFETY: the `n` values the call just wrote.
+            |_| format!("eventIndicators={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 
     fn get_continuous_states(&self, x: &mut [f64]) -> c_int {
         let entered = call_log::enter("fmi2GetContinuousStates", || format!("nx={}", x.len()));
         // SAFETY: an array of x.len() states.
         let status = unsafe { (self.api.get_continuous_states)(self.component.raw, x.as_mut_ptr(), x.len()) };
-        call_log::returned_with(entered, c::status_name(status), || format!("x={}", list(x)));
+        call_log::returned_with(entered, || c::status_name(status), || format!("x={}", list(x)));
         status
     }
 
@@ -159,7 +181,7 @@ impl Exchange for Exchange2<'_> {
         let entered = call_log::enter("fmi2EnterEventMode", String::new);
         // SAFETY: a live component.
         let status = unsafe { (self.api.enter_event_mode)(self.component.raw) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         status
     }
 
@@ -168,8 +190,11 @@ impl Exchange for Exchange2<'_> {
         // SAFETY: a valid out pointer.
         let entered = call_log::enter("fmi2NewDiscreteStates", String::new);
         let status = unsafe { (self.api.new_discrete_states)(self.component.raw, &mut info) };
-        call_log::returned_with(entered, c::status_name(status), || {
-            format!(
+        call_log::returned_with(
+            entered,
+            || c::status_name(status),
+            || {
+                format!(
                 "newDiscreteStatesNeeded={}, terminateSimulation={}, nominalsOfContinuousStatesChanged={}, valuesOfContinuousStatesChanged={}, nextEventTimeDefined={}, nextEventTime={:?}",
                 boolean(2, info.new_discrete_states_needed != 0),
                 boolean(2, info.terminate_simulation != 0),
@@ -178,7 +203,8 @@ impl Exchange for Exchange2<'_> {
                 boolean(2, info.next_event_time_defined != 0),
                 info.next_event_time
             )
-        });
+            },
+        );
         let update = EventUpdate {
             again: info.new_discrete_states_needed != 0,
             terminate: info.terminate_simulation != 0,
@@ -191,7 +217,7 @@ impl Exchange for Exchange2<'_> {
         let entered = call_log::enter("fmi2EnterContinuousTimeMode", String::new);
         // SAFETY: a live component.
         let status = unsafe { (self.api.enter_continuous_time_mode)(self.component.raw) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         status
     }
 
@@ -204,9 +230,11 @@ impl Exchange for Exchange2<'_> {
         // SAFETY: valid out pointers.
         let entered = call_log::enter("fmi2CompletedIntegratorStep", || "noSetFMUStatePriorToCurrentPoint=fmi2True".to_owned());
         let status = unsafe { (self.api.completed_integrator_step)(self.component.raw, c::TRUE, &mut enter, &mut terminate) };
-        call_log::returned_with(entered, c::status_name(status), || {
-            format!("enterEventMode={}, terminateSimulation={}", boolean(2, enter != 0), boolean(2, terminate != 0))
-        });
+        call_log::returned_with(
+            entered,
+            || c::status_name(status),
+            || format!("enterEventMode={}, terminateSimulation={}", boolean(2, enter != 0), boolean(2, terminate != 0)),
+        );
         (status, enter != 0, terminate != 0)
     }
 
@@ -253,7 +281,7 @@ impl Exchange for Exchange2<'_> {
         let status = unsafe {
             f(self.component.raw, unknowns.as_ptr(), unknowns.len(), knowns.as_ptr(), knowns.len(), seed.as_ptr(), out.as_mut_ptr())
         };
-        call_log::returned_with(entered, c::status_name(status), || format!("dvUnknown={}", list(out)));
+        call_log::returned_with(entered, || c::status_name(status), || format!("dvUnknown={}", list(out)));
         status
     }
 }

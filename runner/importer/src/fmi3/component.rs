@@ -136,7 +136,7 @@ impl<'a> Component<'a> {
                 if stop.is_finite() { stop } else { 0.0 },
             )
         };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.instantiated = false;
         self.check("fmi3EnterInitializationMode", status)
     }
@@ -146,7 +146,7 @@ impl<'a> Component<'a> {
         trace::enter(Call::Fmi3ExitInitializationMode, self.experiment.1);
         let entered = call_log::enter("fmi3ExitInitializationMode", String::new);
         let status = unsafe { (self.binary.api.exit_initialization_mode)(self.instance) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi3ExitInitializationMode", status)?;
         self.terminate_allowed = true;
         Ok(())
@@ -161,7 +161,7 @@ impl<'a> Component<'a> {
         // SAFETY: the instance is live.
         let entered = call_log::enter("fmi3Reset", String::new);
         let status = unsafe { reset(self.instance) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi3Reset", status)?;
         self.terminate_allowed = false;
         self.instantiated = true;
@@ -182,13 +182,13 @@ impl<'a> Component<'a> {
         // SAFETY: the instance is live; `state` receives the FMU's handle.
         let entered = call_log::enter("fmi3GetFMUState", String::new);
         let status = unsafe { get(self.instance, &mut state) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi3GetFMUState", status)?;
         let mut n = 0usize;
         // SAFETY: a state this instance returned, and an out pointer.
         let entered = call_log::enter("fmi3SerializedFMUStateSize", String::new);
         let status = unsafe { size(self.instance, state, &mut n) };
-        call_log::returned_with(entered, c::status_name(status), || format!("size={n}"));
+        call_log::returned_with(entered, || c::status_name(status), || format!("size={n}"));
         let bytes = self.check("fmi3SerializedFMUStateSize", status).and_then(|()| {
             if n > crate::state::MAX_STATE_BYTES {
                 return Err(format!("{}: fmi3SerializedFMUStateSize gave {n} bytes", self.name));
@@ -197,13 +197,13 @@ impl<'a> Component<'a> {
             // SAFETY: `n` writable bytes, as the FMU asked for.
             let entered = call_log::enter("fmi3SerializeFMUState", || format!("size={n}"));
             let status = unsafe { serialize(self.instance, state, bytes.as_mut_ptr(), n) };
-            call_log::returned(entered, c::status_name(status));
+            call_log::returned(entered, || c::status_name(status));
             self.check("fmi3SerializeFMUState", status).map(|()| bytes)
         });
         let entered = call_log::enter("fmi3FreeFMUState", String::new);
         // SAFETY: the state is this instance's, freed once.
         let status = unsafe { free(self.instance, &mut state) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         bytes
     }
 
@@ -219,17 +219,17 @@ impl<'a> Component<'a> {
         // SAFETY: `bytes.len()` readable bytes; `state` receives the FMU's handle.
         let entered = call_log::enter("fmi3DeserializeFMUState", || format!("size={}", bytes.len()));
         let status = unsafe { deserialize(self.instance, bytes.as_ptr(), bytes.len(), &mut state) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi3DeserializeFMUState", status)?;
         // SAFETY: a state this instance made.
         let entered = call_log::enter("fmi3SetFMUState", String::new);
         let status = unsafe { set(self.instance, state) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         let result = self.check("fmi3SetFMUState", status);
         let entered = call_log::enter("fmi3FreeFMUState", String::new);
         // SAFETY: freed once.
         let status = unsafe { free(self.instance, &mut state) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         result?;
         self.terminate_allowed = true;
         self.instantiated = false;
@@ -252,8 +252,11 @@ impl<'a> Component<'a> {
                 &mut next,
             )
         };
-        call_log::returned_with(entered, c::status_name(status), || {
-            format!(
+        call_log::returned_with(
+            entered,
+            || c::status_name(status),
+            || {
+                format!(
                 "discreteStatesNeedUpdate={}, terminateSimulation={}, nominalsOfContinuousStatesChanged={}, valuesOfContinuousStatesChanged={}, nextEventTimeDefined={}, nextEventTime={next:?}",
                 boolean(3, again),
                 boolean(3, terminate),
@@ -261,7 +264,8 @@ impl<'a> Component<'a> {
                 boolean(3, values),
                 boolean(3, next_defined)
             )
-        });
+            },
+        );
         (status, EventUpdate { again, terminate, next_event_time: next_defined.then_some(next) })
     }
 
@@ -273,7 +277,7 @@ impl<'a> Component<'a> {
             trace::enter(Call::Fmi3EnterConfigurationMode, f64::NAN);
             let entered = call_log::enter("fmi3EnterConfigurationMode", String::new);
             let status = unsafe { (self.binary.api.enter_configuration_mode)(self.instance) };
-            call_log::returned(entered, c::status_name(status));
+            call_log::returned(entered, || c::status_name(status));
             self.check("fmi3EnterConfigurationMode", status)?;
         }
         // A refused value is the error to report: after it the FMU may refuse leaving too.
@@ -282,7 +286,7 @@ impl<'a> Component<'a> {
             trace::enter(Call::Fmi3ExitConfigurationMode, f64::NAN);
             let entered = call_log::enter("fmi3ExitConfigurationMode", String::new);
             let status = unsafe { (self.binary.api.exit_configuration_mode)(self.instance) };
-            call_log::returned(entered, c::status_name(status));
+            call_log::returned(entered, || c::status_name(status));
             self.check("fmi3ExitConfigurationMode", status)?;
         }
         Ok(())
@@ -304,7 +308,7 @@ impl<'a> Component<'a> {
                 let entered = call_log::enter(setter_name(variable.kind), || arguments(list(&values)));
                 // SAFETY: one value reference and `n` values of its type.
                 let status = unsafe { (api.$f)(inst, vr.as_ptr(), 1, values.as_ptr(), n) };
-                call_log::returned(entered, c::status_name(status));
+                call_log::returned(entered, || c::status_name(status));
                 status
             }};
         }
@@ -338,7 +342,7 @@ impl<'a> Component<'a> {
                 let pointers: Vec<*const std::ffi::c_char> = texts.iter().map(|t| t.as_ptr()).collect();
                 let entered = call_log::enter("fmi3SetString", || arguments(list(&texts)));
                 let status = unsafe { (api.set_string)(inst, vr.as_ptr(), 1, pointers.as_ptr(), n) };
-                call_log::returned(entered, c::status_name(status));
+                call_log::returned(entered, || c::status_name(status));
                 status
             }
             Kind::Binary => {
@@ -351,7 +355,7 @@ impl<'a> Component<'a> {
                 let pointers: Vec<*const u8> = bytes.iter().map(|b| b.as_ptr()).collect();
                 let entered = call_log::enter("fmi3SetBinary", || arguments(format!("(sizes {})", list(&sizes))));
                 let status = unsafe { (api.set_binary)(inst, vr.as_ptr(), 1, sizes.as_ptr(), pointers.as_ptr(), n) };
-                call_log::returned(entered, c::status_name(status));
+                call_log::returned(entered, || c::status_name(status));
                 status
             }
             Kind::Clock => return Err(format!("{} is a Clock: clocks are not supported", variable.name)),
@@ -381,7 +385,7 @@ impl<'a> Component<'a> {
         // SAFETY: one value reference and room for its `n` elements.
         let entered = call_log::enter("fmi3GetString", || format!("valueReferences={}, nValueReferences=1, nValues={n}", list(&vr)));
         let status = unsafe { (self.binary.api.get_string)(self.instance, vr.as_ptr(), 1, values.as_mut_ptr(), n) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.check(&format!("fmi3GetString of {}", variable.name), status)?;
         // SAFETY: non-NULL pointers from the FMU are NUL-terminated strings until its next call.
         values.iter().map(|p| unsafe { crate::text_of(*p, &variable.name, "fmi3GetString") }).collect()
@@ -394,13 +398,16 @@ impl<'a> Component<'a> {
         if reader.direct {
             if let Some(group) = reader.groups.first() {
                 trace::enter(Call::Fmi3Get, f64::NAN);
-                let entered = call_log::enter("fmi3GetFloat64", || {
-                    format!("valueReferences={}, nValueReferences={}, nValues={}", list(&group.vrs), group.vrs.len(), out.len())
-                });
-                let status = unsafe {
-                    (self.binary.api.get_float64)(self.instance, group.vrs.as_ptr(), group.vrs.len(), out.as_mut_ptr(), out.len())
-                };
-                call_log::returned_with(entered, c::status_name(status), || format!("values={}", list(out)));
+                let (get_float64, instance, vrs, values, n) =
+                    (self.binary.api.get_float64, self.instance, &group.vrs, out.as_mut_ptr(), out.len());
+                let status = call_log::call(
+                    "fmi3GetFloat64",
+                    || format!("valueReferences={}, nValueReferences={}, nValues={n}", list(vrs), vrs.len()),
+                    || unsafe { get_float64(instance, vrs.as_ptr(), vrs.len(), values, n) },
+                    c::status_name,
+                    // SAFETY: the `n` values the call just wrote.
+                    |_| format!("values={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+                );
                 self.check("fmi3GetFloat64", status)?;
             }
             return Ok(());
@@ -417,12 +424,15 @@ impl<'a> Component<'a> {
         debug_assert_eq!(vrs.len(), values.len());
         let n = vrs.len().min(values.len());
         trace::enter(Call::Fmi3Set, f64::NAN);
-        let entered = call_log::enter("fmi3SetFloat64", || {
-            format!("valueReferences={}, nValueReferences={n}, values={}, nValues={n}", list(&vrs[..n]), list(&values[..n]))
-        });
-        // SAFETY: `n` value references of scalars and `n` values, valid for the call.
-        let status = unsafe { (self.binary.api.set_float64)(self.instance, vrs.as_ptr(), n, values.as_ptr(), n) };
-        call_log::returned(entered, c::status_name(status));
+        let (set_float64, instance) = (self.binary.api.set_float64, self.instance);
+        let status = call_log::call(
+            "fmi3SetFloat64",
+            || format!("valueReferences={}, nValueReferences={n}, values={}, nValues={n}", list(&vrs[..n]), list(&values[..n])),
+            // SAFETY: `n` value references of scalars and `n` values, valid for the call.
+            || unsafe { set_float64(instance, vrs.as_ptr(), n, values.as_ptr(), n) },
+            c::status_name,
+            |_| String::new(),
+        );
         self.check("fmi3SetFloat64", status)
     }
 
@@ -439,7 +449,7 @@ impl<'a> Component<'a> {
                     let entered = call_log::enter($name, || arguments($b.len()));
                     // SAFETY: the buffer holds every element of the group's variables.
                     let status = unsafe { (api.$f)(inst, vrs, nvr, $b.as_mut_ptr(), $b.len()) };
-                    call_log::returned_with(entered, c::status_name(status), || format!("values={}", list($b)));
+                    call_log::returned_with(entered, || c::status_name(status), || format!("values={}", list($b)));
                     status
                 }};
             }
@@ -465,7 +475,7 @@ impl<'a> Component<'a> {
                             *t = if p.is_null() { String::new() } else { unsafe { CStr::from_ptr(*p) }.to_string_lossy().into_owned() };
                         }
                     }
-                    call_log::returned_with(entered, c::status_name(status), || format!("values={}", list(texts)));
+                    call_log::returned_with(entered, || c::status_name(status), || format!("values={}", list(texts)));
                     status
                 }
                 Buffer::Bytes(bytes) => {
@@ -473,7 +483,7 @@ impl<'a> Component<'a> {
                     let mut pointers = vec![std::ptr::null::<u8>(); bytes.len()];
                     let entered = call_log::enter("fmi3GetBinary", || arguments(bytes.len()));
                     let status = unsafe { (api.get_binary)(inst, vrs, nvr, sizes.as_mut_ptr(), pointers.as_mut_ptr(), pointers.len()) };
-                    call_log::returned_with(entered, c::status_name(status), || format!("valueSizes={}", list(&sizes)));
+                    call_log::returned_with(entered, || c::status_name(status), || format!("valueSizes={}", list(&sizes)));
                     if status == OK || status == WARNING {
                         for ((b, p), n) in bytes.iter_mut().zip(&pointers).zip(&sizes) {
                             // SAFETY: the FMU returned `n` bytes at `p`, valid until its next call.
@@ -503,12 +513,12 @@ impl Drop for Component<'_> {
                 trace::enter(Call::Fmi3Terminate, f64::NAN);
                 let entered = call_log::enter("fmi3Terminate", String::new);
                 let status = (self.binary.api.terminate)(self.instance);
-                call_log::returned(entered, c::status_name(status));
+                call_log::returned(entered, || c::status_name(status));
             }
             trace::enter(Call::Fmi3FreeInstance, f64::NAN);
             let entered = call_log::enter("fmi3FreeInstance", String::new);
             (self.binary.api.free_instance)(self.instance);
-            call_log::returned(entered, "(void)");
+            call_log::returned(entered, || "(void)");
         }
     }
 }

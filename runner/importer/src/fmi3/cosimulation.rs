@@ -86,7 +86,7 @@ impl<'a> CoSimulation<'a> {
             trace::enter(Call::Fmi3EnterStepMode, f64::NAN);
             let entered = call_log::enter("fmi3EnterStepMode", String::new);
             let status = unsafe { (self.cs.enter_step_mode)(self.component.instance) };
-            call_log::returned(entered, c::status_name(status));
+            call_log::returned(entered, || c::status_name(status));
             self.component.check("fmi3EnterStepMode", status)?;
         }
         Ok(())
@@ -163,7 +163,7 @@ impl<'a> CoSimulation<'a> {
             format!("valueReferences={}, nValueReferences={n}, orders={}, nValues={n}", list(&vrs[..n]), list(&orders[..n]))
         });
         let status = unsafe { get(self.component.instance, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr(), n) };
-        call_log::returned_with(entered, c::status_name(status), || format!("values={}", list(&out[..n])));
+        call_log::returned_with(entered, || c::status_name(status), || format!("values={}", list(&out[..n])));
         self.component.check("fmi3GetOutputDerivatives", status)
     }
 
@@ -175,18 +175,24 @@ impl<'a> CoSimulation<'a> {
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         let (mut event, mut terminate, mut early, mut last) = (false, false, false, t);
         trace::enter(Call::Fmi3DoStep, t);
-        let entered = call_log::enter("fmi3DoStep", || {
-            format!("currentCommunicationPoint={t:?}, communicationStepSize={h:?}, noSetFMUStatePriorToCurrentPoint=fmi3True")
-        });
-        let status = unsafe { (self.cs.do_step)(self.component.instance, t, h, true, &mut event, &mut terminate, &mut early, &mut last) };
-        call_log::returned_with(entered, c::status_name(status), || {
-            format!(
-                "eventHandlingNeeded={}, terminateSimulation={}, earlyReturn={}, lastSuccessfulTime={last:?}",
-                boolean(3, event),
-                boolean(3, terminate),
-                boolean(3, early)
-            )
-        });
+        let (do_step, instance) = (self.cs.do_step, self.component.instance);
+        let (status, event, terminate, early, last) = call_log::call(
+            "fmi3DoStep",
+            || format!("currentCommunicationPoint={t:?}, communicationStepSize={h:?}, noSetFMUStatePriorToCurrentPoint=fmi3True"),
+            || {
+                let status = unsafe { do_step(instance, t, h, true, &mut event, &mut terminate, &mut early, &mut last) };
+                (status, event, terminate, early, last)
+            },
+            |(status, ..)| c::status_name(status),
+            |(_, event, terminate, early, last)| {
+                format!(
+                    "eventHandlingNeeded={}, terminateSimulation={}, earlyReturn={}, lastSuccessfulTime={last:?}",
+                    boolean(3, event),
+                    boolean(3, terminate),
+                    boolean(3, early)
+                )
+            },
+        );
         if status != OK && status != WARNING {
             return Err(self.component.refused_at("fmi3DoStep", t, status));
         }
@@ -230,7 +236,7 @@ impl<'a> CoSimulation<'a> {
         trace::enter(Call::Fmi3EnterEventMode, time);
         let entered = call_log::enter("fmi3EnterEventMode", String::new);
         let status = unsafe { (self.component.binary.api.enter_event_mode)(self.component.instance) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.component.check("fmi3EnterEventMode", status)?;
         if self.update_discrete_states(&format!("at t = {time}"))? {
             let reason = self.component.env.log.take_problem().unwrap_or_else(|| "the FMU asked to terminate the simulation".to_owned());
@@ -239,7 +245,7 @@ impl<'a> CoSimulation<'a> {
         trace::enter(Call::Fmi3EnterStepMode, time);
         let entered = call_log::enter("fmi3EnterStepMode", String::new);
         let status = unsafe { (self.cs.enter_step_mode)(self.component.instance) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         self.component.check("fmi3EnterStepMode", status)?;
         Ok(None)
     }

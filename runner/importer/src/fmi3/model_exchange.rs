@@ -145,45 +145,67 @@ impl Exchange for Exchange3<'_> {
 
     #[inline(always)]
     fn set_time(&self, t: f64) -> c_int {
-        let entered = call_log::enter("fmi3SetTime", || format!("time={t:?}"));
-        // SAFETY: a live instance and a scalar argument.
-        let status = unsafe { (self.api.set_time)(self.component.instance, t) };
-        call_log::returned(entered, c::status_name(status));
-        status
+        let set_time = self.api.set_time;
+        let raw = self.component.instance;
+        call_log::call(
+            "fmi3SetTime",
+            || format!("time={t:?}"),
+            // SAFETY: a live instance and a scalar argument.
+            || unsafe { set_time(raw, t) },
+            c::status_name,
+            |_| String::new(),
+        )
     }
 
     #[inline(always)]
     fn set_continuous_states(&self, x: &[f64]) -> c_int {
-        let entered = call_log::enter("fmi3SetContinuousStates", || format!("continuousStates={}, nContinuousStates={}", list(x), x.len()));
-        // SAFETY: an array of x.len() states.
-        let status = unsafe { (self.api.set_continuous_states)(self.component.instance, x.as_ptr(), x.len()) };
-        call_log::returned(entered, c::status_name(status));
-        status
+        let set_continuous_states = self.api.set_continuous_states;
+        let raw = self.component.instance;
+        call_log::call(
+            "fmi3SetContinuousStates",
+            || format!("continuousStates={}, nContinuousStates={}", list(x), x.len()),
+            // SAFETY: an array of x.len() states.
+            || unsafe { set_continuous_states(raw, x.as_ptr(), x.len()) },
+            c::status_name,
+            |_| String::new(),
+        )
     }
 
     #[inline(always)]
     fn get_derivatives(&self, dx: &mut [f64]) -> c_int {
-        let entered = call_log::enter("fmi3GetContinuousStateDerivatives", || format!("nContinuousStates={}", dx.len()));
-        // SAFETY: an array of dx.len() derivatives.
-        let status = unsafe { (self.api.get_continuous_state_derivatives)(self.component.instance, dx.as_mut_ptr(), dx.len()) };
-        call_log::returned_with(entered, c::status_name(status), || format!("derivatives={}", list(dx)));
-        status
+        let get_continuous_state_derivatives = self.api.get_continuous_state_derivatives;
+        let (raw, values, n) = (self.component.instance, dx.as_mut_ptr(), dx.len());
+        call_log::call(
+            "fmi3GetContinuousStateDerivatives",
+            || format!("nContinuousStates={n}"),
+            // SAFETY: an array of n values.
+            || unsafe { get_continuous_state_derivatives(raw, values, n) },
+            c::status_name,
+            // SAFETY: the `n` values the call just wrote.
+            |_| format!("derivatives={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 
     #[inline(always)]
     fn get_event_indicators(&self, z: &mut [f64]) -> c_int {
-        let entered = call_log::enter("fmi3GetEventIndicators", || format!("nEventIndicators={}", z.len()));
-        // SAFETY: an array of z.len() indicators.
-        let status = unsafe { (self.api.get_event_indicators)(self.component.instance, z.as_mut_ptr(), z.len()) };
-        call_log::returned_with(entered, c::status_name(status), || format!("eventIndicators={}", list(z)));
-        status
+        let get_event_indicators = self.api.get_event_indicators;
+        let (raw, values, n) = (self.component.instance, z.as_mut_ptr(), z.len());
+        call_log::call(
+            "fmi3GetEventIndicators",
+            || format!("nEventIndicators={n}"),
+            // SAFETY: an array of n values.
+            || unsafe { get_event_indicators(raw, values, n) },
+            c::status_name,
+            // SAFETY: the `n` values the call just wrote.
+            |_| format!("eventIndicators={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 
     fn get_continuous_states(&self, x: &mut [f64]) -> c_int {
         let entered = call_log::enter("fmi3GetContinuousStates", || format!("nContinuousStates={}", x.len()));
         // SAFETY: an array of x.len() states.
         let status = unsafe { (self.api.get_continuous_states)(self.component.instance, x.as_mut_ptr(), x.len()) };
-        call_log::returned_with(entered, c::status_name(status), || format!("continuousStates={}", list(x)));
+        call_log::returned_with(entered, || c::status_name(status), || format!("continuousStates={}", list(x)));
         status
     }
 
@@ -191,7 +213,7 @@ impl Exchange for Exchange3<'_> {
         let entered = call_log::enter("fmi3EnterEventMode", String::new);
         // SAFETY: a live instance.
         let status = unsafe { (self.component.binary.api.enter_event_mode)(self.component.instance) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         status
     }
 
@@ -203,7 +225,7 @@ impl Exchange for Exchange3<'_> {
         let entered = call_log::enter("fmi3EnterContinuousTimeMode", String::new);
         // SAFETY: a live instance.
         let status = unsafe { (self.api.enter_continuous_time_mode)(self.component.instance) };
-        call_log::returned(entered, c::status_name(status));
+        call_log::returned(entered, || c::status_name(status));
         status
     }
 
@@ -216,9 +238,11 @@ impl Exchange for Exchange3<'_> {
         // SAFETY: valid out pointers.
         let entered = call_log::enter("fmi3CompletedIntegratorStep", || "noSetFMUStatePriorToCurrentPoint=fmi3True".to_owned());
         let status = unsafe { (self.api.completed_integrator_step)(self.component.instance, true, &mut enter, &mut terminate) };
-        call_log::returned_with(entered, c::status_name(status), || {
-            format!("enterEventMode={}, terminateSimulation={}", boolean(3, enter), boolean(3, terminate))
-        });
+        call_log::returned_with(
+            entered,
+            || c::status_name(status),
+            || format!("enterEventMode={}, terminateSimulation={}", boolean(3, enter), boolean(3, terminate)),
+        );
         (status, enter, terminate)
     }
 
@@ -275,7 +299,7 @@ impl Exchange for Exchange3<'_> {
                 out.len(),
             )
         };
-        call_log::returned_with(entered, c::status_name(status), || format!("sensitivity={}", list(out)));
+        call_log::returned_with(entered, || c::status_name(status), || format!("sensitivity={}", list(out)));
         status
     }
 
@@ -289,11 +313,11 @@ impl Exchange for Exchange3<'_> {
         // SAFETY: valid out pointers.
         let entered = call_log::enter("fmi3GetNumberOfContinuousStates", String::new);
         let status = unsafe { (self.api.get_number_of_continuous_states)(self.component.instance, &mut states) };
-        call_log::returned_with(entered, c::status_name(status), || format!("nContinuousStates={states}"));
+        call_log::returned_with(entered, || c::status_name(status), || format!("nContinuousStates={states}"));
         self.component.check("fmi3GetNumberOfContinuousStates", status)?;
         let entered = call_log::enter("fmi3GetNumberOfEventIndicators", String::new);
         let status = unsafe { (self.api.get_number_of_event_indicators)(self.component.instance, &mut indicators) };
-        call_log::returned_with(entered, c::status_name(status), || format!("nEventIndicators={indicators}"));
+        call_log::returned_with(entered, || c::status_name(status), || format!("nEventIndicators={indicators}"));
         self.component.check("fmi3GetNumberOfEventIndicators", status)?;
         // A count past any description's sizes is a broken answer, not an array to allocate.
         const MOST: usize = 1 << 24;

@@ -120,13 +120,15 @@ impl<'a> Runs<'a> {
             }
             Ok(())
         });
-        end_call_line(&outcome, request.log_fmi_calls.as_ref());
-        match outcome? {
-            WorkerOutcome::Run(result) => {
+        let result = match outcome {
+            Ok(WorkerOutcome::Run(result)) => {
                 result.map(|end| Outcome { ended_early: end.ended_early, counters: end.counters, final_state: end.final_state })
             }
-            _ => Err(format!("{}: the worker answered a run with something else", request.name)),
-        }
+            Ok(_) => Err(format!("{}: the worker answered a run with something else", request.name)),
+            Err(e) => Err(e),
+        };
+        end_call_line(&result, request.log_fmi_calls.as_ref());
+        result
     }
 
     /// Linearizes as `request` says: in this process when the FMU is loaded here, else in a
@@ -141,16 +143,19 @@ impl<'a> Runs<'a> {
         let name = &request.name;
         let outcome = session
             .run(Job::Linearize(Box::new(request.clone())), stop, |_| Err(format!("{name}: the worker sent samples while linearizing")));
-        end_call_line(&outcome, request.log_fmi_calls.as_ref());
-        match outcome? {
-            WorkerOutcome::Linear(result) => result.map(|linear| *linear),
-            _ => Err(format!("{name}: the worker answered a linearization with something else")),
-        }
+        let result = match outcome {
+            Ok(WorkerOutcome::Linear(result)) => result.map(|linear| *linear),
+            Ok(_) => Err(format!("{name}: the worker answered a linearization with something else")),
+            Err(e) => Err(e),
+        };
+        end_call_line(&result, request.log_fmi_calls.as_ref());
+        result
     }
 }
 
 /// After a failed job of a worker logging its FMI calls to stderr, ends the line of the call the
-/// worker may have died in, so the error does not run on from it.
+/// worker may have died in, so the error does not run on from it (a blank line when the last
+/// call had returned).
 fn end_call_line<T>(outcome: &Result<T, String>, log: Option<&CallLogTarget>) {
     if outcome.is_err() && log == Some(&CallLogTarget::Stderr) {
         eprintln!();

@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
+use fmi_importer::call_log::CallLogTarget;
 
 use plots::Format;
 use runner::commands::{animate, build, compare, handbook, info, linearize, new, simulate, sweep, validate};
@@ -236,6 +237,8 @@ enum Cmd {
         inputs: InputArgs,
         #[command(flatten)]
         parity: SimulateParity,
+        #[command(flatten)]
+        call_log: CallLogArgs,
     },
     /// Run a parameter sweep: one FMU instance per point, in parallel; metrics per point as CSV.
     ///
@@ -408,6 +411,29 @@ struct SimulateIsolation {
     in_process: bool,
 }
 
+/// The log of every FMI call (`--log-fmi-calls`), for `runner simulate` and `runner linearize`.
+#[derive(Args)]
+struct CallLogArgs {
+    /// Write every FMI call the runner makes into FILE (without FILE: to stderr), one line per
+    /// call with its arguments, the status it returned and its duration, e.g.
+    /// `fmi2DoStep(currentCommunicationPoint=0.1, communicationStepSize=0.1, ...) -> fmi2OK [3 us]`.
+    /// Each call is written before the FMU runs it, so the last line of an FMU that crashed
+    /// names the call it crashed in. In FILE, the FMU's log messages are copied among the
+    /// calls.
+    #[arg(long, value_name = "FILE", num_args = 0..=1, default_missing_value = "")]
+    log_fmi_calls: Option<String>,
+}
+
+impl CallLogArgs {
+    /// Where the log goes: a file, stderr (the flag without FILE), or nowhere.
+    fn target(self) -> Option<CallLogTarget> {
+        self.log_fmi_calls.map(|path| match path.is_empty() {
+            true => CallLogTarget::Stderr,
+            false => CallLogTarget::File(PathBuf::from(path)),
+        })
+    }
+}
+
 /// Arguments of `runner animate`.
 #[derive(clap::Args)]
 struct AnimateArgs {
@@ -472,6 +498,8 @@ struct LinearizeArgs {
     plot: Option<PathBuf>,
     #[command(flatten)]
     isolation: SimulateIsolation,
+    #[command(flatten)]
+    call_log: CallLogArgs,
 }
 
 /// Arguments of `runner compare`.
@@ -556,6 +584,7 @@ fn main() {
             isolation,
             inputs,
             parity,
+            call_log,
         } => simulate::run(&simulate::Options {
             fmu,
             run: run.defaults(),
@@ -580,6 +609,7 @@ fn main() {
             atol: parity.atol,
             initial_fmu_state_file: parity.initial_fmu_state_file,
             final_fmu_state_file: parity.final_fmu_state_file,
+            log_fmi_calls: call_log.target(),
         }),
         Cmd::Sweep { fmu, params, metrics, threads, run, interface, solver, out, plot, isolation, inputs } => {
             match sweep::run(&sweep::Options {
@@ -633,6 +663,7 @@ fn main() {
             plot: a.plot,
             timeout: a.isolation.timeout,
             in_process: a.isolation.in_process,
+            log_fmi_calls: a.call_log.target(),
         })
         .map(|_| ()),
         Cmd::Animate(a) => animate::run(&animate::Options {

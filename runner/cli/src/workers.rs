@@ -4,6 +4,7 @@
 use std::path::Path;
 use std::time::Duration;
 
+use fmi_importer::call_log::CallLogTarget;
 use fmi_importer::{Description, Interface};
 use runner_engine::exec::Held;
 use runner_engine::input::InputTable;
@@ -28,6 +29,15 @@ pub fn open(path: &Path, integration: &Integration, in_process: bool) -> Result<
     let (held, source) = Held::open(&FmuSource::new(path, integration.interface), in_process)?;
     integration.check(held.description(), held.identifier(), held.interface())?;
     Ok((held, source))
+}
+
+/// Creates (empties) the `--log-fmi-calls` file, so one that cannot be written is refused before
+/// any run; the runs, here or in workers, then append to it.
+pub fn create_call_log(target: Option<&CallLogTarget>) -> Result<(), String> {
+    match target {
+        Some(CallLogTarget::File(path)) => fmi_importer::call_log::create(path),
+        _ => Ok(()),
+    }
 }
 
 /// Reads `--input-file FILE.csv` and checks it against the FMU `description` run through

@@ -5,6 +5,7 @@
 
 use std::ops::Range;
 
+use fmi_importer::call_log::CallLogTarget;
 use fmi_importer::{Description, Fmu, Interface, Reader, Unpacked};
 use runner_sandbox::{run_batch, Config, Session, Workers};
 
@@ -93,7 +94,10 @@ impl<'a> Runs<'a> {
         mut sample: impl FnMut(f64, &[f64], &dyn Texts) -> Result<(), String>,
     ) -> Result<Outcome, String> {
         let session = match (self.held, self.session.as_mut()) {
-            (Held::Loaded(fmu), _) => return request.bind(&fmu.description, fmu.interface, true)?.run().execute(fmu, sample),
+            (Held::Loaded(fmu), _) => {
+                let bound = request.bind(&fmu.description, fmu.interface, true)?;
+                return fmi_importer::call_log::logging(request.log_fmi_calls.as_ref(), || bound.run().execute(fmu, sample));
+            }
             (Held::Described(_), Some(session)) => session,
             (Held::Described(_), None) => unreachable!("a session is made for a described FMU"),
         };
@@ -115,13 +119,16 @@ impl<'a> Runs<'a> {
                 sample(chunk[0], &chunk[1..], &texts)?;
             }
             Ok(())
-        })?;
-        match outcome {
-            WorkerOutcome::Run(result) => {
+        });
+        let result = match outcome {
+            Ok(WorkerOutcome::Run(result)) => {
                 result.map(|end| Outcome { ended_early: end.ended_early, counters: end.counters, final_state: end.final_state })
             }
-            _ => Err(format!("{}: the worker answered a run with something else", request.name)),
-        }
+            Ok(_) => Err(format!("{}: the worker answered a run with something else", request.name)),
+            Err(e) => Err(e),
+        };
+        end_call_line(&result, request.log_fmi_calls.as_ref());
+        result
     }
 
     /// Linearizes as `request` says: in this process when the FMU is loaded here, else in a
@@ -135,11 +142,23 @@ impl<'a> Runs<'a> {
         };
         let name = &request.name;
         let outcome = session
-            .run(Job::Linearize(Box::new(request.clone())), stop, |_| Err(format!("{name}: the worker sent samples while linearizing")))?;
-        match outcome {
-            WorkerOutcome::Linear(result) => result.map(|linear| *linear),
-            _ => Err(format!("{name}: the worker answered a linearization with something else")),
-        }
+            .run(Job::Linearize(Box::new(request.clone())), stop, |_| Err(format!("{name}: the worker sent samples while linearizing")));
+        let result = match outcome {
+            Ok(WorkerOutcome::Linear(result)) => result.map(|linear| *linear),
+            Ok(_) => Err(format!("{name}: the worker answered a linearization with something else")),
+            Err(e) => Err(e),
+        };
+        end_call_line(&result, request.log_fmi_calls.as_ref());
+        result
+    }
+}
+
+/// After a failed job of a worker logging its FMI calls to stderr, ends the line of the call the
+/// worker may have died in, so the error does not run on from it (a blank line when the last
+/// call had returned).
+fn end_call_line<T>(outcome: &Result<T, String>, log: Option<&CallLogTarget>) {
+    if outcome.is_err() && log == Some(&CallLogTarget::Stderr) {
+        eprintln!();
     }
 }
 

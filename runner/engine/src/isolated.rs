@@ -167,7 +167,7 @@ pub fn serve() -> Result<(), String> {
                 serving.finish(id, Outcome::Point(result), trace::fatal_seen())?;
             }
             Incoming::Job { id, job: Job::Run(request) } => {
-                let result = run(&serving, &fmu, &request);
+                let result = fmi_importer::call_log::logging(request.log_fmi_calls.as_ref(), || run(&serving, &fmu, &request));
                 serving.finish(id, Outcome::Run(result), trace::fatal_seen())?;
             }
             Incoming::Job { id, job: Job::Linearize(request) } => {

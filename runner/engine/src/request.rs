@@ -11,6 +11,7 @@
 
 use std::path::{Path, PathBuf};
 
+use fmi_importer::call_log::CallLogTarget;
 use fmi_importer::exchange::JacobianSource;
 use fmi_importer::state::{Identity, SavedState};
 use fmi_importer::{Description, Fmu, Interface, Value, Variable};
@@ -138,6 +139,9 @@ pub struct RunRequest {
     /// Return the state reached at the stop time (`--final-fmu-state-file`).
     #[serde(default)]
     pub final_state: bool,
+    /// Log every FMI call of the run there (`--log-fmi-calls`).
+    #[serde(default)]
+    pub log_fmi_calls: Option<CallLogTarget>,
 }
 
 /// A [`RunRequest`] bound to an FMU's variables: it owns what a [`Run`] borrows.
@@ -189,6 +193,7 @@ impl RunRequest {
             inputs: None,
             initial_state: None,
             final_state: false,
+            log_fmi_calls: None,
         }
     }
 
@@ -236,20 +241,23 @@ pub struct LinearizeRequest {
     pub at: Option<f64>,
     /// Directional derivatives when the FMU provides them, or central differences always.
     pub prefer: JacobianSource,
+    /// Log every FMI call of the linearization there (`--log-fmi-calls`).
+    #[serde(default)]
+    pub log_fmi_calls: Option<CallLogTarget>,
 }
 
 impl LinearizeRequest {
     /// A request for `assignments` of variables of the FMU to linearize.
     pub fn new(name: &str, grid: Grid, assignments: &[(&Variable, Value)], at: Option<f64>, prefer: JacobianSource) -> LinearizeRequest {
-        LinearizeRequest { name: name.to_owned(), grid, assignments: by_name(assignments), at, prefer }
+        LinearizeRequest { name: name.to_owned(), grid, assignments: by_name(assignments), at, prefer, log_fmi_calls: None }
     }
 
-    /// Linearizes `fmu` (loaded for Model Exchange) as requested.
+    /// Linearizes `fmu` (loaded for Model Exchange) as requested, its FMI calls logged when asked.
     pub fn run(&self, fmu: &Fmu) -> Result<Linear, String> {
         let assignments = bind_assignments(&fmu.description, &self.assignments)?;
         let request =
             crate::linear::Request { name: &self.name, grid: &self.grid, assignments: &assignments, at: self.at, prefer: self.prefer };
-        crate::linear::linearize(fmu, &request)
+        fmi_importer::call_log::logging(self.log_fmi_calls.as_ref(), || crate::linear::linearize(fmu, &request))
     }
 }
 

@@ -34,6 +34,7 @@
 //! ```
 
 pub mod archive;
+pub mod call_log;
 pub mod exchange;
 pub mod fmi1;
 pub mod fmi2;

@@ -51,7 +51,9 @@ pub struct LogContext {
 impl LogContext {
     /// Prints a message and remembers it, and problems (discard and worse) apart.
     pub(crate) fn receive(&self, instance: &str, status: i32, category: &str, text: &str) {
-        print_line(&format!("[{instance}] {} ({category}): {text}", level(status)));
+        let line = format!("[{instance}] {} ({category}): {text}", level(status));
+        crate::call_log::message(&line);
+        print_line(&line);
         if status >= 2 {
             if let Ok(mut last) = self.last_problem.lock() {
                 *last = Some(text.to_owned());

@@ -9,6 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
+use fmi_importer::call_log::CallLogTarget;
 use fmi_importer::exchange::JacobianSource;
 use plots::figure::{self, Curve, Figure, Panel};
 use plots::trace::short;
@@ -51,6 +52,8 @@ pub struct Options {
     pub timeout: Option<f64>,
     /// Runs the FMU in this process.
     pub in_process: bool,
+    /// Log every FMI call there (`--log-fmi-calls`).
+    pub log_fmi_calls: Option<CallLogTarget>,
 }
 
 /// The frequency responses asked for: (input, output) indices and their names.
@@ -73,6 +76,7 @@ pub fn run(options: &Options) -> Result<Linear, String> {
     for path in options.out.iter().chain(&options.bode_out) {
         output::check_destination(path)?;
     }
+    crate::workers::create_call_log(options.log_fmi_calls.as_ref())?;
     let timeout = runner_sandbox::timeout("--timeout", options.timeout)?;
     if options.in_process && timeout.is_some() {
         return Err("--timeout needs a worker process (a linearization in this process cannot be stopped): drop --in-process".to_owned());
@@ -87,7 +91,10 @@ pub fn run(options: &Options) -> Result<Linear, String> {
     set_texts.extend(options.run.set.iter().cloned());
     let assignments = variables::parse_sets(md, &set_texts)?;
     let prefer = if options.finite_differences { JacobianSource::FiniteDifferences } else { JacobianSource::DirectionalDerivatives };
-    let request = LinearizeRequest::new(identifier, grid, &assignments, options.at, prefer);
+    let request = LinearizeRequest {
+        log_fmi_calls: options.log_fmi_calls.clone(),
+        ..LinearizeRequest::new(identifier, grid, &assignments, options.at, prefer)
+    };
     // Checked before linearizing: the pairs name variables, whatever their values.
     let pairs = bode_pairs(md, &options.bode)?;
     let frequencies = options.frequencies.as_deref().map(parse_frequencies).transpose()?;

@@ -6,6 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
+use fmi_importer::call_log::CallLogTarget;
 use fmi_importer::{Causality, Description, Kind, Value, Variable};
 use runner_engine::exec::{Held, Runs};
 use runner_engine::input::InputTable;
@@ -71,6 +72,8 @@ pub struct Options {
     pub final_fmu_state_file: Option<PathBuf>,
     /// How a system's connections pass Real values (`--coupling`).
     pub coupling: Option<String>,
+    /// Log every FMI call there (`--log-fmi-calls`).
+    pub log_fmi_calls: Option<CallLogTarget>,
 }
 
 /// `runner simulate SYSTEM`, refusing the options that are for single FMUs.
@@ -88,6 +91,7 @@ fn run_system(options: &Options) -> Result<(), String> {
         ("--reference-file", options.reference_file.is_some()),
         ("--initial-fmu-state-file", options.initial_fmu_state_file.is_some()),
         ("--final-fmu-state-file", options.final_fmu_state_file.is_some()),
+        ("--log-fmi-calls", options.log_fmi_calls.is_some()),
     ];
     if let Some((flag, _)) = single.iter().find(|(_, given)| *given) {
         return Err(format!("{flag} is for single FMUs; a system takes --stop-time, --output-interval, --tolerance, --set COMPONENT.VARIABLE=VALUE, --master, --coupling and --out"));
@@ -305,6 +309,7 @@ fn resolve<'a>(options: &Options, target: &Target, held: &'a Held) -> Result<Sim
         let mut request = RunRequest::new(identifier, grid, &case_assignments, &recording, options.log).with_inputs(inputs.clone());
         request.initial_state = initial_state.clone();
         request.final_state = options.final_fmu_state_file.is_some();
+        request.log_fmi_calls = options.log_fmi_calls.clone();
         runs.push((recording, request));
     }
     Ok(Simulation { grid, overlaid, cases, runs, header, output_columns: output_columns.len(), comparable, plotted, x, flags })
@@ -334,6 +339,7 @@ pub fn run(options: &Options) -> Result<(), String> {
         return Err("--initial-fmu-state-file and --final-fmu-state-file are for one run: drop --overlay".to_owned());
     }
     let tube = reference::Tube::new(options.rtol, options.atol)?;
+    workers::create_call_log(options.log_fmi_calls.as_ref())?;
     let target = experiment::resolve(&options.fmu)?;
     // The reference is read before running, so a missing or malformed one costs no run.
     let checked = match &options.reference_file {

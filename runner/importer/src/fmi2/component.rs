@@ -7,6 +7,7 @@ use std::ffi::{c_int, CString};
 use fmi_c::fmi2 as c;
 
 use super::{Binary, Callbacks};
+use crate::call_log::{self, boolean, list};
 use crate::model::{Kind, Variable};
 use crate::reader::Buffer;
 use crate::trace::{self, Call};
@@ -46,6 +47,15 @@ impl<'a> Component<'a> {
         let callbacks = Callbacks::new();
         let c_name = CString::new(name).map_err(|_| format!("instance name {name:?} contains a NUL byte"))?;
         trace::enter(Call::Instantiate, f64::NAN);
+        let entered = call_log::enter("fmi2Instantiate", || {
+            let kind = if fmu_type == c::CO_SIMULATION { "fmi2CoSimulation" } else { "fmi2ModelExchange" };
+            format!(
+                "instanceName={name:?}, fmuType={kind}, fmuGUID={:?}, fmuResourceLocation={:?}, visible=fmi2False, loggingOn={}",
+                fmu.token,
+                fmu.resource_uri,
+                boolean(2, debug_logging)
+            )
+        });
         // SAFETY: every pointer is valid for the call; the callbacks outlive the component.
         let raw = unsafe {
             (binary.api.instantiate)(
@@ -58,6 +68,7 @@ impl<'a> Component<'a> {
                 debug_logging as c::Boolean,
             )
         };
+        call_log::returned_instance(entered, raw);
         let component = Component { binary, name: name.to_owned(), raw, callbacks, terminate_allowed: false, fatal: false, time: f64::NAN };
         if raw.is_null() {
             return Err(component.failure("fmi2Instantiate", "returned NULL"));
@@ -114,6 +125,15 @@ impl<'a> Component<'a> {
         trace::enter(Call::SetupExperiment, start);
         // An infinite stop time is none: stepping from outside runs as long as it is asked to.
         let stop_defined = stop.is_finite();
+        let entered = call_log::enter("fmi2SetupExperiment", || {
+            format!(
+                "toleranceDefined={}, tolerance={:?}, startTime={start:?}, stopTimeDefined={}, stopTime={:?}",
+                boolean(2, tolerance.is_some()),
+                tolerance.unwrap_or(0.0),
+                boolean(2, stop_defined),
+                if stop_defined { stop } else { 0.0 }
+            )
+        });
         let status = unsafe {
             (self.binary.api.setup_experiment)(
                 self.raw,
@@ -124,6 +144,7 @@ impl<'a> Component<'a> {
                 if stop_defined { stop } else { 0.0 },
             )
         };
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2SetupExperiment", status)
     }
 
@@ -133,8 +154,10 @@ impl<'a> Component<'a> {
             return Err(format!("{}: the FMU does not export fmi2Reset", self.name));
         };
         trace::enter(Call::Reset, self.time);
+        let entered = call_log::enter("fmi2Reset", String::new);
         // SAFETY: the component is live.
         let status = unsafe { reset(self.raw) };
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2Reset", status)?;
         self.terminate_allowed = false;
         self.time = f64::NAN;
@@ -152,23 +175,31 @@ impl<'a> Component<'a> {
         };
         let mut state: c::FmuState = std::ptr::null_mut();
         trace::enter(Call::GetFmuState, self.time);
+        let entered = call_log::enter("fmi2GetFMUstate", String::new);
         // SAFETY: the component is live; `state` receives the FMU's handle.
         let status = unsafe { get(self.raw, &mut state) };
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2GetFMUstate", status)?;
         let mut n = 0usize;
         // SAFETY: a state this component returned, and an out pointer.
+        let entered = call_log::enter("fmi2SerializedFMUstateSize", String::new);
         let status = unsafe { size(self.raw, state, &mut n) };
+        call_log::returned_with(entered, || c::status_name(status), || format!("size={n}"));
         let bytes = self.check("fmi2SerializedFMUstateSize", status).and_then(|()| {
             if n > crate::state::MAX_STATE_BYTES {
                 return Err(format!("{}: fmi2SerializedFMUstateSize gave {n} bytes", self.name));
             }
             let mut bytes = vec![0u8; n];
             // SAFETY: `n` writable bytes, as the FMU asked for.
+            let entered = call_log::enter("fmi2SerializeFMUstate", || format!("size={n}"));
             let status = unsafe { serialize(self.raw, state, bytes.as_mut_ptr().cast(), n) };
+            call_log::returned(entered, || c::status_name(status));
             self.check("fmi2SerializeFMUstate", status).map(|()| bytes)
         });
+        let entered = call_log::enter("fmi2FreeFMUstate", String::new);
         // SAFETY: the state is this component's, freed once.
-        unsafe { free(self.raw, &mut state) };
+        let status = unsafe { free(self.raw, &mut state) };
+        call_log::returned(entered, || c::status_name(status));
         bytes
     }
 
@@ -182,13 +213,19 @@ impl<'a> Component<'a> {
         let mut state: c::FmuState = std::ptr::null_mut();
         trace::enter(Call::SetFmuState, self.time);
         // SAFETY: `bytes.len()` readable bytes; `state` receives the FMU's handle.
+        let entered = call_log::enter("fmi2DeSerializeFMUstate", || format!("size={}", bytes.len()));
         let status = unsafe { deserialize(self.raw, bytes.as_ptr().cast(), bytes.len(), &mut state) };
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2DeSerializeFMUstate", status)?;
         // SAFETY: a state this component made.
+        let entered = call_log::enter("fmi2SetFMUstate", String::new);
         let status = unsafe { set(self.raw, state) };
+        call_log::returned(entered, || c::status_name(status));
         let result = self.check("fmi2SetFMUstate", status);
+        let entered = call_log::enter("fmi2FreeFMUstate", String::new);
         // SAFETY: freed once.
-        unsafe { free(self.raw, &mut state) };
+        let status = unsafe { free(self.raw, &mut state) };
+        call_log::returned(entered, || c::status_name(status));
         result?;
         self.terminate_allowed = true;
         Ok(())
@@ -197,14 +234,18 @@ impl<'a> Component<'a> {
     /// fmi2EnterInitializationMode.
     pub(crate) fn enter_initialization_mode(&mut self) -> Result<(), String> {
         trace::enter(Call::EnterInitializationMode, self.time);
+        let entered = call_log::enter("fmi2EnterInitializationMode", String::new);
         let status = unsafe { (self.binary.api.enter_initialization_mode)(self.raw) };
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2EnterInitializationMode", status)
     }
 
     /// fmi2ExitInitializationMode.
     pub(crate) fn exit_initialization_mode(&mut self) -> Result<(), String> {
         trace::enter(Call::ExitInitializationMode, self.time);
+        let entered = call_log::enter("fmi2ExitInitializationMode", String::new);
         let status = unsafe { (self.binary.api.exit_initialization_mode)(self.raw) };
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi2ExitInitializationMode", status)?;
         self.terminate_allowed = true;
         Ok(())
@@ -221,20 +262,32 @@ impl<'a> Component<'a> {
             match value {
                 Value::Real(v) => {
                     trace::enter(Call::SetReal, time);
-                    (api.set_real)(comp, &vr, 1, v)
+                    let entered = call_log::enter("fmi2SetReal", || format!("vr=[{vr}], nvr=1, value=[{v:?}]"));
+                    let status = (api.set_real)(comp, &vr, 1, v);
+                    call_log::returned(entered, || c::status_name(status));
+                    status
                 }
                 Value::Integer(v) => {
                     trace::enter(Call::SetInteger, time);
-                    (api.set_integer)(comp, &vr, 1, v)
+                    let entered = call_log::enter("fmi2SetInteger", || format!("vr=[{vr}], nvr=1, value=[{v}]"));
+                    let status = (api.set_integer)(comp, &vr, 1, v);
+                    call_log::returned(entered, || c::status_name(status));
+                    status
                 }
                 Value::Boolean(v) => {
                     trace::enter(Call::SetBoolean, time);
-                    (api.set_boolean)(comp, &vr, 1, &(*v as c_int))
+                    let entered = call_log::enter("fmi2SetBoolean", || format!("vr=[{vr}], nvr=1, value=[{}]", boolean(2, *v)));
+                    let status = (api.set_boolean)(comp, &vr, 1, &(*v as c_int));
+                    call_log::returned(entered, || c::status_name(status));
+                    status
                 }
                 Value::String(v) => {
                     trace::enter(Call::SetString, time);
                     let s = CString::new(v.as_str()).map_err(|_| format!("the value of {} contains a NUL byte", variable.name))?;
-                    (api.set_string)(comp, &vr, 1, &s.as_ptr())
+                    let entered = call_log::enter("fmi2SetString", || format!("vr=[{vr}], nvr=1, value=[{v:?}]"));
+                    let status = (api.set_string)(comp, &vr, 1, &s.as_ptr());
+                    call_log::returned(entered, || c::status_name(status));
+                    status
                 }
                 Value::Int(_) | Value::Binary(_) | Value::List(_) => {
                     return Err(format!("{}: {value:?} is not a value of an FMI 2.0 variable", variable.name));
@@ -267,7 +320,9 @@ impl<'a> Component<'a> {
         let mut value: c::FmiString = std::ptr::null();
         trace::enter(Call::GetString, self.time);
         // SAFETY: one value reference and room for one pointer.
+        let entered = call_log::enter("fmi2GetString", || format!("vr=[{vr}], nvr=1"));
         let status = unsafe { get(self.raw, &vr, 1, &mut value) };
+        call_log::returned(entered, || c::status_name(status));
         self.check(&format!("fmi2GetString of {}", variable.name), status)?;
         // SAFETY: a non-NULL pointer from the FMU is a NUL-terminated string until its next call.
         unsafe { crate::text_of(value, &variable.name, "fmi2GetString") }
@@ -280,7 +335,15 @@ impl<'a> Component<'a> {
             // Only Reals (the usual sweep): they are in `out`'s order, so read straight into it.
             if let Some(group) = reader.groups.first() {
                 trace::enter(Call::GetReal, self.time);
-                let status = unsafe { (self.binary.api.get_real)(self.raw, group.vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
+                let (get_real, raw, vrs, values, n) = (self.binary.api.get_real, self.raw, &group.vrs, out.as_mut_ptr(), out.len());
+                let status = call_log::call(
+                    "fmi2GetReal",
+                    || format!("vr={}, nvr={n}", list(vrs)),
+                    || unsafe { get_real(raw, vrs.as_ptr(), n, values) },
+                    c::status_name,
+                    // SAFETY: the `n` values the call just wrote.
+                    |_| format!("value={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+                );
                 self.check("fmi2GetReal", status)?;
             }
             return Ok(());
@@ -296,8 +359,16 @@ impl<'a> Component<'a> {
     pub(crate) fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
         debug_assert_eq!(vrs.len(), values.len());
         trace::enter(Call::SetReal, self.time);
-        // SAFETY: `vrs.len()` value references and as many values, valid for the call.
-        let status = unsafe { (self.binary.api.set_real)(self.raw, vrs.as_ptr(), vrs.len().min(values.len()), values.as_ptr()) };
+        let n = vrs.len().min(values.len());
+        let (set_real, raw) = (self.binary.api.set_real, self.raw);
+        let status = call_log::call(
+            "fmi2SetReal",
+            || format!("vr={}, nvr={n}, value={}", list(&vrs[..n]), list(&values[..n])),
+            // SAFETY: `n` value references and as many values, valid for the call.
+            || unsafe { set_real(raw, vrs.as_ptr(), n, values.as_ptr()) },
+            c::status_name,
+            |_| String::new(),
+        );
         self.check("fmi2SetReal", status)
     }
 
@@ -313,15 +384,24 @@ impl<'a> Component<'a> {
                 match &mut group.buffer {
                     Buffer::F64(b) => {
                         trace::enter(Call::GetReal, time);
-                        ("fmi2GetReal", (api.get_real)(comp, vrs, n, b.as_mut_ptr()))
+                        let entered = call_log::enter("fmi2GetReal", || format!("vr={}, nvr={n}", list(&group.vrs)));
+                        let status = (api.get_real)(comp, vrs, n, b.as_mut_ptr());
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(b)));
+                        ("fmi2GetReal", status)
                     }
                     Buffer::I32(b) => {
                         trace::enter(Call::GetInteger, time);
-                        ("fmi2GetInteger", (api.get_integer)(comp, vrs, n, b.as_mut_ptr()))
+                        let entered = call_log::enter("fmi2GetInteger", || format!("vr={}, nvr={n}", list(&group.vrs)));
+                        let status = (api.get_integer)(comp, vrs, n, b.as_mut_ptr());
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(b)));
+                        ("fmi2GetInteger", status)
                     }
                     Buffer::IntBool(b) => {
                         trace::enter(Call::GetBoolean, time);
-                        ("fmi2GetBoolean", (api.get_boolean)(comp, vrs, n, b.as_mut_ptr()))
+                        let entered = call_log::enter("fmi2GetBoolean", || format!("vr={}, nvr={n}", list(&group.vrs)));
+                        let status = (api.get_boolean)(comp, vrs, n, b.as_mut_ptr());
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(b)));
+                        ("fmi2GetBoolean", status)
                     }
                     Buffer::Text(texts) => {
                         let Some(get_string) = api.functions.get_string else {
@@ -329,6 +409,7 @@ impl<'a> Component<'a> {
                         };
                         trace::enter(Call::GetString, time);
                         let mut pointers = vec![std::ptr::null::<std::ffi::c_char>(); n];
+                        let entered = call_log::enter("fmi2GetString", || format!("vr={}, nvr={n}", list(&group.vrs)));
                         let status = get_string(comp, vrs, n, pointers.as_mut_ptr());
                         if status == OK || status == WARNING {
                             for (text, &p) in texts.iter_mut().zip(&pointers) {
@@ -337,6 +418,7 @@ impl<'a> Component<'a> {
                                     if p.is_null() { String::new() } else { std::ffi::CStr::from_ptr(p).to_string_lossy().into_owned() };
                             }
                         }
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(texts)));
                         ("fmi2GetString", status)
                     }
                     _ => return Err(format!("{}: a {} variable cannot be read from an FMI 2.0 FMU", self.name, group.kind)),
@@ -360,10 +442,14 @@ impl Drop for Component<'_> {
         unsafe {
             if self.terminate_allowed {
                 trace::enter(Call::Terminate, self.time);
-                (self.binary.api.terminate)(self.raw);
+                let entered = call_log::enter("fmi2Terminate", String::new);
+                let status = (self.binary.api.terminate)(self.raw);
+                call_log::returned(entered, || c::status_name(status));
             }
             trace::enter(Call::FreeInstance, self.time);
+            let entered = call_log::enter("fmi2FreeInstance", String::new);
             (self.binary.api.free_instance)(self.raw);
+            call_log::returned(entered, || "(void)");
         }
     }
 }

@@ -7,6 +7,7 @@ use fmi_c::fmi2 as c;
 
 use super::component::{Component, DISCARD, OK, WARNING};
 use super::{Binary, CoSimulationApi};
+use crate::call_log::{self, list};
 use crate::trace::{self, Call};
 use crate::{Fmu, Reader, Step, Value, Variable};
 
@@ -79,7 +80,11 @@ impl<'a> CoSimulation<'a> {
         let n = vrs.len().min(orders.len()).min(values.len());
         trace::enter(Call::SetReal, self.component.time);
         // SAFETY: `n` value references, orders and values, valid for the call.
+        let entered = call_log::enter("fmi2SetRealInputDerivatives", || {
+            format!("vr={}, nvr={n}, order={}, value={}", list(&vrs[..n]), list(&orders[..n]), list(&values[..n]))
+        });
         let status = unsafe { set(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) };
+        call_log::returned(entered, || c::status_name(status));
         self.component.check("fmi2SetRealInputDerivatives", status)
     }
 
@@ -92,7 +97,10 @@ impl<'a> CoSimulation<'a> {
         let n = vrs.len().min(orders.len()).min(out.len());
         trace::enter(Call::GetReal, self.component.time);
         // SAFETY: `n` value references and orders, room for `n` values, valid for the call.
+        let entered =
+            call_log::enter("fmi2GetRealOutputDerivatives", || format!("vr={}, nvr={n}, order={}", list(&vrs[..n]), list(&orders[..n])));
         let status = unsafe { get(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr()) };
+        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(&out[..n])));
         self.component.check("fmi2GetRealOutputDerivatives", status)
     }
 
@@ -113,7 +121,14 @@ impl<'a> CoSimulation<'a> {
     #[inline(always)]
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         trace::enter(Call::DoStep, t);
-        let status = unsafe { (self.cs.do_step)(self.component.raw, t, h, c::TRUE) };
+        let (do_step, raw) = (self.cs.do_step, self.component.raw);
+        let status = call_log::call(
+            "fmi2DoStep",
+            || format!("currentCommunicationPoint={t:?}, communicationStepSize={h:?}, noSetFMUStatePriorToCurrentPoint=fmi2True"),
+            || unsafe { do_step(raw, t, h, c::TRUE) },
+            c::status_name,
+            |_| String::new(),
+        );
         if status == DISCARD {
             return self.discarded(t);
         }
@@ -131,7 +146,9 @@ impl<'a> CoSimulation<'a> {
         let raw = self.component.raw;
         let mut terminated: c_int = 0;
         trace::enter(Call::GetBooleanStatus, t);
+        let entered = call_log::enter("fmi2GetBooleanStatus", || "s=fmi2Terminated".to_owned());
         let s = unsafe { get_boolean_status(raw, c::TERMINATED, &mut terminated) };
+        call_log::returned_with(entered, || c::status_name(s), || format!("value={}", call_log::boolean(2, terminated != 0)));
         self.component.check("fmi2GetBooleanStatus(fmi2Terminated)", s)?;
         let reason = self.component.callbacks.log.take_problem().unwrap_or_else(|| "no reason logged".to_owned());
         if terminated == 0 {
@@ -139,7 +156,9 @@ impl<'a> CoSimulation<'a> {
         }
         let mut last = f64::NAN;
         trace::enter(Call::GetRealStatus, t);
+        let entered = call_log::enter("fmi2GetRealStatus", || "s=fmi2LastSuccessfulTime".to_owned());
         let s = unsafe { get_real_status(raw, c::LAST_SUCCESSFUL_TIME, &mut last) };
+        call_log::returned_with(entered, || c::status_name(s), || format!("value={last:?}"));
         let last_time = (s == OK || s == WARNING).then_some(last).filter(|t| t.is_finite());
         let when = match last_time {
             Some(last) => format!("t = {last}"),

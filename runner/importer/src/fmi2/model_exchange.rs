@@ -9,6 +9,7 @@ use fmi_schema::fmi2 as schema;
 
 use super::component::Component;
 use super::{Binary, ExchangeApi};
+use crate::call_log::{self, boolean, list};
 use crate::exchange::{EventUpdate, Exchange, Names, StateStructure};
 use crate::logging::LogContext;
 use crate::trace::Call;
@@ -112,42 +113,98 @@ impl Exchange for Exchange2<'_> {
 
     #[inline(always)]
     fn set_time(&self, t: f64) -> c_int {
-        // SAFETY: a live component and a scalar argument.
-        unsafe { (self.api.set_time)(self.component.raw, t) }
+        let set_time = self.api.set_time;
+        let raw = self.component.raw;
+        call_log::call(
+            "fmi2SetTime",
+            || format!("time={t:?}"),
+            // SAFETY: a live instance and a scalar argument.
+            || unsafe { set_time(raw, t) },
+            c::status_name,
+            |_| String::new(),
+        )
     }
 
     #[inline(always)]
     fn set_continuous_states(&self, x: &[f64]) -> c_int {
-        // SAFETY: an array of x.len() states.
-        unsafe { (self.api.set_continuous_states)(self.component.raw, x.as_ptr(), x.len()) }
+        let set_continuous_states = self.api.set_continuous_states;
+        let raw = self.component.raw;
+        call_log::call(
+            "fmi2SetContinuousStates",
+            || format!("x={}, nx={}", list(x), x.len()),
+            // SAFETY: an array of x.len() states.
+            || unsafe { set_continuous_states(raw, x.as_ptr(), x.len()) },
+            c::status_name,
+            |_| String::new(),
+        )
     }
 
     #[inline(always)]
     fn get_derivatives(&self, dx: &mut [f64]) -> c_int {
-        // SAFETY: an array of dx.len() derivatives.
-        unsafe { (self.api.get_derivatives)(self.component.raw, dx.as_mut_ptr(), dx.len()) }
+        let get_derivatives = self.api.get_derivatives;
+        let (raw, values, n) = (self.component.raw, dx.as_mut_ptr(), dx.len());
+        call_log::call(
+            "fmi2GetDerivatives",
+            || format!("nx={n}"),
+            // SAFETY: an array of n values.
+            || unsafe { get_derivatives(raw, values, n) },
+            c::status_name,
+            // SAFETY: the `n` values the call just wrote.
+            |_| format!("derivatives={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 
     #[inline(always)]
     fn get_event_indicators(&self, z: &mut [f64]) -> c_int {
-        // SAFETY: an array of z.len() indicators.
-        unsafe { (self.api.get_event_indicators)(self.component.raw, z.as_mut_ptr(), z.len()) }
+        let get_event_indicators = self.api.get_event_indicators;
+        let (raw, values, n) = (self.component.raw, z.as_mut_ptr(), z.len());
+        call_log::call(
+            "fmi2GetEventIndicators",
+            || format!("ni={n}"),
+            // SAFETY: an array of n values.
+            || unsafe { get_event_indicators(raw, values, n) },
+            c::status_name,
+            // SAFETY: the `n` values the call just wrote.
+            |_| format!("eventIndicators={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 
     fn get_continuous_states(&self, x: &mut [f64]) -> c_int {
+        let entered = call_log::enter("fmi2GetContinuousStates", || format!("nx={}", x.len()));
         // SAFETY: an array of x.len() states.
-        unsafe { (self.api.get_continuous_states)(self.component.raw, x.as_mut_ptr(), x.len()) }
+        let status = unsafe { (self.api.get_continuous_states)(self.component.raw, x.as_mut_ptr(), x.len()) };
+        call_log::returned_with(entered, || c::status_name(status), || format!("x={}", list(x)));
+        status
     }
 
     fn enter_event_mode(&self) -> c_int {
+        let entered = call_log::enter("fmi2EnterEventMode", String::new);
         // SAFETY: a live component.
-        unsafe { (self.api.enter_event_mode)(self.component.raw) }
+        let status = unsafe { (self.api.enter_event_mode)(self.component.raw) };
+        call_log::returned(entered, || c::status_name(status));
+        status
     }
 
     fn update_discrete_states(&self) -> (c_int, EventUpdate) {
         let mut info = c::EventInfo::default();
         // SAFETY: a valid out pointer.
+        let entered = call_log::enter("fmi2NewDiscreteStates", String::new);
         let status = unsafe { (self.api.new_discrete_states)(self.component.raw, &mut info) };
+        call_log::returned_with(
+            entered,
+            || c::status_name(status),
+            || {
+                format!(
+                "newDiscreteStatesNeeded={}, terminateSimulation={}, nominalsOfContinuousStatesChanged={}, valuesOfContinuousStatesChanged={}, nextEventTimeDefined={}, nextEventTime={:?}",
+                boolean(2, info.new_discrete_states_needed != 0),
+                boolean(2, info.terminate_simulation != 0),
+                boolean(2, info.nominals_of_continuous_states_changed != 0),
+                boolean(2, info.values_of_continuous_states_changed != 0),
+                boolean(2, info.next_event_time_defined != 0),
+                info.next_event_time
+            )
+            },
+        );
         let update = EventUpdate {
             again: info.new_discrete_states_needed != 0,
             terminate: info.terminate_simulation != 0,
@@ -157,8 +214,11 @@ impl Exchange for Exchange2<'_> {
     }
 
     fn enter_continuous_time_mode(&self) -> c_int {
+        let entered = call_log::enter("fmi2EnterContinuousTimeMode", String::new);
         // SAFETY: a live component.
-        unsafe { (self.api.enter_continuous_time_mode)(self.component.raw) }
+        let status = unsafe { (self.api.enter_continuous_time_mode)(self.component.raw) };
+        call_log::returned(entered, || c::status_name(status));
+        status
     }
 
     fn needs_completed_integrator_step(&self) -> bool {
@@ -168,7 +228,13 @@ impl Exchange for Exchange2<'_> {
     fn completed_integrator_step(&self) -> (c_int, bool, bool) {
         let (mut enter, mut terminate): (c_int, c_int) = (0, 0);
         // SAFETY: valid out pointers.
+        let entered = call_log::enter("fmi2CompletedIntegratorStep", || "noSetFMUStatePriorToCurrentPoint=fmi2True".to_owned());
         let status = unsafe { (self.api.completed_integrator_step)(self.component.raw, c::TRUE, &mut enter, &mut terminate) };
+        call_log::returned_with(
+            entered,
+            || c::status_name(status),
+            || format!("enterEventMode={}, terminateSimulation={}", boolean(2, enter != 0), boolean(2, terminate != 0)),
+        );
         (status, enter != 0, terminate != 0)
     }
 
@@ -208,7 +274,14 @@ impl Exchange for Exchange2<'_> {
 
     fn directional_derivative(&self, unknowns: &[u32], knowns: &[u32], seed: &[f64], out: &mut [f64]) -> c_int {
         let Some(f) = self.directional else { return crate::exchange::ERROR };
+        let entered = call_log::enter("fmi2GetDirectionalDerivative", || {
+            format!("vUnknown_ref={}, vKnown_ref={}, dvKnown={}", list(unknowns), list(knowns), list(seed))
+        });
         // SAFETY: arrays of the lengths passed (out as long as unknowns, seed as knowns).
-        unsafe { f(self.component.raw, unknowns.as_ptr(), unknowns.len(), knowns.as_ptr(), knowns.len(), seed.as_ptr(), out.as_mut_ptr()) }
+        let status = unsafe {
+            f(self.component.raw, unknowns.as_ptr(), unknowns.len(), knowns.as_ptr(), knowns.len(), seed.as_ptr(), out.as_mut_ptr())
+        };
+        call_log::returned_with(entered, || c::status_name(status), || format!("dvUnknown={}", list(out)));
+        status
     }
 }

@@ -8,6 +8,7 @@ use std::ffi::{c_int, CStr, CString};
 use fmi_c::fmi3 as c;
 
 use super::{Binary, Environment};
+use crate::call_log::{self, boolean, list};
 use crate::exchange::EventUpdate;
 use crate::model::{Causality, Kind, Variable};
 use crate::reader::Buffer;
@@ -115,6 +116,15 @@ impl<'a> Component<'a> {
     pub(crate) fn enter_initialization_mode(&mut self) -> Result<(), String> {
         let (tolerance, start, stop) = self.experiment;
         trace::enter(Call::Fmi3EnterInitializationMode, start);
+        let entered = call_log::enter("fmi3EnterInitializationMode", || {
+            format!(
+                "toleranceDefined={}, tolerance={:?}, startTime={start:?}, stopTimeDefined={}, stopTime={:?}",
+                boolean(3, tolerance.is_some()),
+                tolerance.unwrap_or(0.0),
+                boolean(3, stop.is_finite()),
+                if stop.is_finite() { stop } else { 0.0 }
+            )
+        });
         let status = unsafe {
             // An infinite stop time is none: stepping from outside runs as long as it is asked to.
             (self.binary.api.enter_initialization_mode)(
@@ -126,6 +136,7 @@ impl<'a> Component<'a> {
                 if stop.is_finite() { stop } else { 0.0 },
             )
         };
+        call_log::returned(entered, || c::status_name(status));
         self.instantiated = false;
         self.check("fmi3EnterInitializationMode", status)
     }
@@ -133,7 +144,9 @@ impl<'a> Component<'a> {
     /// fmi3ExitInitializationMode.
     pub(crate) fn exit_initialization_mode(&mut self) -> Result<(), String> {
         trace::enter(Call::Fmi3ExitInitializationMode, self.experiment.1);
+        let entered = call_log::enter("fmi3ExitInitializationMode", String::new);
         let status = unsafe { (self.binary.api.exit_initialization_mode)(self.instance) };
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi3ExitInitializationMode", status)?;
         self.terminate_allowed = true;
         Ok(())
@@ -146,7 +159,9 @@ impl<'a> Component<'a> {
         };
         trace::enter(Call::Fmi3Reset, f64::NAN);
         // SAFETY: the instance is live.
+        let entered = call_log::enter("fmi3Reset", String::new);
         let status = unsafe { reset(self.instance) };
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi3Reset", status)?;
         self.terminate_allowed = false;
         self.instantiated = true;
@@ -165,22 +180,30 @@ impl<'a> Component<'a> {
         let mut state: c::FmuState = std::ptr::null_mut();
         trace::enter(Call::Fmi3GetFmuState, f64::NAN);
         // SAFETY: the instance is live; `state` receives the FMU's handle.
+        let entered = call_log::enter("fmi3GetFMUState", String::new);
         let status = unsafe { get(self.instance, &mut state) };
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi3GetFMUState", status)?;
         let mut n = 0usize;
         // SAFETY: a state this instance returned, and an out pointer.
+        let entered = call_log::enter("fmi3SerializedFMUStateSize", String::new);
         let status = unsafe { size(self.instance, state, &mut n) };
+        call_log::returned_with(entered, || c::status_name(status), || format!("size={n}"));
         let bytes = self.check("fmi3SerializedFMUStateSize", status).and_then(|()| {
             if n > crate::state::MAX_STATE_BYTES {
                 return Err(format!("{}: fmi3SerializedFMUStateSize gave {n} bytes", self.name));
             }
             let mut bytes = vec![0u8; n];
             // SAFETY: `n` writable bytes, as the FMU asked for.
+            let entered = call_log::enter("fmi3SerializeFMUState", || format!("size={n}"));
             let status = unsafe { serialize(self.instance, state, bytes.as_mut_ptr(), n) };
+            call_log::returned(entered, || c::status_name(status));
             self.check("fmi3SerializeFMUState", status).map(|()| bytes)
         });
+        let entered = call_log::enter("fmi3FreeFMUState", String::new);
         // SAFETY: the state is this instance's, freed once.
-        unsafe { free(self.instance, &mut state) };
+        let status = unsafe { free(self.instance, &mut state) };
+        call_log::returned(entered, || c::status_name(status));
         bytes
     }
 
@@ -194,13 +217,19 @@ impl<'a> Component<'a> {
         let mut state: c::FmuState = std::ptr::null_mut();
         trace::enter(Call::Fmi3SetFmuState, f64::NAN);
         // SAFETY: `bytes.len()` readable bytes; `state` receives the FMU's handle.
+        let entered = call_log::enter("fmi3DeserializeFMUState", || format!("size={}", bytes.len()));
         let status = unsafe { deserialize(self.instance, bytes.as_ptr(), bytes.len(), &mut state) };
+        call_log::returned(entered, || c::status_name(status));
         self.check("fmi3DeserializeFMUState", status)?;
         // SAFETY: a state this instance made.
+        let entered = call_log::enter("fmi3SetFMUState", String::new);
         let status = unsafe { set(self.instance, state) };
+        call_log::returned(entered, || c::status_name(status));
         let result = self.check("fmi3SetFMUState", status);
+        let entered = call_log::enter("fmi3FreeFMUState", String::new);
         // SAFETY: freed once.
-        unsafe { free(self.instance, &mut state) };
+        let status = unsafe { free(self.instance, &mut state) };
+        call_log::returned(entered, || c::status_name(status));
         result?;
         self.terminate_allowed = true;
         self.instantiated = false;
@@ -210,6 +239,7 @@ impl<'a> Component<'a> {
     /// One fmi3UpdateDiscreteStates: its status and what it returned.
     pub(crate) fn update_discrete_states(&self) -> (c_int, EventUpdate) {
         let (mut again, mut terminate, mut nominals, mut values, mut next_defined, mut next) = (false, false, false, false, false, 0.0);
+        let entered = call_log::enter("fmi3UpdateDiscreteStates", String::new);
         // SAFETY: valid out pointers.
         let status = unsafe {
             (self.binary.api.update_discrete_states)(
@@ -222,6 +252,20 @@ impl<'a> Component<'a> {
                 &mut next,
             )
         };
+        call_log::returned_with(
+            entered,
+            || c::status_name(status),
+            || {
+                format!(
+                "discreteStatesNeedUpdate={}, terminateSimulation={}, nominalsOfContinuousStatesChanged={}, valuesOfContinuousStatesChanged={}, nextEventTimeDefined={}, nextEventTime={next:?}",
+                boolean(3, again),
+                boolean(3, terminate),
+                boolean(3, nominals),
+                boolean(3, values),
+                boolean(3, next_defined)
+            )
+            },
+        );
         (status, EventUpdate { again, terminate, next_event_time: next_defined.then_some(next) })
     }
 
@@ -231,14 +275,18 @@ impl<'a> Component<'a> {
         let configure = self.instantiated && variable.causality == Causality::StructuralParameter;
         if configure {
             trace::enter(Call::Fmi3EnterConfigurationMode, f64::NAN);
+            let entered = call_log::enter("fmi3EnterConfigurationMode", String::new);
             let status = unsafe { (self.binary.api.enter_configuration_mode)(self.instance) };
+            call_log::returned(entered, || c::status_name(status));
             self.check("fmi3EnterConfigurationMode", status)?;
         }
         // A refused value is the error to report: after it the FMU may refuse leaving too.
         self.set_values(variable, value)?;
         if configure {
             trace::enter(Call::Fmi3ExitConfigurationMode, f64::NAN);
+            let entered = call_log::enter("fmi3ExitConfigurationMode", String::new);
             let status = unsafe { (self.binary.api.exit_configuration_mode)(self.instance) };
+            call_log::returned(entered, || c::status_name(status));
             self.check("fmi3ExitConfigurationMode", status)?;
         }
         Ok(())
@@ -253,11 +301,15 @@ impl<'a> Component<'a> {
         trace::enter(Call::Fmi3Set, f64::NAN);
         let (inst, api, n) = (self.instance, &self.binary.api, items.len());
         let wrong = || format!("{}: {value:?} is not a value of its type {}", variable.name, variable.kind);
+        let arguments = |values: String| format!("valueReferences={}, nValueReferences=1, values={values}, nValues={n}", list(&vr));
         macro_rules! set {
             ($f:ident, $conv:expr) => {{
                 let values = items.iter().map(|v| $conv(*v)).collect::<Option<Vec<_>>>().ok_or_else(wrong)?;
+                let entered = call_log::enter(setter_name(variable.kind), || arguments(list(&values)));
                 // SAFETY: one value reference and `n` values of its type.
-                unsafe { (api.$f)(inst, vr.as_ptr(), 1, values.as_ptr(), n) }
+                let status = unsafe { (api.$f)(inst, vr.as_ptr(), 1, values.as_ptr(), n) };
+                call_log::returned(entered, || c::status_name(status));
+                status
             }};
         }
         let int = |v: &Value| match v {
@@ -288,7 +340,10 @@ impl<'a> Component<'a> {
                     })
                     .collect::<Result<Vec<CString>, String>>()?;
                 let pointers: Vec<*const std::ffi::c_char> = texts.iter().map(|t| t.as_ptr()).collect();
-                unsafe { (api.set_string)(inst, vr.as_ptr(), 1, pointers.as_ptr(), n) }
+                let entered = call_log::enter("fmi3SetString", || arguments(list(&texts)));
+                let status = unsafe { (api.set_string)(inst, vr.as_ptr(), 1, pointers.as_ptr(), n) };
+                call_log::returned(entered, || c::status_name(status));
+                status
             }
             Kind::Binary => {
                 let bytes = items
@@ -298,7 +353,10 @@ impl<'a> Component<'a> {
                     .ok_or_else(wrong)?;
                 let sizes: Vec<usize> = bytes.iter().map(|b| b.len()).collect();
                 let pointers: Vec<*const u8> = bytes.iter().map(|b| b.as_ptr()).collect();
-                unsafe { (api.set_binary)(inst, vr.as_ptr(), 1, sizes.as_ptr(), pointers.as_ptr(), n) }
+                let entered = call_log::enter("fmi3SetBinary", || arguments(format!("(sizes {})", list(&sizes))));
+                let status = unsafe { (api.set_binary)(inst, vr.as_ptr(), 1, sizes.as_ptr(), pointers.as_ptr(), n) };
+                call_log::returned(entered, || c::status_name(status));
+                status
             }
             Kind::Clock => return Err(format!("{} is a Clock: clocks are not supported", variable.name)),
         };
@@ -325,7 +383,9 @@ impl<'a> Component<'a> {
         let mut values: Vec<c::FmiString> = vec![std::ptr::null(); n];
         trace::enter(Call::Fmi3Get, f64::NAN);
         // SAFETY: one value reference and room for its `n` elements.
+        let entered = call_log::enter("fmi3GetString", || format!("valueReferences={}, nValueReferences=1, nValues={n}", list(&vr)));
         let status = unsafe { (self.binary.api.get_string)(self.instance, vr.as_ptr(), 1, values.as_mut_ptr(), n) };
+        call_log::returned(entered, || c::status_name(status));
         self.check(&format!("fmi3GetString of {}", variable.name), status)?;
         // SAFETY: non-NULL pointers from the FMU are NUL-terminated strings until its next call.
         values.iter().map(|p| unsafe { crate::text_of(*p, &variable.name, "fmi3GetString") }).collect()
@@ -338,9 +398,16 @@ impl<'a> Component<'a> {
         if reader.direct {
             if let Some(group) = reader.groups.first() {
                 trace::enter(Call::Fmi3Get, f64::NAN);
-                let status = unsafe {
-                    (self.binary.api.get_float64)(self.instance, group.vrs.as_ptr(), group.vrs.len(), out.as_mut_ptr(), out.len())
-                };
+                let (get_float64, instance, vrs, values, n) =
+                    (self.binary.api.get_float64, self.instance, &group.vrs, out.as_mut_ptr(), out.len());
+                let status = call_log::call(
+                    "fmi3GetFloat64",
+                    || format!("valueReferences={}, nValueReferences={}, nValues={n}", list(vrs), vrs.len()),
+                    || unsafe { get_float64(instance, vrs.as_ptr(), vrs.len(), values, n) },
+                    c::status_name,
+                    // SAFETY: the `n` values the call just wrote.
+                    |_| format!("values={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+                );
                 self.check("fmi3GetFloat64", status)?;
             }
             return Ok(());
@@ -357,8 +424,15 @@ impl<'a> Component<'a> {
         debug_assert_eq!(vrs.len(), values.len());
         let n = vrs.len().min(values.len());
         trace::enter(Call::Fmi3Set, f64::NAN);
-        // SAFETY: `n` value references of scalars and `n` values, valid for the call.
-        let status = unsafe { (self.binary.api.set_float64)(self.instance, vrs.as_ptr(), n, values.as_ptr(), n) };
+        let (set_float64, instance) = (self.binary.api.set_float64, self.instance);
+        let status = call_log::call(
+            "fmi3SetFloat64",
+            || format!("valueReferences={}, nValueReferences={n}, values={}, nValues={n}", list(&vrs[..n]), list(&values[..n])),
+            // SAFETY: `n` value references of scalars and `n` values, valid for the call.
+            || unsafe { set_float64(instance, vrs.as_ptr(), n, values.as_ptr(), n) },
+            c::status_name,
+            |_| String::new(),
+        );
         self.check("fmi3SetFloat64", status)
     }
 
@@ -368,26 +442,32 @@ impl<'a> Component<'a> {
         for group in &mut reader.groups {
             let (vrs, nvr) = (group.vrs.as_ptr(), group.vrs.len());
             let api = &self.binary.api;
+            let group_vrs = &group.vrs;
+            let arguments = |n: usize| format!("valueReferences={}, nValueReferences={nvr}, nValues={n}", list(group_vrs));
             macro_rules! get {
-                ($f:ident, $b:expr) => {
+                ($f:ident, $name:literal, $b:expr) => {{
+                    let entered = call_log::enter($name, || arguments($b.len()));
                     // SAFETY: the buffer holds every element of the group's variables.
-                    unsafe { (api.$f)(inst, vrs, nvr, $b.as_mut_ptr(), $b.len()) }
-                };
+                    let status = unsafe { (api.$f)(inst, vrs, nvr, $b.as_mut_ptr(), $b.len()) };
+                    call_log::returned_with(entered, || c::status_name(status), || format!("values={}", list($b)));
+                    status
+                }};
             }
             let status = match &mut group.buffer {
-                Buffer::F64(b) => get!(get_float64, b),
-                Buffer::F32(b) => get!(get_float32, b),
-                Buffer::I8(b) => get!(get_int8, b),
-                Buffer::U8(b) => get!(get_uint8, b),
-                Buffer::I16(b) => get!(get_int16, b),
-                Buffer::U16(b) => get!(get_uint16, b),
-                Buffer::I32(b) => get!(get_int32, b),
-                Buffer::U32(b) => get!(get_uint32, b),
-                Buffer::I64(b) => get!(get_int64, b),
-                Buffer::U64(b) => get!(get_uint64, b),
-                Buffer::Bool(b) => get!(get_boolean, b),
+                Buffer::F64(b) => get!(get_float64, "fmi3GetFloat64", b),
+                Buffer::F32(b) => get!(get_float32, "fmi3GetFloat32", b),
+                Buffer::I8(b) => get!(get_int8, "fmi3GetInt8", b),
+                Buffer::U8(b) => get!(get_uint8, "fmi3GetUInt8", b),
+                Buffer::I16(b) => get!(get_int16, "fmi3GetInt16", b),
+                Buffer::U16(b) => get!(get_uint16, "fmi3GetUInt16", b),
+                Buffer::I32(b) => get!(get_int32, "fmi3GetInt32", b),
+                Buffer::U32(b) => get!(get_uint32, "fmi3GetUInt32", b),
+                Buffer::I64(b) => get!(get_int64, "fmi3GetInt64", b),
+                Buffer::U64(b) => get!(get_uint64, "fmi3GetUInt64", b),
+                Buffer::Bool(b) => get!(get_boolean, "fmi3GetBoolean", b),
                 Buffer::Text(texts) => {
                     let mut pointers = vec![std::ptr::null::<std::ffi::c_char>(); texts.len()];
+                    let entered = call_log::enter("fmi3GetString", || arguments(texts.len()));
                     let status = unsafe { (api.get_string)(inst, vrs, nvr, pointers.as_mut_ptr(), pointers.len()) };
                     if status == OK || status == WARNING {
                         for (t, p) in texts.iter_mut().zip(&pointers) {
@@ -395,12 +475,15 @@ impl<'a> Component<'a> {
                             *t = if p.is_null() { String::new() } else { unsafe { CStr::from_ptr(*p) }.to_string_lossy().into_owned() };
                         }
                     }
+                    call_log::returned_with(entered, || c::status_name(status), || format!("values={}", list(texts)));
                     status
                 }
                 Buffer::Bytes(bytes) => {
                     let mut sizes = vec![0usize; bytes.len()];
                     let mut pointers = vec![std::ptr::null::<u8>(); bytes.len()];
+                    let entered = call_log::enter("fmi3GetBinary", || arguments(bytes.len()));
                     let status = unsafe { (api.get_binary)(inst, vrs, nvr, sizes.as_mut_ptr(), pointers.as_mut_ptr(), pointers.len()) };
+                    call_log::returned_with(entered, || c::status_name(status), || format!("valueSizes={}", list(&sizes)));
                     if status == OK || status == WARNING {
                         for ((b, p), n) in bytes.iter_mut().zip(&pointers).zip(&sizes) {
                             // SAFETY: the FMU returned `n` bytes at `p`, valid until its next call.
@@ -430,10 +513,34 @@ impl Drop for Component<'_> {
         unsafe {
             if self.terminate_allowed {
                 trace::enter(Call::Fmi3Terminate, f64::NAN);
-                (self.binary.api.terminate)(self.instance);
+                let entered = call_log::enter("fmi3Terminate", String::new);
+                let status = (self.binary.api.terminate)(self.instance);
+                call_log::returned(entered, || c::status_name(status));
             }
             trace::enter(Call::Fmi3FreeInstance, f64::NAN);
+            let entered = call_log::enter("fmi3FreeInstance", String::new);
             (self.binary.api.free_instance)(self.instance);
+            call_log::returned(entered, || "(void)");
         }
+    }
+}
+
+/// The FMI 3.0 setter of variables of `kind`, by name.
+fn setter_name(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Real => "fmi3SetFloat64",
+        Kind::Float32 => "fmi3SetFloat32",
+        Kind::Int8 => "fmi3SetInt8",
+        Kind::UInt8 => "fmi3SetUInt8",
+        Kind::Int16 => "fmi3SetInt16",
+        Kind::UInt16 => "fmi3SetUInt16",
+        Kind::Integer => "fmi3SetInt32",
+        Kind::UInt32 => "fmi3SetUInt32",
+        Kind::Int64 | Kind::Enumeration => "fmi3SetInt64",
+        Kind::UInt64 => "fmi3SetUInt64",
+        Kind::Boolean => "fmi3SetBoolean",
+        Kind::String => "fmi3SetString",
+        Kind::Binary => "fmi3SetBinary",
+        Kind::Clock => "fmi3SetClock",
     }
 }

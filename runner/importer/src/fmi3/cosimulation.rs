@@ -5,8 +5,11 @@
 
 use std::ffi::{c_void, CString};
 
+use fmi_c::fmi3 as c;
+
 use super::component::{Component, OK, WARNING};
 use super::{log_message, Binary, CoSimulationApi, Environment};
+use crate::call_log::{self, boolean, list};
 use crate::logging::LogContext;
 use crate::trace::{self, Call};
 use crate::{Fmu, Reader, Step, Value, Variable};
@@ -30,6 +33,16 @@ impl<'a> CoSimulation<'a> {
         let env = Box::new(Environment { name: name.to_owned(), log: LogContext::default() });
         let c_name = CString::new(name).map_err(|_| format!("instance name {name:?} contains a NUL byte"))?;
         trace::enter(Call::Fmi3Instantiate, f64::NAN);
+        let entered = call_log::enter("fmi3InstantiateCoSimulation", || {
+            format!(
+                "instanceName={name:?}, instantiationToken={:?}, resourcePath={:?}, visible=fmi3False, loggingOn={}, eventModeUsed={}, earlyReturnAllowed={}, requiredIntermediateVariables=[], nRequiredIntermediateVariables=0",
+                fmu.token,
+                fmu.resource_uri,
+                boolean(3, debug_logging),
+                boolean(3, caps.has_event_mode),
+                boolean(3, caps.might_return_early_from_do_step)
+            )
+        });
         // SAFETY: every pointer is valid for the call; the environment outlives the instance.
         let instance = unsafe {
             (cs.instantiate_co_simulation)(
@@ -47,6 +60,7 @@ impl<'a> CoSimulation<'a> {
                 None,
             )
         };
+        call_log::returned_instance(entered, instance);
         let component = Component::new(binary, name, instance, env, "fmi3InstantiateCoSimulation")?;
         Ok(CoSimulation { component, cs, event_mode: caps.has_event_mode, early_return: caps.might_return_early_from_do_step })
     }
@@ -70,7 +84,9 @@ impl<'a> CoSimulation<'a> {
                 return Err(format!("{}: the FMU asked to terminate the simulation during initialization", self.component.name));
             }
             trace::enter(Call::Fmi3EnterStepMode, f64::NAN);
+            let entered = call_log::enter("fmi3EnterStepMode", String::new);
             let status = unsafe { (self.cs.enter_step_mode)(self.component.instance) };
+            call_log::returned(entered, || c::status_name(status));
             self.component.check("fmi3EnterStepMode", status)?;
         }
         Ok(())
@@ -143,7 +159,11 @@ impl<'a> CoSimulation<'a> {
         let n = vrs.len().min(orders.len()).min(out.len());
         trace::enter(Call::Fmi3Get, f64::NAN);
         // SAFETY: `n` value references of scalars and orders, room for `n` values.
+        let entered = call_log::enter("fmi3GetOutputDerivatives", || {
+            format!("valueReferences={}, nValueReferences={n}, orders={}, nValues={n}", list(&vrs[..n]), list(&orders[..n]))
+        });
         let status = unsafe { get(self.component.instance, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr(), n) };
+        call_log::returned_with(entered, || c::status_name(status), || format!("values={}", list(&out[..n])));
         self.component.check("fmi3GetOutputDerivatives", status)
     }
 
@@ -155,7 +175,24 @@ impl<'a> CoSimulation<'a> {
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         let (mut event, mut terminate, mut early, mut last) = (false, false, false, t);
         trace::enter(Call::Fmi3DoStep, t);
-        let status = unsafe { (self.cs.do_step)(self.component.instance, t, h, true, &mut event, &mut terminate, &mut early, &mut last) };
+        let (do_step, instance) = (self.cs.do_step, self.component.instance);
+        let (status, event, terminate, early, last) = call_log::call(
+            "fmi3DoStep",
+            || format!("currentCommunicationPoint={t:?}, communicationStepSize={h:?}, noSetFMUStatePriorToCurrentPoint=fmi3True"),
+            || {
+                let status = unsafe { do_step(instance, t, h, true, &mut event, &mut terminate, &mut early, &mut last) };
+                (status, event, terminate, early, last)
+            },
+            |(status, ..)| c::status_name(status),
+            |(_, event, terminate, early, last)| {
+                format!(
+                    "eventHandlingNeeded={}, terminateSimulation={}, earlyReturn={}, lastSuccessfulTime={last:?}",
+                    boolean(3, event),
+                    boolean(3, terminate),
+                    boolean(3, early)
+                )
+            },
+        );
         if status != OK && status != WARNING {
             return Err(self.component.refused_at("fmi3DoStep", t, status));
         }
@@ -197,14 +234,18 @@ impl<'a> CoSimulation<'a> {
             return Ok(None);
         }
         trace::enter(Call::Fmi3EnterEventMode, time);
+        let entered = call_log::enter("fmi3EnterEventMode", String::new);
         let status = unsafe { (self.component.binary.api.enter_event_mode)(self.component.instance) };
+        call_log::returned(entered, || c::status_name(status));
         self.component.check("fmi3EnterEventMode", status)?;
         if self.update_discrete_states(&format!("at t = {time}"))? {
             let reason = self.component.env.log.take_problem().unwrap_or_else(|| "the FMU asked to terminate the simulation".to_owned());
             return Ok(Some(format!("the model ended the simulation at t = {time}: {reason}")));
         }
         trace::enter(Call::Fmi3EnterStepMode, time);
+        let entered = call_log::enter("fmi3EnterStepMode", String::new);
         let status = unsafe { (self.cs.enter_step_mode)(self.component.instance) };
+        call_log::returned(entered, || c::status_name(status));
         self.component.check("fmi3EnterStepMode", status)?;
         Ok(None)
     }

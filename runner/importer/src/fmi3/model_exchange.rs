@@ -12,6 +12,7 @@ use fmi_schema::fmi3 as schema;
 
 use super::component::Component;
 use super::{log_message, Binary, Environment, ModelExchangeApi};
+use crate::call_log::{self, boolean, list};
 use crate::exchange::{EventUpdate, Exchange, Names, StateStructure};
 use crate::logging::LogContext;
 use crate::trace::{self, Call};
@@ -63,6 +64,14 @@ pub(crate) fn instantiate<'a>(fmu: &'a Fmu, binary: &'a Binary, name: &str, debu
     let env = Box::new(Environment { name: name.to_owned(), log: LogContext::default() });
     let c_name = CString::new(name).map_err(|_| format!("instance name {name:?} contains a NUL byte"))?;
     trace::enter(Call::Fmi3InstantiateModelExchange, f64::NAN);
+    let entered = call_log::enter("fmi3InstantiateModelExchange", || {
+        format!(
+            "instanceName={name:?}, instantiationToken={:?}, resourcePath={:?}, visible=fmi3False, loggingOn={}",
+            fmu.token,
+            fmu.resource_uri,
+            boolean(3, debug_logging)
+        )
+    });
     // SAFETY: every pointer is valid for the call; the environment outlives the instance.
     let instance = unsafe {
         (api.instantiate_model_exchange)(
@@ -75,6 +84,7 @@ pub(crate) fn instantiate<'a>(fmu: &'a Fmu, binary: &'a Binary, name: &str, debu
             Some(log_message),
         )
     };
+    call_log::returned_instance(entered, instance);
     let component = Component::new(binary, name, instance, env, "fmi3InstantiateModelExchange")?;
     let capabilities = fmu.description.model_exchange.as_ref();
     let needs = capabilities.is_some_and(|me| me.needs_completed_integrator_step);
@@ -135,36 +145,76 @@ impl Exchange for Exchange3<'_> {
 
     #[inline(always)]
     fn set_time(&self, t: f64) -> c_int {
-        // SAFETY: a live instance and a scalar argument.
-        unsafe { (self.api.set_time)(self.component.instance, t) }
+        let set_time = self.api.set_time;
+        let raw = self.component.instance;
+        call_log::call(
+            "fmi3SetTime",
+            || format!("time={t:?}"),
+            // SAFETY: a live instance and a scalar argument.
+            || unsafe { set_time(raw, t) },
+            c::status_name,
+            |_| String::new(),
+        )
     }
 
     #[inline(always)]
     fn set_continuous_states(&self, x: &[f64]) -> c_int {
-        // SAFETY: an array of x.len() states.
-        unsafe { (self.api.set_continuous_states)(self.component.instance, x.as_ptr(), x.len()) }
+        let set_continuous_states = self.api.set_continuous_states;
+        let raw = self.component.instance;
+        call_log::call(
+            "fmi3SetContinuousStates",
+            || format!("continuousStates={}, nContinuousStates={}", list(x), x.len()),
+            // SAFETY: an array of x.len() states.
+            || unsafe { set_continuous_states(raw, x.as_ptr(), x.len()) },
+            c::status_name,
+            |_| String::new(),
+        )
     }
 
     #[inline(always)]
     fn get_derivatives(&self, dx: &mut [f64]) -> c_int {
-        // SAFETY: an array of dx.len() derivatives.
-        unsafe { (self.api.get_continuous_state_derivatives)(self.component.instance, dx.as_mut_ptr(), dx.len()) }
+        let get_continuous_state_derivatives = self.api.get_continuous_state_derivatives;
+        let (raw, values, n) = (self.component.instance, dx.as_mut_ptr(), dx.len());
+        call_log::call(
+            "fmi3GetContinuousStateDerivatives",
+            || format!("nContinuousStates={n}"),
+            // SAFETY: an array of n values.
+            || unsafe { get_continuous_state_derivatives(raw, values, n) },
+            c::status_name,
+            // SAFETY: the `n` values the call just wrote.
+            |_| format!("derivatives={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 
     #[inline(always)]
     fn get_event_indicators(&self, z: &mut [f64]) -> c_int {
-        // SAFETY: an array of z.len() indicators.
-        unsafe { (self.api.get_event_indicators)(self.component.instance, z.as_mut_ptr(), z.len()) }
+        let get_event_indicators = self.api.get_event_indicators;
+        let (raw, values, n) = (self.component.instance, z.as_mut_ptr(), z.len());
+        call_log::call(
+            "fmi3GetEventIndicators",
+            || format!("nEventIndicators={n}"),
+            // SAFETY: an array of n values.
+            || unsafe { get_event_indicators(raw, values, n) },
+            c::status_name,
+            // SAFETY: the `n` values the call just wrote.
+            |_| format!("eventIndicators={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 
     fn get_continuous_states(&self, x: &mut [f64]) -> c_int {
+        let entered = call_log::enter("fmi3GetContinuousStates", || format!("nContinuousStates={}", x.len()));
         // SAFETY: an array of x.len() states.
-        unsafe { (self.api.get_continuous_states)(self.component.instance, x.as_mut_ptr(), x.len()) }
+        let status = unsafe { (self.api.get_continuous_states)(self.component.instance, x.as_mut_ptr(), x.len()) };
+        call_log::returned_with(entered, || c::status_name(status), || format!("continuousStates={}", list(x)));
+        status
     }
 
     fn enter_event_mode(&self) -> c_int {
+        let entered = call_log::enter("fmi3EnterEventMode", String::new);
         // SAFETY: a live instance.
-        unsafe { (self.component.binary.api.enter_event_mode)(self.component.instance) }
+        let status = unsafe { (self.component.binary.api.enter_event_mode)(self.component.instance) };
+        call_log::returned(entered, || c::status_name(status));
+        status
     }
 
     fn update_discrete_states(&self) -> (c_int, EventUpdate) {
@@ -172,8 +222,11 @@ impl Exchange for Exchange3<'_> {
     }
 
     fn enter_continuous_time_mode(&self) -> c_int {
+        let entered = call_log::enter("fmi3EnterContinuousTimeMode", String::new);
         // SAFETY: a live instance.
-        unsafe { (self.api.enter_continuous_time_mode)(self.component.instance) }
+        let status = unsafe { (self.api.enter_continuous_time_mode)(self.component.instance) };
+        call_log::returned(entered, || c::status_name(status));
+        status
     }
 
     fn needs_completed_integrator_step(&self) -> bool {
@@ -183,7 +236,13 @@ impl Exchange for Exchange3<'_> {
     fn completed_integrator_step(&self) -> (c_int, bool, bool) {
         let (mut enter, mut terminate) = (false, false);
         // SAFETY: valid out pointers.
+        let entered = call_log::enter("fmi3CompletedIntegratorStep", || "noSetFMUStatePriorToCurrentPoint=fmi3True".to_owned());
         let status = unsafe { (self.api.completed_integrator_step)(self.component.instance, true, &mut enter, &mut terminate) };
+        call_log::returned_with(
+            entered,
+            || c::status_name(status),
+            || format!("enterEventMode={}, terminateSimulation={}", boolean(3, enter), boolean(3, terminate)),
+        );
         (status, enter, terminate)
     }
 
@@ -223,8 +282,11 @@ impl Exchange for Exchange3<'_> {
 
     fn directional_derivative(&self, unknowns: &[u32], knowns: &[u32], seed: &[f64], out: &mut [f64]) -> c_int {
         let Some(f) = self.directional else { return crate::exchange::ERROR };
+        let entered = call_log::enter("fmi3GetDirectionalDerivative", || {
+            format!("unknowns={}, knowns={}, seed={}", list(unknowns), list(knowns), list(seed))
+        });
         // SAFETY: arrays of the lengths passed (scalar unknowns and knowns: one value each).
-        unsafe {
+        let status = unsafe {
             f(
                 self.component.instance,
                 unknowns.as_ptr(),
@@ -236,7 +298,9 @@ impl Exchange for Exchange3<'_> {
                 out.as_mut_ptr(),
                 out.len(),
             )
-        }
+        };
+        call_log::returned_with(entered, || c::status_name(status), || format!("sensitivity={}", list(out)));
+        status
     }
 
     /// fmi3GetNumberOfContinuousStates and fmi3GetNumberOfEventIndicators (allowed in Event
@@ -247,9 +311,13 @@ impl Exchange for Exchange3<'_> {
         let start = self.component.start_time();
         trace::enter(Call::Fmi3GetNumberOfContinuousStates, start);
         // SAFETY: valid out pointers.
+        let entered = call_log::enter("fmi3GetNumberOfContinuousStates", String::new);
         let status = unsafe { (self.api.get_number_of_continuous_states)(self.component.instance, &mut states) };
+        call_log::returned_with(entered, || c::status_name(status), || format!("nContinuousStates={states}"));
         self.component.check("fmi3GetNumberOfContinuousStates", status)?;
+        let entered = call_log::enter("fmi3GetNumberOfEventIndicators", String::new);
         let status = unsafe { (self.api.get_number_of_event_indicators)(self.component.instance, &mut indicators) };
+        call_log::returned_with(entered, || c::status_name(status), || format!("nEventIndicators={indicators}"));
         self.component.check("fmi3GetNumberOfEventIndicators", status)?;
         // A count past any description's sizes is a broken answer, not an array to allocate.
         const MOST: usize = 1 << 24;

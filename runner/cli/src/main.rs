@@ -149,8 +149,9 @@ fn integration(interface: InterfaceArgs, solver: Option<SolverArgs>) -> Integrat
 #[derive(Subcommand)]
 enum Cmd {
     /// Build model crates in release mode and pack target/fmu/<MODEL>.fmu (FMI 2.0) and
-    /// target/fmu3/<MODEL>.fmu (FMI 3.0); pack the systems under systems/ into
-    /// target/ssp/<SYSTEM>.ssp with the FMUs they use.
+    /// target/fmu3/<MODEL>.fmu (FMI 3.0, with the reference result of its default experiment
+    /// under FMI-LS-REF); pack the systems under systems/ into target/ssp/<SYSTEM>.ssp with the
+    /// FMUs they use.
     ///
     /// Example: `runner build quarter_car pendulum` (no name: every crate under models/ and
     /// every system under systems/).

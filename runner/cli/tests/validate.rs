@@ -977,3 +977,19 @@ fn validate_checks_the_shipped_reference_result() {
     let v = validate(dir.path(), &[fmi3.join("Clocks.fmu").to_str().unwrap()]);
     assert!(v.findings.iter().all(|f| f["check"] != "reference-result"), "{}", v.stdout);
 }
+
+/// The reference check's run has no time limit of its own, so it is made only after the
+/// validator's own runs through the DefaultExperiment went through: an FMU that hangs in
+/// fmi2DoStep is reported by lifecycle.run (within --timeout) and its reference check is
+/// skipped, not hung on.
+#[test]
+fn the_reference_check_is_skipped_after_a_failed_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faults_fmu(dir.path(), "hang", &["-DFAULT_HANG"], &[]);
+    std::fs::write(dir.path().join("ref.csv"), "time,x\n0,1\n").unwrap();
+    let v = validate(dir.path(), &[fmu.to_str().unwrap(), "--timeout", "0.5", "--reference-file", "ref.csv"]);
+    assert_eq!(v.code, 1, "{}", v.stdout);
+    v.find("error", "lifecycle.run", Some("Co-Simulation"));
+    let skipped = v.find("skipped", "reference-result", None);
+    assert!(skipped["message"].as_str().unwrap().contains("lifecycle.run"), "{skipped}");
+}

@@ -101,8 +101,11 @@ fn validate_all(options: &Options) -> Result<i32, String> {
         };
         match fmi_validate::validate(&path, &validate_options) {
             Ok(mut report) => {
-                if let Some(finding) = reference_finding(&path, given.as_ref(), tube, options.timeout) {
+                if let Some(finding) = reference_finding(&path, &report, given.as_ref(), tube) {
                     report.findings.push(finding);
+                }
+                if interrupt::requested() {
+                    return Err(format!("interrupted while validating {}; no report written", path.display()));
                 }
                 print!("{}", report.to_text());
                 reports.push(report);
@@ -151,7 +154,11 @@ fn validate_all(options: &Options) -> Result<i32, String> {
 /// vendor's, and a result computed with a looser solver than the runner's may leave it without
 /// the FMU breaking any rule; an unusable manifest (one naming a file the FMU does not hold) is
 /// a warning for the same reason: LS-REF is an optional add-on, not part of FMI.
-fn reference_finding(fmu: &Path, given: Option<&reference::Reference>, tube: reference::Tube, timeout: Option<f64>) -> Option<Finding> {
+///
+/// The run has no time limit of its own: it is made only when the validator's runs through the
+/// DefaultExperiment (`lifecycle.run`, each FMI call under `--timeout`) went through, so a hang
+/// or a crash there is that check's finding and this one is skipped.
+fn reference_finding(fmu: &Path, report: &Report, given: Option<&reference::Reference>, tube: reference::Tube) -> Option<Finding> {
     let shipped;
     let (checked, severity) = match given {
         Some(given) => (given, Severity::Error),
@@ -167,17 +174,20 @@ fn reference_finding(fmu: &Path, given: Option<&reference::Reference>, tube: ref
         }
     };
     let fail = |message: String| Finding::new(REFERENCE_CHECK, severity, message);
+    let run = |severity: Severity| report.findings.iter().any(|f| f.check == "lifecycle.run" && f.severity == severity);
+    if run(Severity::Error) || !run(Severity::Passed) {
+        return Some(Finding::skipped(
+            REFERENCE_CHECK,
+            "not run: the validator's own run through the DefaultExperiment failed (lifecycle.run)",
+        ));
+    }
     let work = match tempfile::Builder::new().prefix("runner-validate-reference-").tempdir() {
         Ok(work) => work,
         Err(e) => return Some(fail(format!("not run: cannot create a temporary directory: {e}"))),
     };
     // The run `runner simulate FMU --reference-file` makes, its CSV kept out of the report.
-    let options = simulate::Options {
-        fmu: fmu.display().to_string(),
-        out: Some(work.path().join("run.csv")),
-        timeout,
-        ..simulate::Options::default()
-    };
+    let options =
+        simulate::Options { fmu: fmu.display().to_string(), out: Some(work.path().join("run.csv")), ..simulate::Options::default() };
     let target = Target { path: fmu.to_path_buf(), experiment: Default::default() };
     let outcome = simulate::simulate(&options, &target, Some(checked), tube).and_then(|o| o.ok_or_else(|| "no check was made".to_owned()));
     Some(match outcome {

@@ -150,8 +150,9 @@ fn integration(interface: InterfaceArgs, solver: Option<SolverArgs>) -> Integrat
 #[derive(Subcommand)]
 enum Cmd {
     /// Build model crates in release mode and pack target/fmu/<MODEL>.fmu (FMI 2.0) and
-    /// target/fmu3/<MODEL>.fmu (FMI 3.0); pack the systems under systems/ into
-    /// target/ssp/<SYSTEM>.ssp with the FMUs they use.
+    /// target/fmu3/<MODEL>.fmu (FMI 3.0, with the reference result of its default experiment
+    /// under FMI-LS-REF); pack the systems under systems/ into target/ssp/<SYSTEM>.ssp with the
+    /// FMUs they use.
     ///
     /// Example: `runner build quarter_car pendulum` (no name: every crate under models/ and
     /// every system under systems/).
@@ -333,6 +334,19 @@ enum Cmd {
         /// Warnings fail too (exit code 1).
         #[arg(long)]
         strict: bool,
+        /// Also check a run of each FMU (as `runner simulate` makes it) against these reference
+        /// results, as `runner simulate --reference-file` does: a violation is an error. Without
+        /// it, an FMU that ships an FMI-LS-REF result is checked against that, and a violation
+        /// is a warning.
+        #[arg(long, value_name = "REF.csv")]
+        reference_file: Option<PathBuf>,
+        /// The reference check's relative tolerance (default 1e-3).
+        #[arg(long, value_name = "R", allow_negative_numbers = true)]
+        rtol: Option<f64>,
+        /// The reference check's absolute tolerance (default: rtol times each column's largest
+        /// |ref|).
+        #[arg(long, value_name = "A", allow_negative_numbers = true)]
+        atol: Option<f64>,
     },
     /// Linearize a Model Exchange FMU at its initial state or at a time of a simulation.
     ///
@@ -635,8 +649,8 @@ fn main() {
                 Err(e) => Err(e),
             }
         }
-        Cmd::Validate { fmus, timeout, report, junit, strict } => {
-            std::process::exit(validate::run(&validate::Options { fmus, timeout, report, junit, strict }))
+        Cmd::Validate { fmus, timeout, report, junit, strict, reference_file, rtol, atol } => {
+            std::process::exit(validate::run(&validate::Options { fmus, timeout, report, junit, strict, reference_file, rtol, atol }))
         }
         Cmd::Compare(a) => compare::run(&compare::Options {
             models: a.models,

@@ -22,6 +22,12 @@ use runner_engine::input::same_time;
 /// The layered standard's folder in an FMU.
 pub const LS_REF_DIR: &str = "extra/org.fmi-standard.fmi-ls-ref";
 
+/// The manifest's name in [`LS_REF_DIR`].
+pub const MANIFEST: &str = "fmi-ls-manifest.xml";
+
+/// The layered standard's version our manifests declare (the Reference FMUs' one).
+const LS_REF_VERSION: &str = "1.0.0-alpha.1";
+
 /// The default relative tolerance of the tube.
 pub const DEFAULT_RTOL: f64 = 1e-3;
 
@@ -81,14 +87,16 @@ pub struct Reference {
 }
 
 /// Reads the reference result `fmu` ships under LS-REF: the manifest's first `<Related>` of role
-/// `result`. Returns its label and text.
-pub fn shipped(fmu: &Path) -> Result<(String, String), String> {
+/// `result`. Returns its label and text; `None` when the FMU has no LS-REF manifest, an error
+/// when the manifest is there but unusable (the Reference FMUs' Roberts.fmu names
+/// BouncingBall's file, which it does not hold).
+pub fn shipped(fmu: &Path) -> Result<Option<(String, String)>, String> {
     let file = std::fs::File::open(fmu).map_err(|e| format!("cannot open {}: {e}", fmu.display()))?;
     let mut zip = zip::ZipArchive::new(file).map_err(|e| format!("{}: not a zip archive: {e}", fmu.display()))?;
-    let manifest_name = format!("{LS_REF_DIR}/fmi-ls-manifest.xml");
-    let manifest = read_entry(&mut zip, &manifest_name, MAX_MANIFEST_BYTES)?.ok_or_else(|| {
-        format!("{} ships no reference results ({manifest_name} is missing): give --reference-file REF.csv", fmu.display())
-    })?;
+    let manifest_name = format!("{LS_REF_DIR}/{MANIFEST}");
+    let Some(manifest) = read_entry(&mut zip, &manifest_name, MAX_MANIFEST_BYTES)? else {
+        return Ok(None);
+    };
     let root = fmi_systems::xml::parse(&manifest, &manifest_name)?;
     if root.name != "fmiReferences" {
         return Err(format!("{manifest_name}: the root element is <{}>, not LS-REF's <fmiReferences>", root.name));
@@ -96,7 +104,7 @@ pub fn shipped(fmu: &Path) -> Result<(String, String), String> {
     let related = root
         .children("Related")
         .find(|r| r.attribute("role") == Some("result"))
-        .ok_or_else(|| format!("{manifest_name} names no result (<Related role=\"result\">): give --reference-file REF.csv"))?;
+        .ok_or_else(|| format!("{manifest_name} names no result (<Related role=\"result\">)"))?;
     let source = related.required("source", &manifest_name)?;
     if source.contains("..") || source.starts_with('/') || source.contains('\\') {
         return Err(format!("{manifest_name}: the result's source '{source}' leaves {LS_REF_DIR}"));
@@ -104,7 +112,37 @@ pub fn shipped(fmu: &Path) -> Result<(String, String), String> {
     let entry = format!("{LS_REF_DIR}/{source}");
     let text = read_entry(&mut zip, &entry, MAX_REFERENCE_BYTES)?
         .ok_or_else(|| format!("{manifest_name} names '{source}' as its result, but the FMU has no {entry}"))?;
-    Ok((format!("{entry} (the FMU's LS-REF result)"), text))
+    Ok(Some((format!("{entry} (the FMU's LS-REF result)"), text)))
+}
+
+/// [`shipped`], for a command told to check against it: an FMU without a manifest is an error.
+pub fn shipped_required(fmu: &Path) -> Result<Reference, String> {
+    match shipped(fmu)? {
+        Some((label, text)) => Reference::parse(&text, &label),
+        None => {
+            Err(format!("{} ships no reference results ({LS_REF_DIR}/{MANIFEST} is missing): give --reference-file REF.csv", fmu.display()))
+        }
+    }
+}
+
+/// The manifest LS-REF reads from [`LS_REF_DIR`], naming the result file `source` of the
+/// default experiment (`description` says how it was computed): the shape the Reference FMUs'
+/// manifests have.
+pub fn manifest(source: &str, description: &str) -> String {
+    let escape = |text: &str| text.replace('&', "&amp;").replace('<', "&lt;").replace('"', "&quot;");
+    format!(
+        r#"<?xml version="1.0" encoding="UTF-8"?>
+<fmiReferences
+    xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance"
+    xmlns:fmi-ls="http://fmi-standard.org/fmi-ls-manifest"
+    fmi-ls:fmi-ls-name="org.fmi-standard.fmi-ls-ref"
+    fmi-ls:fmi-ls-version="{LS_REF_VERSION}">
+    <Related type="text/csv" source="{}" role="result" description="{}"/>
+</fmiReferences>
+"#,
+        escape(source),
+        escape(description)
+    )
 }
 
 /// The text of the archive's entry `name` (`None` when there is none), refused past `limit`.
@@ -123,6 +161,12 @@ fn read_entry(zip: &mut zip::ZipArchive<std::fs::File>, name: &str, limit: u64) 
 }
 
 impl Reference {
+    /// Reads and parses the reference CSV at `path`.
+    pub fn read(path: &Path) -> Result<Reference, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        Reference::parse(&text, &path.display().to_string())
+    }
+
     /// Parses a reference CSV (`label` names it in messages).
     pub fn parse(text: &str, label: &str) -> Result<Reference, String> {
         let mut reader = csv::ReaderBuilder::new().has_headers(true).trim(csv::Trim::All).comment(Some(b'#')).from_reader(text.as_bytes());
@@ -188,6 +232,39 @@ pub struct Verdict {
     pub times: usize,
 }
 
+/// A sample outside the tube: the first in time, then column order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Violation {
+    /// The reference's column.
+    pub column: String,
+    pub time: f64,
+    /// The reference's row (1-based, the header not counted).
+    pub row: usize,
+    /// The run's value there.
+    pub value: f64,
+    pub reference: f64,
+    pub bound: f64,
+    /// The whole sentence, naming the reference and the tube.
+    pub message: String,
+}
+
+/// Why a check failed: the run and the reference cannot be compared, or a sample is outside
+/// the tube.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Mismatch {
+    Incomparable(String),
+    Outside(Violation),
+}
+
+impl std::fmt::Display for Mismatch {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match self {
+            Mismatch::Incomparable(message) => f.write_str(message),
+            Mismatch::Outside(v) => f.write_str(&v.message),
+        }
+    }
+}
+
 /// Checks the run (`names` its columns without time; `rows` its samples, time first, and
 /// `comparable[c]` false for a column whose numbers are not its values, such as a String's)
 /// against `reference` with `tube`: the verdict, or the first violation (in time, then column
@@ -198,17 +275,17 @@ pub fn check(
     comparable: &[bool],
     rows: &[(f64, Vec<f64>)],
     tube: Tube,
-) -> Result<Verdict, String> {
+) -> Result<Verdict, Mismatch> {
     let (first, last) = match (rows.first(), rows.last()) {
         (Some(f), Some(l)) => (f.0, l.0),
-        _ => return Err("the run wrote no rows to compare with the reference".to_owned()),
+        _ => return Err(Mismatch::Incomparable("the run wrote no rows to compare with the reference".to_owned())),
     };
     let (r_first, r_last) = (reference.time[0], *reference.time.last().expect("rows"));
     if (r_first < first && !same_time(r_first, first)) || (r_last > last && !same_time(r_last, last)) {
-        return Err(format!(
+        return Err(Mismatch::Incomparable(format!(
             "{} spans t = {r_first} to {r_last} s, the run {first} to {last} s: run over the reference's time span (--start-time, --stop-time)",
             reference.label
-        ));
+        )));
     }
     // Each reference column's run column.
     let mut pairs = Vec::new();
@@ -232,11 +309,11 @@ pub fn check(
         }
     }
     if pairs.is_empty() {
-        return Err(format!(
+        return Err(Mismatch::Incomparable(format!(
             "{} shares no column with the run (its columns: {}); choose the run's with --output-variable",
             reference.label,
             reference.names.join(", ")
-        ));
+        )));
     }
     let times: Vec<f64> = rows.iter().map(|r| r.0).collect();
     for (i, &t) in reference.time.iter().enumerate() {
@@ -258,14 +335,16 @@ pub fn check(
             // A NaN in the run (a failed value) is outside every tube.
             let inside = (closest - r).abs() <= bound;
             if !inside {
-                return Err(format!(
+                let message = format!(
                     "{}: {} at t = {t} s (row {} of the reference): the run has {closest}, the reference {r}; |y - ref| = {:e} is above the bound {bound:e} ({})",
                     reference.label,
                     reference.names[k],
                     i + 1,
                     (closest - r).abs(),
                     tube.describe()
-                ));
+                );
+                let column = reference.names[k].clone();
+                return Err(Mismatch::Outside(Violation { column, time: t, row: i + 1, value: closest, reference: r, bound, message }));
             }
         }
     }
@@ -291,10 +370,13 @@ mod tests {
         let verdict = check(&reference, &names, &[true], &ours, tube).unwrap();
         assert_eq!((verdict.compared, verdict.times), (vec!["y".to_owned()], 5));
         let broken = Reference::parse("time,y\n0,0\n0.5,0.5\n1,1\n1.5,5.1\n2,5\n", "ref.csv").unwrap();
-        let err = check(&broken, &names, &[true], &ours, tube).unwrap_err();
+        let Err(Mismatch::Outside(violation)) = check(&broken, &names, &[true], &ours, tube) else { panic!("a violation") };
+        let v = &violation;
+        assert_eq!((v.column.as_str(), v.time, v.row, v.value, v.reference, v.bound), ("y", 1.5, 4, 5.0, 5.1, 1e-12));
+        let err = violation.message;
         assert!(err.contains("y at t = 1.5 s (row 4 of the reference): the run has 5, the reference 5.1"), "{err}");
         let longer = Reference::parse("time,y\n0,0\n3,5\n", "ref.csv").unwrap();
-        assert!(check(&longer, &names, &[true], &ours, tube).unwrap_err().contains("spans t = 0 to 3 s, the run 0 to 2 s"));
+        assert!(check(&longer, &names, &[true], &ours, tube).unwrap_err().to_string().contains("spans t = 0 to 3 s, the run 0 to 2 s"));
     }
 
     /// Arrays as fmusim writes them are compared element by element; the default atol follows
@@ -311,7 +393,7 @@ mod tests {
         assert_eq!(verdict.compared, ["y[1]", "y[2]"]);
         assert_eq!(verdict.skipped, ["s (not numbers)"]);
         let tight = Tube::new(Some(1e-3), Some(0.0)).unwrap();
-        let err = check(&reference, &names, &[true, true, false], &rows, tight).unwrap_err();
+        let err = check(&reference, &names, &[true, true, false], &rows, tight).unwrap_err().to_string();
         assert!(err.contains("y[1] at t = 0 s"), "{err}");
         assert!(Tube::new(Some(-1.0), None).unwrap_err().contains("--rtol -1"));
     }

@@ -479,3 +479,63 @@ fn compare_through_model_exchange_uses_the_runners_solvers() {
         assert_eq!(value(r, "n_rhs"), 4.0 * value(r, "n_steps"), "{r:?}");
     }
 }
+
+/// The FMI 3.0 FMU `runner build` packed next to the FMI 2.0 one at `fmu2` (target/fmu3).
+fn fmi3_of(fmu2: &Path) -> PathBuf {
+    fmu2.parent().unwrap().parent().unwrap().join("fmu3").join(fmu2.file_name().unwrap())
+}
+
+/// An entry of an FMU archive as text.
+fn entry(fmu: &Path, name: &str) -> String {
+    let mut zip = zip::ZipArchive::new(std::fs::File::open(fmu).unwrap()).unwrap();
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut zip.by_name(name).unwrap_or_else(|e| panic!("{}: {name}: {e}", fmu.display())), &mut text).unwrap();
+    text
+}
+
+/// Our FMI 3.0 FMUs ship LS-REF: a manifest of the Reference FMUs' shape naming the result of
+/// the default experiment, which `runner simulate --reference-file` and `runner validate` (its
+/// shipped-result check) pass in the default tube (rtol 1e-3): quarter_car's from DOP853 at
+/// rtol 1e-12, second_order's outputs q, q_dot and u from their closed forms (the solver's
+/// counters, also outputs, are left out: they count the reference run's own work). Those columns equal the
+/// closed form written here in plain Rust (not through the formulas crate that wrote them) to
+/// 1e-14: the CSV holds each f64 exactly (shortest round-trip text), so what remains is the
+/// rounding of exp and of the three terms' sum, a few ulps of values of order 1.
+#[test]
+fn our_fmi3_fmus_ship_their_reference_results() {
+    let (quarter_car, second_order) = fmus();
+    let dir = tempfile::tempdir().unwrap();
+    for fmu in [fmi3_of(quarter_car), fmi3_of(second_order)] {
+        let manifest = entry(&fmu, "extra/org.fmi-standard.fmi-ls-ref/fmi-ls-manifest.xml");
+        let id = fmu.file_stem().unwrap().to_str().unwrap();
+        assert!(manifest.contains(&format!("<Related type=\"text/csv\" source=\"{id}_out.csv\" role=\"result\"")), "{manifest}");
+        assert!(manifest.contains("fmi-ls:fmi-ls-name=\"org.fmi-standard.fmi-ls-ref\""), "{manifest}");
+        let err = stderr(&runner(dir.path(), &["simulate", fmu.to_str().unwrap(), "--reference-file", "--out", "o.csv"]));
+        assert!(err.contains("reference check passed") && err.contains("(the FMU's LS-REF result)"), "{id}: {err}");
+        let report = dir.path().join("v.json");
+        let o = runner(dir.path(), &["validate", fmu.to_str().unwrap(), "--strict", "--report", report.to_str().unwrap()]);
+        let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        let findings = json["reports"][0]["findings"].as_array().unwrap();
+        assert!(
+            findings.iter().any(|f| f["check"] == "reference-result" && f["severity"] == "passed"),
+            "{id}: {}",
+            String::from_utf8_lossy(&o.stdout)
+        );
+        assert!(o.status.success(), "{id}: {}", String::from_utf8_lossy(&o.stdout));
+    }
+    let manifest = entry(&fmi3_of(quarter_car), "extra/org.fmi-standard.fmi-ls-ref/fmi-ls-manifest.xml");
+    assert!(manifest.contains("from DOP853 at rtol 1e-12"), "{manifest}");
+    let fmu = fmi3_of(second_order);
+    let manifest = entry(&fmu, "extra/org.fmi-standard.fmi-ls-ref/fmi-ls-manifest.xml");
+    assert!(manifest.contains("Output of the default experiment, from its closed-form solution"), "{manifest}");
+    std::fs::write(dir.path().join("ref.csv"), entry(&fmu, "extra/org.fmi-standard.fmi-ls-ref/second_order_out.csv")).unwrap();
+    let (header, rows) = read_csv(&dir.path().join("ref.csv"));
+    assert_eq!(header, ["time", "q", "q_dot", "u"], "the outputs, not the solver's counters n_steps and n_rhs");
+    let (t, q, q_dot) = (column(&header, &rows, "time"), column(&header, &rows, "q"), column(&header, &rows, "q_dot"));
+    assert!(t.len() > 100 && t[0] == 0.0 && *t.last().unwrap() == 10.0, "the default experiment, 0 to 10 s: {} rows", t.len());
+    for (k, &t) in t.iter().enumerate() {
+        let (e2, e3) = ((-2.0 * t).exp(), (-3.0 * t).exp());
+        assert!((q[k] - (7.5 * e2 - 5.5 * e3 - 0.5 * t * e3)).abs() <= 1e-14, "q at t = {t}: {}", q[k]);
+        assert!((q_dot[k] - (-15.0 * e2 + 16.0 * e3 + 1.5 * t * e3)).abs() <= 1e-14, "q_dot at t = {t}: {}", q_dot[k]);
+    }
+}

@@ -897,3 +897,99 @@ fn fmi3_the_reference_fmus_show_exactly_their_known_deviations() {
         "{warning}"
     );
 }
+
+/// The shipped LS-REF result of the Reference FMU BouncingBall (FMI 3.0), as a file.
+fn bouncing_ball_reference() -> (PathBuf, String) {
+    let fmu = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference-fmus/fmi3/BouncingBall.fmu");
+    let mut zip = zip::ZipArchive::new(std::fs::File::open(&fmu).unwrap()).unwrap();
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut zip.by_name("extra/org.fmi-standard.fmi-ls-ref/BouncingBall_out.csv").unwrap(), &mut text).unwrap();
+    (fmu, text)
+}
+
+/// `runner validate --reference-file` checks a run of the FMU (as `runner simulate` makes it)
+/// against the file, as one more check of the report: BouncingBall passes its own shipped
+/// result in the default tube (the same run `runner simulate --reference-file` passes,
+/// tests/parity.rs), and fails it broken on purpose at one sample (h at t = 1 s, row 101,
+/// raised by 1 cm: 10 times the default bound there, 1e-3·(|h| + max|h|) ≈ 1e-3 m), as an error
+/// naming the column, time, values and bound in the text, JSON and JUnit reports.
+#[test]
+fn validate_checks_a_reference_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (fmu, text) = bouncing_ball_reference();
+    std::fs::write(dir.path().join("good.csv"), &text).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let cells: Vec<String> = lines[101].split(',').map(str::to_owned).collect();
+    assert_eq!(cells[0], "1", "row 101 is t = 1 s");
+    let h: f64 = cells[1].parse().unwrap();
+    lines[101] = format!("1,{},{}", h + 0.01, cells[2]);
+    std::fs::write(dir.path().join("broken.csv"), lines.join("\n")).unwrap();
+
+    let v = validate(dir.path(), &[fmu.to_str().unwrap(), "--reference-file", "good.csv"]);
+    let passed = v.find("passed", "reference-result", None);
+    assert!(passed["message"].as_str().unwrap().starts_with("the run matches h, v at the 301 times of good.csv within"), "{}", v.stdout);
+    assert!(v.stdout.contains("[reference-result] the run matches h, v at the 301 times of good.csv"), "{}", v.stdout);
+
+    let junit = dir.path().join("junit.xml");
+    let v = validate(dir.path(), &[fmu.to_str().unwrap(), "--reference-file", "broken.csv", "--junit", junit.to_str().unwrap()]);
+    assert_eq!(v.code, 1, "an error: {}", v.stdout);
+    let named = format!("broken.csv: h at t = 1 s (row 101 of the reference): the run has {h}, the reference {}", h + 0.01);
+    let error = v.find("error", "reference-result", None);
+    assert!(error["message"].as_str().unwrap().contains(&named), "{error}");
+    assert_eq!(error["variable"], "h");
+    assert!(error["value"].as_str().unwrap().starts_with(&format!("{h} at t = 1 s (reference {}, bound ", h + 0.01)), "{error}");
+    assert!(v.stdout.contains(&named), "{}", v.stdout);
+    let junit = std::fs::read_to_string(&junit).unwrap();
+    let case = junit.split("<testcase").find(|c| c.contains("name=\"reference-result\"")).expect("a test case of the check");
+    assert!(case.contains("<failure type=\"error\"") && case.contains(&named), "{case}");
+
+    // --rtol and --atol belong to a reference; a missing file is named before any validation.
+    let o = runner(dir.path(), &["validate", fmu.to_str().unwrap(), "--rtol", "1e-3"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("give it too"), "{}", stderr(&o));
+    let o = runner(dir.path(), &["validate", fmu.to_str().unwrap(), "--reference-file", "missing.csv"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("cannot read missing.csv"), "{}", stderr(&o));
+}
+
+/// Without --reference-file, an FMU's shipped LS-REF result is checked, a failure being a
+/// warning (see `reference_finding` in commands/validate.rs): BouncingBall passes its own;
+/// Roberts's manifest names BouncingBall's file, which Roberts does not hold, and the report
+/// says so in a warning (not a crash, not an error); Clocks ships none and gets no such check.
+#[test]
+fn validate_checks_the_shipped_reference_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmi3 = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference-fmus/fmi3");
+    let v = validate(dir.path(), &[fmi3.join("BouncingBall.fmu").to_str().unwrap()]);
+    let passed = v.find("passed", "reference-result", None);
+    assert!(
+        passed["message"].as_str().unwrap().contains("h, v at the 301 times of extra/org.fmi-standard.fmi-ls-ref/BouncingBall_out.csv"),
+        "{passed}"
+    );
+    let v = validate(dir.path(), &[fmi3.join("Roberts.fmu").to_str().unwrap()]);
+    let warning = v.find("warning", "reference-result", None);
+    assert!(
+        warning["message"].as_str().unwrap().contains(
+            "names 'BouncingBall_out.csv' as its result, but the FMU has no extra/org.fmi-standard.fmi-ls-ref/BouncingBall_out.csv"
+        ),
+        "{warning}"
+    );
+    let v = validate(dir.path(), &[fmi3.join("Clocks.fmu").to_str().unwrap()]);
+    assert!(v.findings.iter().all(|f| f["check"] != "reference-result"), "{}", v.stdout);
+}
+
+/// The reference check's run has no time limit of its own, so it is made only after the
+/// validator's own runs through the DefaultExperiment went through: an FMU that hangs in
+/// fmi2DoStep is reported by lifecycle.run (within --timeout) and its reference check is
+/// skipped, not hung on.
+#[test]
+fn the_reference_check_is_skipped_after_a_failed_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faults_fmu(dir.path(), "hang", &["-DFAULT_HANG"], &[]);
+    std::fs::write(dir.path().join("ref.csv"), "time,x\n0,1\n").unwrap();
+    let v = validate(dir.path(), &[fmu.to_str().unwrap(), "--timeout", "0.5", "--reference-file", "ref.csv"]);
+    assert_eq!(v.code, 1, "{}", v.stdout);
+    v.find("error", "lifecycle.run", Some("Co-Simulation"));
+    let skipped = v.find("skipped", "reference-result", None);
+    assert!(skipped["message"].as_str().unwrap().contains("lifecycle.run"), "{skipped}");
+}

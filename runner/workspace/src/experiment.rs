@@ -22,6 +22,16 @@ pub struct CompareDefaults {
     pub reference: BTreeMap<String, String>,
 }
 
+/// `[reference]`: the reference result `runner build` ships in the FMI 3.0 FMU (FMI-LS-REF).
+#[derive(Debug, Default, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceDefaults {
+    /// Outputs left out of it: diagnostics whose values are rounding noise (a loop closure's
+    /// residual, ~1e-17 m), which no run reproduces within any relative tube.
+    #[serde(default)]
+    pub omit: Vec<String>,
+}
+
 /// A coordinate of a point defined in `[animate.points]`: a number (m) or an expression of
 /// the FMU's variables (parameters and outputs, and `t`).
 #[derive(Debug, Clone, Deserialize)]
@@ -158,6 +168,9 @@ pub struct Experiment {
     /// How `runner animate` draws the model.
     #[serde(default)]
     pub animate: AnimateDefaults,
+    /// What the shipped reference result leaves out.
+    #[serde(default)]
+    pub reference: ReferenceDefaults,
 }
 
 /// Settings shared by `simulate` and `sweep`; each is overridden by its command-line option.

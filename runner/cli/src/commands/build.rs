@@ -2,17 +2,31 @@
 //! `target/fmu/<id>.fmu` (FMI 2.0) and `target/fmu3/<id>.fmu` (FMI 3.0) with the XML and HTML
 //! the compiled library generates from its table. One binary exports both versions' functions
 //! (their names do not collide), so both archives hold the same library and the same page.
-//! The one place that runs cargo: the import path only ever loads built FMUs.
+//! The FMI 3.0 archive also carries the reference result of its default experiment under
+//! FMI-LS-REF (`extra/org.fmi-standard.fmi-ls-ref/`), so any importer can check itself against
+//! the model. The one place that runs cargo: the import path only ever loads built FMUs.
 
+use std::collections::BTreeMap;
 use std::ffi::c_char;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use fmi_importer::archive::{write_zip, Entry};
 use fmi_importer::fmi2::PLATFORM;
+use fmi_importer::{Interface, Kind, Variable};
 use libloading::{Library, Symbol};
+use runner_engine::exec::Runs;
+use runner_engine::request::RunRequest;
+use runner_engine::run::{Grid, Recording};
+use solvers::controls::Control;
 
+use crate::commands::compare;
+use crate::experiment;
+use crate::integration::Integration;
+use crate::interrupt;
+use crate::reference::{self, LS_REF_DIR};
 use crate::report::output::ResultFile;
+use crate::workers;
 use crate::workspace;
 
 type TextExport = unsafe extern "C" fn(*mut c_char, usize) -> usize;
@@ -52,13 +66,15 @@ pub fn cargo_build(root: &Path, ids: &[String]) -> Result<(), String> {
 /// returns their paths.
 pub fn pack(root: &Path, id: &str) -> Result<[PathBuf; 2], String> {
     let so = workspace::target_dir(root).join("release").join(format!("lib{id}.so"));
-    let resources = root.join("models").join(id).join("resources");
-    pack_library(&so, id, &resources, &workspace::fmu_path(root, id), &workspace::fmu3_path(root, id))
+    let dir = root.join("models").join(id);
+    pack_library(&so, id, &dir, &workspace::fmu_path(root, id), &workspace::fmu3_path(root, id))
 }
 
-/// Packs the model library `so` (modelIdentifier `id`) and the files of `resources` (if that
-/// folder exists) into the FMI 2.0 FMU `fmu2` and the FMI 3.0 FMU `fmu3`; returns their paths.
-pub fn pack_library(so: &Path, id: &str, resources: &Path, fmu2: &Path, fmu3: &Path) -> Result<[PathBuf; 2], String> {
+/// Packs the model library `so` (modelIdentifier `id`) and the files of `dir/resources` (if
+/// that folder exists) into the FMI 2.0 FMU `fmu2` and the FMI 3.0 FMU `fmu3`, the latter with
+/// its LS-REF result (see [`ls_ref_result`]; closed forms from `dir/experiment.toml`); returns
+/// their paths.
+pub fn pack_library(so: &Path, id: &str, dir: &Path, fmu2: &Path, fmu3: &Path) -> Result<[PathBuf; 2], String> {
     // SAFETY: a model library just built from source by cargo: loading it runs no code but Rust's.
     let lib = unsafe { Library::new(so) }.map_err(|e| format!("cannot load {}: {e}", so.display()))?;
     let xml = text_export(&lib, "fmu_model_description")?;
@@ -87,10 +103,90 @@ pub fn pack_library(so: &Path, id: &str, resources: &Path, fmu2: &Path, fmu3: &P
         return Err(format!("{id}: generated FMI 3.0 modelDescription.xml has problems:\n  {}", problems.join("\n  ")));
     }
     let binary = std::fs::read(so).map_err(|e| format!("cannot read {}: {e}", so.display()))?;
-    let resources = model_resources(resources)?;
+    let mut resources = model_resources(&dir.join("resources"))?;
     write_fmu(fmu2, &xml, &format!("binaries/{PLATFORM}/{id}.so"), &binary, &html, &resources)?;
-    write_fmu(fmu3, &xml3, &format!("binaries/{}/{id}.so", fmi_importer::fmi3::PLATFORM), &binary, &html, &resources)?;
+    // The FMI 3.0 FMU is packed, run for its reference result, then packed again with it.
+    let binary3 = format!("binaries/{}/{id}.so", fmi_importer::fmi3::PLATFORM);
+    write_fmu(fmu3, &xml3, &binary3, &binary, &html, &resources)?;
+    let experiment = experiment::read(&dir.join("experiment.toml"))?;
+    let result = ls_ref_result(fmu3, &experiment.compare.reference, &experiment.reference.omit)
+        .map_err(|e| format!("{id}: its LS-REF reference result: {e}"))?;
+    if let Some((csv, description)) = result {
+        let source = format!("{id}_out.csv");
+        resources.push((format!("{LS_REF_DIR}/{}", reference::MANIFEST), reference::manifest(&source, &description).into_bytes()));
+        resources.push((format!("{LS_REF_DIR}/{source}"), csv.into_bytes()));
+        write_fmu(fmu3, &xml3, &binary3, &binary, &html, &resources)?;
+    }
     Ok([fmu2.to_path_buf(), fmu3.to_path_buf()])
+}
+
+/// The relative tolerance of the DOP853 run an LS-REF result comes from where no closed form
+/// gives a column: far below any tube an importer would be checked with (1e-3 by default).
+pub const LS_REF_RTOL: f64 = 1e-12;
+
+/// The reference result of the FMU at `fmu` for LS-REF, as CSV in fmpy's layout (`time`, then
+/// every output but the solver's counters and those `omit` names, as `runner simulate` writes
+/// them), and its description: the run of its
+/// DefaultExperiment (on that grid, without experiment.toml's settings, which other importers
+/// do not read) at DOP853 and rtol [`LS_REF_RTOL`], each output of `closed_forms` (the model's
+/// `[compare.reference]`, which holds for the default parameters) replaced by its closed form at
+/// the run's times. `None` for a model without outputs: a result of times alone checks nothing.
+pub fn ls_ref_result(fmu: &Path, closed_forms: &BTreeMap<String, String>, omit: &[String]) -> Result<Option<(String, String)>, String> {
+    // A model built from source here: run in this process, with no worker to start.
+    let (held, source) = workers::open(fmu, &Integration::default(), true)?;
+    let md = held.description();
+    let config = workers::isolation(None, runner_sandbox::default_memory_mib(1))?;
+    let mut runs = Runs::new(&held, &config, &source);
+    let controls = match held.interface() {
+        Interface::ModelExchange => None,
+        _ => Some((compare::control(md, Control::Solver)?, compare::control(md, Control::AbsTol)?)),
+    };
+    let (grid, settings) = compare::reference_accuracy(Grid::choose(md, &[])?, controls, LS_REF_RTOL);
+    // Not the solver's counters (n_steps, n_rhs): they count the reference run's own work.
+    let counter = |v: &Variable| Control::named(&v.name).is_some_and(Control::is_output);
+    for name in omit {
+        if !md.outputs().any(|v| v.name == *name) {
+            return Err(format!("experiment.toml's [reference] omit names '{name}', which is not an output of {}", md.model_name));
+        }
+    }
+    let kept = |v: &Variable| v.kind != Kind::Clock && !counter(v) && !omit.contains(&v.name);
+    let outputs: Vec<&Variable> = md.outputs().filter(|v| kept(v)).collect();
+    if outputs.is_empty() {
+        return Ok(None);
+    }
+    let recording = Recording::new(md, &outputs, &settings)?;
+    let columns = recording.names.len();
+    let request = RunRequest::new(held.identifier(), grid, &settings, &recording, false);
+    let mut rows: Vec<(f64, Vec<String>)> = Vec::new();
+    runs.run(&request, &interrupt::requested, |t, values, texts| {
+        rows.push((t, (0..columns).map(|c| texts.text(c, values)).collect()));
+        Ok(())
+    })?;
+    let times: Vec<f64> = rows.iter().map(|r| r.0).collect();
+    let (exact, values) = compare::closed_form(md, closed_forms, &[], &times)?;
+    for (k, variable) in exact.iter().enumerate() {
+        let c = recording.names.iter().position(|n| *n == variable.name).ok_or_else(|| format!("{} is not recorded", variable.name))?;
+        for (row, value) in rows.iter_mut().zip(&values) {
+            row.1[c] = format!("{:?}", value[k]);
+        }
+    }
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    let header = std::iter::once("time").chain(recording.names.iter().map(String::as_str));
+    writer.write_record(header).map_err(|e| e.to_string())?;
+    for (t, cells) in &rows {
+        writer.write_record(std::iter::once(format!("{t:?}")).chain(cells.iter().cloned())).map_err(|e| e.to_string())?;
+    }
+    let csv = String::from_utf8(writer.into_inner().map_err(|e| e.to_string())?).map_err(|e| e.to_string())?;
+    let solver = format!("DOP853 at rtol {LS_REF_RTOL:e}");
+    let description = match exact.len() {
+        0 => format!("Output of the default experiment, from {solver}"),
+        n if n == outputs.len() => "Output of the default experiment, from its closed-form solution".to_owned(),
+        _ => {
+            let names: Vec<&str> = exact.iter().map(|v| v.name.as_str()).collect();
+            format!("Output of the default experiment: {} from the closed-form solution, the other columns from {solver}", names.join(", "))
+        }
+    };
+    Ok(Some((csv, description)))
 }
 
 /// Writes one `.fmu` archive at `dest`.
@@ -194,13 +290,7 @@ pub fn build_manifest(manifest: &Path, out_dir: Option<&Path>) -> Result<Vec<Pat
     let so = krate.target.join("release").join(format!("lib{}.so", krate.lib));
     let out = out_dir.map(Path::to_path_buf).unwrap_or(krate.target);
     let id = &krate.lib;
-    let fmus = pack_library(
-        &so,
-        id,
-        &krate.dir.join("resources"),
-        &out.join("fmu").join(format!("{id}.fmu")),
-        &out.join("fmu3").join(format!("{id}.fmu")),
-    )?;
+    let fmus = pack_library(&so, id, &krate.dir, &out.join("fmu").join(format!("{id}.fmu")), &out.join("fmu3").join(format!("{id}.fmu")))?;
     Ok(fmus.to_vec())
 }
 

@@ -111,7 +111,7 @@ fn settings(solver: &str, interval: f64) -> Result<Trials, String> {
     })
 }
 
-fn control(description: &Description, control: Control) -> Result<&Variable, String> {
+pub(crate) fn control(description: &Description, control: Control) -> Result<&Variable, String> {
     let name = control.name();
     description.variable(name).ok_or_else(|| {
         let hint = if description.model_exchange.is_some() {
@@ -124,6 +124,23 @@ fn control(description: &Description, control: Control) -> Result<&Variable, Str
             description.model_name
         )
     })
+}
+
+/// The grid and assignments of a run at the reference accuracy: `REFERENCE_METHOD` at `rtol`
+/// (absolute tolerance a hundredth of it), through the runner's integrator for Model Exchange
+/// or, given the FMU's solver `controls` (the solver and absolute-tolerance variables of this
+/// toolkit's FMUs), inside the FMU under Co-Simulation.
+pub(crate) fn reference_accuracy<'a>(
+    grid: Grid,
+    controls: Option<(&'a Variable, &'a Variable)>,
+    rtol: f64,
+) -> (Grid, Vec<(&'a Variable, Value)>) {
+    let solver = Solver { method: REFERENCE_METHOD, abs_tol: rtol * 1e-2, ..Solver::default() };
+    let settings = match controls {
+        Some((method, abs_tol)) => vec![(method, Value::Integer(REFERENCE_METHOD.code())), (abs_tol, Value::Real(rtol * 1e-2))],
+        None => Vec::new(),
+    };
+    (Grid { tolerance: Some(rtol), solver, ..grid }, settings)
 }
 
 /// Runs one setting; returns the sampled compared outputs and the final counters: the FMU's
@@ -167,13 +184,14 @@ fn run_once(
     Ok((samples, last.0, last.1))
 }
 
-/// The outputs named in `[compare.reference]` and their exact values on the grid. A formula
-/// reads `t` and parameters: their start values, overridden by the assignments `base`.
-fn closed_form<'a>(
+/// The outputs named in `[compare.reference]` and their exact values at `times`, one row per
+/// time. A formula reads `t` and parameters: their start values, overridden by the assignments
+/// `base`.
+pub(crate) fn closed_form<'a>(
     md: &'a Description,
     formulas: &BTreeMap<String, String>,
     base: &[(&Variable, Value)],
-    grid: &Grid,
+    times: &[f64],
 ) -> Result<(Vec<&'a Variable>, Vec<Vec<f64>>), String> {
     let mut compared = Vec::new();
     let mut parsed = Vec::new();
@@ -203,9 +221,9 @@ fn closed_form<'a>(
         parsed.push((formula, bound));
     }
     let mut values = Vec::new();
-    let reference = (0..=grid.steps())
-        .map(|i| {
-            let t = grid.time(i);
+    let reference = times
+        .iter()
+        .map(|&t| {
             parsed
                 .iter()
                 .map(|(formula, bound)| {
@@ -444,19 +462,14 @@ fn compare_one(model: &str, options: &Options, out: &std::path::Path, plot_path:
         if !analytical.reference.is_empty() {
             eprintln!("note: the closed-form reference in experiment.toml holds for its own parameter values; with --set the reference is {reference_name}");
         }
-        let reference_solver = Solver { method: REFERENCE_METHOD, abs_tol: REFERENCE_RTOL * 1e-2, ..Solver::default() };
-        let reference_grid = Grid { tolerance: Some(REFERENCE_RTOL), solver: reference_solver, ..grid };
-        let reference_settings = match controls {
-            Some((solver, _, abs_tol)) => {
-                vec![(solver, Value::Integer(REFERENCE_METHOD.code())), (abs_tol, Value::Real(REFERENCE_RTOL * 1e-2))]
-            }
-            None => Vec::new(),
-        };
+        let (reference_grid, reference_settings) =
+            reference_accuracy(grid, controls.map(|(solver, _, abs_tol)| (solver, abs_tol)), REFERENCE_RTOL);
         let (reference, _, _) = run_once(&mut runs, md, &reference_grid, &base, &reference_settings, &compared, &counters)
             .map_err(|e| format!("the reference run ({reference_name}) failed: {e}"))?;
         (compared, reference, reference_name)
     } else {
-        let (compared, reference) = closed_form(md, &analytical.reference, &base, &grid)?;
+        let times: Vec<f64> = (0..=grid.steps()).map(|i| grid.time(i)).collect();
+        let (compared, reference) = closed_form(md, &analytical.reference, &base, &times)?;
         (compared, reference, "the closed-form solution of experiment.toml".to_owned())
     };
 

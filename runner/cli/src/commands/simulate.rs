@@ -344,44 +344,52 @@ pub fn run(options: &Options) -> Result<(), String> {
     // The reference is read before running, so a missing or malformed one costs no run.
     let checked = match &options.reference_file {
         None => None,
-        Some(None) => {
-            let (label, text) = reference::shipped(&target.path)?;
-            Some(reference::Reference::parse(&text, &label)?)
-        }
-        Some(Some(path)) => {
-            let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-            Some(reference::Reference::parse(&text, &path.display().to_string())?)
-        }
+        Some(None) => Some(reference::shipped_required(&target.path)?),
+        Some(Some(path)) => Some(reference::Reference::read(path)?),
     };
+    warn_if_nonstandard(&target.path);
+    let outcome = simulate(options, &target, checked.as_ref(), tube)?;
+    if let (Some(reference), Some(outcome)) = (&checked, outcome) {
+        let verdict = outcome.map_err(|mismatch| format!("reference check failed: {mismatch}"))?;
+        eprintln!("reference check passed: {}", passed(&verdict, reference, tube));
+    }
+    Ok(())
+}
+
+/// What a passed check compared, in one line.
+pub fn passed(verdict: &reference::Verdict, reference: &reference::Reference, tube: reference::Tube) -> String {
+    let skipped = match verdict.skipped.is_empty() {
+        true => String::new(),
+        false => format!("; not compared: {}", verdict.skipped.join(", ")),
+    };
+    format!("{} at the {} times of {} within {}{skipped}", verdict.compared.join(", "), verdict.times, reference.label, tube.describe())
+}
+
+/// The run (or runs, with `--overlay`) of `target` that `options` ask for, its CSV written and
+/// its plot drawn; with `checked`, the outcome of the run's check against it with `tube` (`Err`
+/// of the outer result: the run itself failed). `runner validate --reference-file` makes its
+/// check through this too.
+pub fn simulate(
+    options: &Options,
+    target: &Target,
+    checked: Option<&reference::Reference>,
+    tube: reference::Tube,
+) -> Result<Option<Result<reference::Verdict, reference::Mismatch>>, String> {
     // In a worker, only the description is read here: the FMU's binary runs in the worker alone.
     let (held, source) = workers::open(&target.path, &options.integration, options.in_process)?;
-    warn_if_nonstandard(&target.path);
+    let timeout = runner_sandbox::timeout("--timeout", options.timeout)?;
     let config = workers::isolation(timeout, runner_sandbox::default_memory_mib(1))?;
     let mut runs = Runs::new(&held, &config, &source);
-    let simulation = resolve(options, &target, &held)?;
-    let mut samples = checked.as_ref().map(|_| Vec::new());
+    let simulation = resolve(options, target, &held)?;
+    let mut samples = checked.map(|_| Vec::new());
     let traces = execute(&simulation, &mut runs, options, held.identifier(), samples.as_mut())?;
     if let Some(path) = &options.plot {
         plot(path, &simulation, &traces, held.description())?;
     }
-    if let (Some(reference), Some(samples)) = (&checked, &samples) {
+    Ok(checked.zip(samples).map(|(reference, samples)| {
         let names = &simulation.header[simulation.header.len() - simulation.output_columns..];
-        let verdict = reference::check(reference, names, &simulation.comparable, samples, tube)
-            .map_err(|violation| format!("reference check failed: {violation}"))?;
-        let skipped = match verdict.skipped.is_empty() {
-            true => String::new(),
-            false => format!("; not compared: {}", verdict.skipped.join(", ")),
-        };
-        eprintln!(
-            "reference check passed: {} at the {} times of {} within {}{}",
-            verdict.compared.join(", "),
-            verdict.times,
-            reference.label,
-            tube.describe(),
-            skipped
-        );
-    }
-    Ok(())
+        reference::check(reference, names, &simulation.comparable, &samples, tube)
+    }))
 }
 
 /// The numbers of a run's CSV output columns at each time, kept for the reference check.

@@ -6,10 +6,12 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use fmi_validate::{Report, WorkerCommand};
+use fmi_validate::{Finding, Report, Severity, WorkerCommand};
 
-use crate::experiment;
+use crate::commands::simulate;
+use crate::experiment::{self, Target};
 use crate::interrupt;
+use crate::reference;
 use crate::report::output;
 
 /// The hidden command a probe process runs.
@@ -34,7 +36,16 @@ pub struct Options {
     pub junit: Option<PathBuf>,
     /// Warnings fail the run too.
     pub strict: bool,
+    /// Check a run of each FMU against these reference results (`--reference-file`); without
+    /// it, against the result an FMU ships under LS-REF, if it ships one.
+    pub reference_file: Option<PathBuf>,
+    /// The tolerances of the reference check (`--rtol`, `--atol`).
+    pub rtol: Option<f64>,
+    pub atol: Option<f64>,
 }
+
+/// The reference check's name in the reports.
+const REFERENCE_CHECK: &str = "reference-result";
 
 /// The timeout in seconds as a duration, refused unless it is a positive number.
 fn timeout(seconds: Option<f64>) -> Result<Duration, String> {
@@ -66,6 +77,12 @@ fn validate_all(options: &Options) -> Result<i32, String> {
         return Err("name at least one FMU to validate".to_owned());
     }
     let timeout = timeout(options.timeout)?;
+    if options.reference_file.is_none() && (options.rtol.is_some() || options.atol.is_some()) {
+        return Err("--rtol and --atol are the tolerances of --reference-file: give it too".to_owned());
+    }
+    let tube = reference::Tube::new(options.rtol, options.atol)?;
+    // Read once, before any FMU is validated, so a missing or malformed file costs no run.
+    let given = options.reference_file.as_deref().map(reference::Reference::read).transpose()?;
     for path in [&options.report, &options.junit].into_iter().flatten() {
         output::check_destination(path)?;
     }
@@ -83,7 +100,13 @@ fn validate_all(options: &Options) -> Result<i32, String> {
             }
         };
         match fmi_validate::validate(&path, &validate_options) {
-            Ok(report) => {
+            Ok(mut report) => {
+                if let Some(finding) = reference_finding(&path, &report, given.as_ref(), tube) {
+                    report.findings.push(finding);
+                }
+                if interrupt::requested() {
+                    return Err(format!("interrupted while validating {}; no report written", path.display()));
+                }
                 print!("{}", report.to_text());
                 reports.push(report);
             }
@@ -118,6 +141,62 @@ fn validate_all(options: &Options) -> Result<i32, String> {
         FAILED
     } else {
         CLEAN
+    })
+}
+
+/// The reference check of the FMU at `fmu`: a run as `runner simulate` makes it by default,
+/// checked against `given` (`--reference-file`), else against the result the FMU ships under
+/// LS-REF; `None` when there is neither.
+///
+/// Against `--reference-file` a failure is an error: the user named the results the FMU must
+/// reproduce. Against the FMU's own LS-REF result it is a warning (`--strict` fails on it): the
+/// layered standard (1.0.0-alpha.1) declares no tolerance, so the tube is ours, not the
+/// vendor's, and a result computed with a looser solver than the runner's may leave it without
+/// the FMU breaking any rule; an unusable manifest (one naming a file the FMU does not hold) is
+/// a warning for the same reason: LS-REF is an optional add-on, not part of FMI.
+///
+/// The run has no time limit of its own: it is made only when the validator's runs through the
+/// DefaultExperiment (`lifecycle.run`, each FMI call under `--timeout`) went through, so a hang
+/// or a crash there is that check's finding and this one is skipped.
+fn reference_finding(fmu: &Path, report: &Report, given: Option<&reference::Reference>, tube: reference::Tube) -> Option<Finding> {
+    let shipped;
+    let (checked, severity) = match given {
+        Some(given) => (given, Severity::Error),
+        None => {
+            shipped = match reference::shipped(fmu)
+                .and_then(|s| s.map(|(label, text)| reference::Reference::parse(&text, &label)).transpose())
+            {
+                Ok(None) => return None,
+                Ok(Some(shipped)) => shipped,
+                Err(e) => return Some(Finding::warning(REFERENCE_CHECK, format!("the FMU's LS-REF reference result is not checked: {e}"))),
+            };
+            (&shipped, Severity::Warning)
+        }
+    };
+    let fail = |message: String| Finding::new(REFERENCE_CHECK, severity, message);
+    let run = |severity: Severity| report.findings.iter().any(|f| f.check == "lifecycle.run" && f.severity == severity);
+    if run(Severity::Error) || !run(Severity::Passed) {
+        return Some(Finding::skipped(
+            REFERENCE_CHECK,
+            "not run: the validator's own run through the DefaultExperiment failed (lifecycle.run)",
+        ));
+    }
+    let work = match tempfile::Builder::new().prefix("runner-validate-reference-").tempdir() {
+        Ok(work) => work,
+        Err(e) => return Some(fail(format!("not run: cannot create a temporary directory: {e}"))),
+    };
+    // The run `runner simulate FMU --reference-file` makes, its CSV kept out of the report.
+    let options =
+        simulate::Options { fmu: fmu.display().to_string(), out: Some(work.path().join("run.csv")), ..simulate::Options::default() };
+    let target = Target { path: fmu.to_path_buf(), experiment: Default::default() };
+    let outcome = simulate::simulate(&options, &target, Some(checked), tube).and_then(|o| o.ok_or_else(|| "no check was made".to_owned()));
+    Some(match outcome {
+        Err(e) => fail(format!("the run to compare with {} failed: {e}", checked.label)),
+        Ok(Ok(verdict)) => Finding::passed(REFERENCE_CHECK, format!("the run matches {}", simulate::passed(&verdict, checked, tube))),
+        Ok(Err(reference::Mismatch::Incomparable(message))) => fail(message),
+        Ok(Err(reference::Mismatch::Outside(v))) => fail(v.message)
+            .variable(v.column)
+            .value(format!("{} at t = {} s (reference {}, bound {:e})", v.value, v.time, v.reference, v.bound)),
     })
 }
 

@@ -441,3 +441,164 @@ pub fn check_derivatives<M: Model>() -> Result<DerivativeCheck, String> {
     }
     Ok(report)
 }
+
+/// The FMI version whose C functions [`c_api_step`] drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FmiVersion {
+    Fmi2,
+    Fmi3,
+}
+
+/// What [`c_api_step`] saw.
+#[derive(Debug, Clone)]
+pub struct CApiStep {
+    /// The status of fmi2DoStep / fmi3DoStep (0 OK, 3 Error, ...).
+    pub status: i32,
+    /// How long that one call took.
+    pub took: std::time::Duration,
+    /// Every message the instance logged, as "status: message".
+    pub messages: Vec<String>,
+    /// The continuous states read with fmi2GetReal / fmi3GetFloat64 after the step (all
+    /// `None` when the read failed).
+    pub states: Vec<Option<f64>>,
+    /// The status of fmi2Reset / fmi3Reset after the step (the instance is freed after it).
+    pub reset_status: i32,
+}
+
+/// Messages of one instance, reached through its component environment pointer.
+type LogSink = Mutex<Vec<String>>;
+
+/// Reads only the fixed arguments: our FMUs pass preformatted messages (with `%` escaped).
+extern "C" fn record_fmi2(
+    env: *mut std::ffi::c_void,
+    _name: *const std::ffi::c_char,
+    status: i32,
+    _cat: *const std::ffi::c_char,
+    msg: *const std::ffi::c_char,
+) {
+    // SAFETY: `env` is the `LogSink` c_api_step passed, alive until the instance is freed;
+    // `msg` a NUL-terminated string from the FMU.
+    let (sink, msg) = unsafe { (&*(env as *const LogSink), std::ffi::CStr::from_ptr(msg).to_string_lossy()) };
+    sink.lock().expect("log lock").push(format!("{status}: {msg}"));
+}
+
+unsafe extern "C" fn record_fmi3(env: *mut std::ffi::c_void, status: i32, _cat: *const std::ffi::c_char, msg: *const std::ffi::c_char) {
+    record_fmi2(env, std::ptr::null(), status, std::ptr::null(), msg)
+}
+
+/// One Co-Simulation communication step from t = 0 over `h`, through model `M`'s FMI 2.0 or
+/// 3.0 C functions (the generic bodies its `export_fmu!` forwards to, so the same code as the
+/// `.so`): instantiated with logging on, the Real and Integer variables `params` set by name,
+/// initialized at the model's default tolerance without a stop time, then the step. Afterwards
+/// what an importer may still do after an fmiError: read the states, fmiReset, and free the
+/// instance.
+pub fn c_api_step<M: Model>(version: FmiVersion, params: &[(&str, f64)], h: f64) -> Result<CApiStep, String> {
+    use crate::fmi2::{ffi as f2, Fmi2};
+    use crate::fmi3::{ffi as f3, Fmi3};
+    use crate::frontend::ffi as fr;
+    use crate::frontend::Call;
+
+    let table = Table::<M>::new();
+    let sink: Box<LogSink> = Box::new(Mutex::new(Vec::new()));
+    let env = &*sink as *const LogSink as *mut std::ffi::c_void;
+    let token = std::ffi::CString::new(crate::table::guid::<M>()).expect("no NUL in a GUID");
+    let mut set = Vec::new();
+    for (name, value) in params {
+        let vr = table.value_reference(name).ok_or_else(|| format!("no variable named '{name}'"))?;
+        set.push((vr, table.row(vr).expect("vr from table").base_type, *value));
+    }
+    let state_vrs: Vec<u32> = (0..M::N_STATES)
+        .map(|k| {
+            let row = table.rows.iter().position(|r| matches!(r.slot, Slot::Model(Access::State(j)) if j == k));
+            row.expect("every state has a variable") as u32
+        })
+        .collect();
+    let mut states = vec![None; M::N_STATES];
+    // SAFETY: every pointer passed lives until the call returns; `sink` outlives the instance.
+    let (status, took, reset_status) = unsafe {
+        match version {
+            FmiVersion::Fmi2 => {
+                // On x86-64 System V a variadic call with only the fixed arguments matches this
+                // non-variadic callee (as in tests/panic_boundary.rs).
+                let logger: f2::LoggerFn = std::mem::transmute(record_fmi2 as extern "C" fn(_, _, _, _, _));
+                let callbacks = f2::CallbackFunctions {
+                    logger: Some(logger),
+                    allocate_memory: None,
+                    free_memory: None,
+                    step_finished: None,
+                    component_environment: env,
+                };
+                let c =
+                    f2::instantiate::<M>(c"bounded".as_ptr(), f2::FMI2_COSIMULATION, token.as_ptr(), std::ptr::null(), &callbacks, 0, 1);
+                if c.is_null() {
+                    return Err(format!("fmi2Instantiate refused: {:?}", sink.lock().expect("log lock")));
+                }
+                let mut ok = true;
+                for &(vr, ty, value) in &set {
+                    ok &= match ty {
+                        BaseType::Integer => fr::set_integer::<Fmi2, M>(c, &vr, 1, &(value as i32), 1),
+                        _ => fr::set_real::<Fmi2, M>(c, &vr, 1, &value, 1),
+                    } == 0;
+                }
+                ok &= f2::setup_experiment::<M>(c, 0, 0.0, 0.0, 0, 0.0) == 0;
+                ok &= fr::simple::<Fmi2, M>(c, Call::EnterInitializationMode, |i| i.enter_initialization_mode()) == 0;
+                ok &= fr::simple::<Fmi2, M>(c, Call::ExitInitializationMode, |i| i.exit_initialization_mode()) == 0;
+                if !ok {
+                    fr::free_instance::<Fmi2, M>(c);
+                    return Err(format!("setting up the instance failed: {:?}", sink.lock().expect("log lock")));
+                }
+                let started = std::time::Instant::now();
+                let status = f2::do_step::<M>(c, 0.0, h, 1);
+                let took = started.elapsed();
+                for (vr, out) in state_vrs.iter().zip(&mut states) {
+                    let mut v = f64::NAN;
+                    *out = (fr::get_real::<Fmi2, M>(c, vr, 1, &mut v, 1) == 0).then_some(v);
+                }
+                let reset = fr::simple::<Fmi2, M>(c, Call::Reset, |i| i.reset());
+                fr::free_instance::<Fmi2, M>(c);
+                (status, took, reset)
+            }
+            FmiVersion::Fmi3 => {
+                let c = f3::instantiate_co_simulation::<M>(
+                    c"bounded".as_ptr(),
+                    token.as_ptr(),
+                    std::ptr::null(),
+                    true,
+                    false,
+                    false,
+                    env,
+                    Some(record_fmi3),
+                );
+                if c.is_null() {
+                    return Err(format!("fmi3InstantiateCoSimulation refused: {:?}", sink.lock().expect("log lock")));
+                }
+                let mut ok = true;
+                for &(vr, ty, value) in &set {
+                    ok &= match ty {
+                        BaseType::Integer => fr::set_integer::<Fmi3, M>(c, &vr, 1, &(value as i32), 1),
+                        _ => fr::set_real::<Fmi3, M>(c, &vr, 1, &value, 1),
+                    } == 0;
+                }
+                ok &= f3::enter_initialization_mode::<M>(c, false, 0.0, 0.0, false, 0.0) == 0;
+                ok &= fr::simple::<Fmi3, M>(c, Call::ExitInitializationMode, |i| i.exit_initialization_mode()) == 0;
+                if !ok {
+                    fr::free_instance::<Fmi3, M>(c);
+                    return Err(format!("setting up the instance failed: {:?}", sink.lock().expect("log lock")));
+                }
+                let (mut event, mut terminate, mut early, mut last) = (false, false, false, 0.0);
+                let started = std::time::Instant::now();
+                let status = f3::do_step::<M>(c, 0.0, h, true, &mut event, &mut terminate, &mut early, &mut last);
+                let took = started.elapsed();
+                for (vr, out) in state_vrs.iter().zip(&mut states) {
+                    let mut v = f64::NAN;
+                    *out = (fr::get_real::<Fmi3, M>(c, vr, 1, &mut v, 1) == 0).then_some(v);
+                }
+                let reset = fr::simple::<Fmi3, M>(c, Call::Reset, |i| i.reset());
+                fr::free_instance::<Fmi3, M>(c);
+                (status, took, reset)
+            }
+        }
+    };
+    let messages = sink.lock().expect("log lock").clone();
+    Ok(CApiStep { status, took, messages, states, reset_status })
+}

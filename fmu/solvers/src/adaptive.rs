@@ -9,7 +9,7 @@
 //! interpolate. Steps end at the stop time at the latest, and at an event.
 
 use super::events;
-use super::{all_finite, Integrator, OdeSystem, SolverError, EVENT_TOL, STAGE_BUFFERS};
+use super::{all_finite, step_floor, Integrator, OdeSystem, SolverError, EVENT_TOL, MAX_STEPS_PER_CALL, STAGE_BUFFERS};
 
 /// Safety factor: aim a little below the tolerance so the next step is likely accepted.
 const SAFE: f64 = 0.9;
@@ -141,7 +141,11 @@ impl Integrator {
         let limit = larger(self.stop_time, t_end);
         let n = sys.dim();
         let mut nonfinite = 0u32;
+        let (budget, accepted_before) = (self.attempts() + MAX_STEPS_PER_CALL, self.n_steps);
         loop {
+            if self.attempts() >= budget {
+                return Err(self.too_many_steps(self.t_int, accepted_before));
+            }
             let tc = self.t_int;
             if !self.fsal_valid {
                 sys.rhs(tc, &self.x_int, &mut self.k1);
@@ -164,7 +168,7 @@ impl Integrator {
             // a sliver step afterwards.
             let lands = smaller(1.01 * h_prop, h_max) >= remaining;
             let hs = if lands { remaining } else { h_prop };
-            if !lands && h_prop < 16.0 * f64::EPSILON * tc.abs() {
+            if !lands && h_prop < step_floor(tc) {
                 return Err(SolverError::StepSizeTooSmall { t: tc, h: h_prop });
             }
             let t1 = if lands { limit } else { tc + hs };
@@ -177,7 +181,7 @@ impl Integrator {
                 self.n_rejected += 1;
                 self.last_rejected = true;
                 let h_retry = hs * NONFINITE_SHRINK;
-                if nonfinite > MAX_NONFINITE || h_retry < 16.0 * f64::EPSILON * tc.abs() {
+                if nonfinite > MAX_NONFINITE || h_retry < step_floor(tc) {
                     return Err(SolverError::NonFinite { t: t1 });
                 }
                 self.h = h_retry;

@@ -13,7 +13,7 @@
 
 use super::adaptive::initial_step;
 use super::implicit::{scaled_rms, Dense};
-use super::{all_finite, Integrator, OdeSystem, SolverError};
+use super::{all_finite, step_floor, Integrator, OdeSystem, SolverError, MAX_STEPS_PER_CALL};
 
 /// Highest order.
 pub(super) const MAX_ORDER: usize = 5;
@@ -144,7 +144,11 @@ impl Integrator {
         self.implicit.prepare(sys, n);
         let mut failures = 0u32;
         let mut error_failures = 0u32;
+        let (budget, accepted_before) = (self.attempts() + MAX_STEPS_PER_CALL, self.n_steps);
         loop {
+            if self.attempts() >= budget {
+                return Err(self.too_many_steps(self.t_int, accepted_before));
+            }
             let tc = self.t_int;
             if !self.fsal_valid {
                 self.restart_bdf(sys, tc, (limit - tc).min(h_max))?;
@@ -163,7 +167,7 @@ impl Integrator {
                 rescale(d, n, order, remaining / h);
                 h = remaining;
                 self.implicit.equal_steps = 0;
-            } else if h < 16.0 * f64::EPSILON * tc.abs() {
+            } else if h < step_floor(tc) {
                 return Err(SolverError::StepSizeTooSmall { t: tc, h });
             }
             self.h = h;
@@ -196,7 +200,7 @@ impl Integrator {
                 self.n_rejected += 1;
                 failures += 1;
                 let h_next = h * NEWTON_FAILURE_FACTOR;
-                if failures > 40 || h_next < 16.0 * f64::EPSILON * tc.abs() {
+                if failures > 40 || h_next < step_floor(tc) {
                     return Err(if all_finite(&self.work.k[2][..n]) {
                         SolverError::StepSizeTooSmall { t: tc, h: h_next }
                     } else {
@@ -272,7 +276,7 @@ impl Integrator {
         if !all_finite(&self.k1[..n]) {
             return Err(SolverError::NonFinite { t: tc });
         }
-        if h < 16.0 * f64::EPSILON * tc.abs() {
+        if h < step_floor(tc) {
             return Err(SolverError::StepSizeTooSmall { t: tc, h });
         }
         self.h = h;

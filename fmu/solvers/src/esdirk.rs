@@ -9,7 +9,7 @@
 
 use super::adaptive::initial_step;
 use super::implicit::{scaled_rms, Dense, NEWTON_MAX_ITER};
-use super::{all_finite, Integrator, OdeSystem, SolverError};
+use super::{all_finite, step_floor, Integrator, OdeSystem, SolverError, MAX_STEPS_PER_CALL};
 
 /// The diagonal coefficient gamma.
 pub(super) const GAMMA: f64 = 1767732205903.0 / 4055673282236.0;
@@ -46,7 +46,11 @@ impl Integrator {
         let n = sys.dim();
         self.implicit.prepare(sys, n);
         let mut failures = 0u32;
+        let (budget, accepted_before) = (self.attempts() + MAX_STEPS_PER_CALL, self.n_steps);
         loop {
+            if self.attempts() >= budget {
+                return Err(self.too_many_steps(self.t_int, accepted_before));
+            }
             let tc = self.t_int;
             if !self.fsal_valid {
                 sys.rhs(tc, &self.x_int, &mut self.k1);
@@ -67,7 +71,7 @@ impl Integrator {
             let remaining = limit - tc;
             let lands = (1.01 * h_prop).min(h_max) >= remaining;
             let h = if lands { remaining } else { h_prop };
-            if !lands && h < 16.0 * f64::EPSILON * tc.abs() {
+            if !lands && h < step_floor(tc) {
                 return Err(SolverError::StepSizeTooSmall { t: tc, h });
             }
             let t1 = if lands { limit } else { tc + h };
@@ -78,7 +82,7 @@ impl Integrator {
                 self.last_rejected = true;
                 failures += 1;
                 let h_next = h * NEWTON_FAILURE_FACTOR;
-                if failures > 40 || h_next < 16.0 * f64::EPSILON * tc.abs() {
+                if failures > 40 || h_next < step_floor(tc) {
                     return Err(SolverError::NonFinite { t: t1 });
                 }
                 self.h = h_next;

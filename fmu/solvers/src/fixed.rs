@@ -1,7 +1,7 @@
 //! Fixed-step forward Euler and classic RK4, with cubic Hermite dense output for events.
 
 use super::events;
-use super::{Advance, Integrator, Method, OdeSystem, SolverError};
+use super::{step_floor, Advance, Integrator, Method, OdeSystem, SolverError, MAX_STEPS_PER_CALL};
 
 /// Step boundary result: `Ok((t_reached, outcome))`, or the error with the last good time.
 pub(super) type StepResult = Result<(f64, Advance), (f64, SolverError)>;
@@ -13,12 +13,21 @@ impl Integrator {
         let rk4 = self.settings.method == Method::Rk4;
         // A remainder this small is rounding noise of t0 + k*h (or a negligible
         // sliver): merging it into the last step avoids a near-zero step.
-        let merge = (1e-12 * h).max(16.0 * f64::EPSILON * t0.abs().max(t_end.abs()));
+        let merge = (1e-12 * h).max(step_floor(t0.abs().max(t_end.abs())));
+        // A step that cannot move time (below the floor at the far end of the interval) would
+        // have the loop below count grid points that all round to the same time.
+        if h < step_floor(t0.abs().max(t_end.abs())) {
+            return Err((t0, SolverError::StepSizeTooSmall { t: t0, h }));
+        }
+        let accepted_before = self.n_steps;
         // The derivative cache is the adaptive methods' concept; fixed methods always start a step fresh.
         self.fsal_valid = false;
         let mut tc = t0;
         let mut k: u64 = 0;
         loop {
+            if k >= MAX_STEPS_PER_CALL {
+                return Err((tc, self.too_many_steps(tc, accepted_before)));
+            }
             k += 1;
             // Boundaries are computed from t0, never accumulated, so they do not drift.
             let mut tn = t0 + k as f64 * h;

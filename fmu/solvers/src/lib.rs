@@ -187,6 +187,34 @@ impl Default for Settings {
     }
 }
 
+/// The most step attempts (accepted and rejected) one `advance` call may take; the next one
+/// fails with [`SolverError::TooManySteps`] (CVODE's `mxstep`, whose default is 500 per output
+/// interval). Without it an extreme parameter (a pendulum 1e-20 m long: a period of 2e-10 s)
+/// or a huge communication step has one `fmi2DoStep` integrate for hours.
+///
+/// Ours is far larger than CVODE's because one call may legitimately span a whole experiment
+/// (an importer that takes one communication step to the stop time; our adaptive steps cross
+/// communication points anyway). Measured (December 2026), every lab model's default experiment
+/// taken in ONE call, each of the seven methods at its defaults: at most 28,040 attempts
+/// (quarter_car with BS23; Euler and RK4 over crank_rocker's 24 s at 1 ms: 23,891), so the
+/// bound is 35 times the worst; on the models' own output grids a call takes at most 13. At
+/// rtol 1e-12, quarter_car in one call takes 188,394 with BS23 (5 times below). The solvers'
+/// stiff tests take at most about 3,550 in a call, the whole solver suite about 10,000. A
+/// refused call of the two-state pendulum takes 0.2 s (DOPRI5, BDF) to 0.5 s (ESDIRK) in the
+/// release FMU, 0.6 s to 6 s in a debug build.
+pub const MAX_STEPS_PER_CALL: u64 = 1_000_000;
+
+/// A step smaller than this many units in the last place of |t| cannot change t reliably:
+/// the adaptive methods then fail with [`SolverError::StepSizeTooSmall`], and so does a
+/// `fixed_step` below it.
+const STEP_FLOOR_ULPS: f64 = 16.0;
+
+/// The smallest step that still moves time `t` (see [`STEP_FLOOR_ULPS`]).
+#[inline(always)]
+fn step_floor(t: f64) -> f64 {
+    STEP_FLOOR_ULPS * f64::EPSILON * t.abs()
+}
+
 /// Smallest accepted relative tolerance: below this the error estimate is rounding noise.
 pub const MIN_RTOL: f64 = 100.0 * f64::EPSILON;
 
@@ -249,11 +277,25 @@ pub enum SolverError {
         /// Time at which the non-finite value appeared.
         t: f64,
     },
-    /// An adaptive method needed a step `h` at time `t` too small for double precision.
+    /// An adaptive method needed a step `h` at time `t` too small for double precision (below
+    /// 16 units in the last place of |t|), or `fixed_step` is that small.
     StepSizeTooSmall {
         /// Time of the failing step.
         t: f64,
         /// The rejected step size.
+        h: f64,
+    },
+    /// One `advance` call took [`MAX_STEPS_PER_CALL`] step attempts without reaching its end.
+    TooManySteps {
+        /// The method that took them (for the hint).
+        method: Method,
+        /// Time integration had reached (the state there is handed out).
+        t: f64,
+        /// Step attempts this call took (accepted and rejected).
+        steps: u64,
+        /// Of which accepted.
+        accepted: u64,
+        /// The step size at the end (the adaptive methods' proposal, or `fixed_step`).
         h: f64,
     },
 }
@@ -270,10 +312,31 @@ impl std::fmt::Display for SolverError {
             ),
             SolverError::StepSizeTooSmall { t, h } => write!(
                 f,
-                "the adaptive step size fell to {h:e} s at t = {t} s, too small to make progress \
+                "the step size fell to {h:e} s at t = {t} s, too small to make progress \
                  in double precision (the model may be stiff, or have a discontinuity that no \
-                 event indicator signals; try a larger tolerance or a fixed-step method)"
+                 event indicator signals; try a larger tolerance or a fixed-step method, or with \
+                 euler or rk4 a larger fixed_step)"
             ),
+            SolverError::TooManySteps { method, t, steps, accepted, h } => {
+                // Times this close to the start read better in exponent notation.
+                let t = if *t == 0.0 || t.abs() >= 1e-3 { format!("{t}") } else { format!("{t:e}") };
+                write!(
+                    f,
+                    "gave up at t = {t} s after {steps} step attempts in one call ({accepted} accepted; \
+                     the limit is {MAX_STEPS_PER_CALL}), with a step size of {h:e} s"
+                )?;
+                const EXTREME: &str = "a parameter extreme (a length, mass or time constant near zero, \
+                                       a stiffness or gain near overflow), or an input's derivative huge";
+                match method {
+                    _ if method.is_fixed_step() => write!(
+                        f,
+                        " (fixed_step is far too small for this communication step: a larger fixed_step, \
+                         shorter communication steps, or an adaptive method)"
+                    ),
+                    _ if method.is_implicit() => write!(f, " (the solution changes on that time scale: is {EXTREME}?)"),
+                    _ => write!(f, " (is the model stiff (then try the implicit methods, bdf or esdirk), {EXTREME}?)"),
+                }
+            }
         }
     }
 }
@@ -509,6 +572,27 @@ impl Integrator {
     /// no call: `advance` compares them with the point it handed out.
     pub fn invalidate(&mut self) {
         self.resume = false;
+    }
+
+    /// Step attempts since construction, accepted and rejected: each turn of a method's loop
+    /// adds one, so one call's count is this minus its value at the call's start.
+    #[inline(always)]
+    fn attempts(&self) -> u64 {
+        self.n_steps + self.n_rejected
+    }
+
+    /// The error of a call that started with `accepted_before` accepted steps and took
+    /// [`MAX_STEPS_PER_CALL`] attempts, reaching `t`.
+    #[cold]
+    #[inline(never)]
+    fn too_many_steps(&self, t: f64, accepted_before: u64) -> SolverError {
+        SolverError::TooManySteps {
+            method: self.settings.method,
+            t,
+            steps: MAX_STEPS_PER_CALL,
+            accepted: self.n_steps - accepted_before,
+            h: self.step_size(),
+        }
     }
 
     /// Applies `advance`'s restart rule now: when (t, x) is not the point last handed out, the

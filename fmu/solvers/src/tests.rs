@@ -1054,6 +1054,89 @@ fn dopri5_reports_nan_model_and_too_small_steps() {
     assert!(err.to_string().contains("step size"));
 }
 
+/// x0' = omega x1, x1' = -omega x0: a unit circle traversed at `omega` rad/s (a pendulum a
+/// hair long): every method needs steps of about 1/omega, so a call over 1 s at omega = 1e8
+/// needs some 1e8 steps, a hundred times [`MAX_STEPS_PER_CALL`].
+struct FastCircle {
+    omega: f64,
+}
+
+impl OdeSystem for FastCircle {
+    fn dim(&self) -> usize {
+        2
+    }
+    fn rhs(&self, _t: f64, x: &[f64], dx: &mut [f64]) {
+        dx[0] = self.omega * x[1];
+        dx[1] = -self.omega * x[0];
+    }
+}
+
+/// Each method's loop (the explicit pairs', BDF's, ESDIRK's, the fixed steps') stops after
+/// exactly MAX_STEPS_PER_CALL attempts with `TooManySteps`, hands out the finite state it
+/// reached (t between the start and the end), names the time, the count and the step size,
+/// and a second call gets a budget of its own (the bound is per call, not per run). Before the
+/// bound, each of these calls ran for hours.
+#[test]
+fn one_call_takes_at_most_max_steps_per_call() {
+    let fast = FastCircle { omega: 1e8 };
+    for m in [Method::Dopri5, Method::Bdf, Method::Esdirk, Method::Euler] {
+        // Euler at 1e-9 s: 1e9 steps to t = 1 (its state grows by (1 + 1e-2)^(1/2) a step
+        // at omega 1e8, so it runs on a slow system instead: x' = -x).
+        let mut integ = Integrator::new(settings(m, 1e-9, 1e-6, 1e-9), if m == Method::Euler { 1 } else { 2 }, 0);
+        let started = std::time::Instant::now();
+        let (mut t, mut x) = (0.0, [1.0, 0.0]);
+        let n = integ.dim();
+        let err = if m == Method::Euler {
+            integ.advance(&Decay { lambda: 1.0 }, &mut t, &mut x[..n], 1.0)
+        } else {
+            integ.advance(&fast, &mut t, &mut x[..n], 1.0)
+        }
+        .unwrap_err();
+        let took = started.elapsed();
+        println!("{m:?}: {err} ({took:.2?})");
+        let SolverError::TooManySteps { t: t_reached, steps, accepted, h, .. } = err else { panic!("{m:?}: {err:?}") };
+        assert_eq!(steps, MAX_STEPS_PER_CALL, "{m:?}");
+        assert_eq!(integ.n_steps() + integ.n_rejected(), MAX_STEPS_PER_CALL, "{m:?}: every attempt counted");
+        assert_eq!(integ.n_steps(), accepted, "{m:?}");
+        assert!(t == t_reached && t > 0.0 && t < 1.0 && x[..n].iter().all(|v| v.is_finite()), "{m:?}: t = {t}, x = {x:?}");
+        assert!(h > 0.0 && h < 1e-6, "{m:?}: the step size {h:e}");
+        let msg = err.to_string();
+        // Times under 1 ms in exponent notation.
+        let shown = if t >= 1e-3 { format!("{t}") } else { format!("{t:e}") };
+        assert!(
+            msg.contains(&format!("gave up at t = {shown} s")) && msg.contains(&format!("{MAX_STEPS_PER_CALL} step attempts")),
+            "{msg}"
+        );
+        if m == Method::Euler {
+            // Fixed steps land on the grid: a million of 1e-9 s.
+            assert!((t - 1e-3).abs() < 1e-15, "t = {t}");
+            assert!(msg.contains("fixed_step is far too small for this communication step"), "{msg}");
+        } else if m == Method::Dopri5 {
+            assert!(msg.contains("stiff") && msg.contains("extreme"), "{msg}");
+            // The next call starts a budget of its own, from where the last one stopped.
+            let t_first = t;
+            let err = integ.advance(&fast, &mut t, &mut x[..n], 1.0).unwrap_err();
+            assert!(matches!(err, SolverError::TooManySteps { steps: MAX_STEPS_PER_CALL, .. }) && t > t_first, "{err:?}");
+            assert_eq!(integ.n_steps() + integ.n_rejected(), 2 * MAX_STEPS_PER_CALL);
+        }
+    }
+}
+
+/// A `fixed_step` below 16 ulps of |t| cannot move time: refused at once, where the grid loop
+/// used to count grid points that all rounded to the same time, without end.
+#[test]
+fn a_fixed_step_that_cannot_move_time_is_refused() {
+    for m in [Method::Euler, Method::Rk4] {
+        for (t0, h) in [(1.0, 1e-300), (0.0, 1e-16), (1e9, 1e-8)] {
+            let mut integ = Integrator::new(settings(m, h, 1e-6, 1e-9), 1, 0);
+            let (mut t, mut x) = (t0, [1.0]);
+            let err = integ.advance(&Decay { lambda: 1.0 }, &mut t, &mut x, t0 + 1.0).unwrap_err();
+            assert_eq!(err, SolverError::StepSizeTooSmall { t: t0, h }, "{m:?} from {t0}");
+            assert_eq!((t, x[0]), (t0, 1.0), "nothing was integrated");
+        }
+    }
+}
+
 // ---------------------------------------------------------------- wire format
 
 /// A minimal non-self-describing serde format (like postcard) for the round-trip test.

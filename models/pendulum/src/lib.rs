@@ -320,4 +320,29 @@ mod tests {
         let want = refs.value("omega_small_angle", &[("g", free.g), ("L", free.l)]).unwrap();
         assert!((frequency - want).abs() <= 1e-14 * want, "{frequency} vs {want}");
     }
+
+    /// Issue 37: a pendulum 1e-20 m long swings at sqrt(g/L) = 3.1e10 rad/s, so DOPRI5 needs
+    /// some 1e10 steps for one 10 ms communication step (hours, before the bound). fmi2DoStep and
+    /// fmi3DoStep now return fmiError once the step has taken MAX_STEPS_PER_CALL step attempts,
+    /// with one logged Error line naming the time reached, the count, the step size and the
+    /// hint; the states read afterwards are those at the step's start (the failed step is
+    /// undone), and fmiReset and fmiFreeInstance still work. The time is a hang guard only: a
+    /// million steps of this model take about a second in a debug build.
+    #[test]
+    fn an_extreme_length_ends_the_step_with_an_error_within_the_step_bound() {
+        use fmu_export::harness::{c_api_step, FmiVersion};
+        use fmu_export::solvers::MAX_STEPS_PER_CALL;
+        for version in [FmiVersion::Fmi2, FmiVersion::Fmi3] {
+            let step = c_api_step::<Pendulum>(version, &[("L", 1e-20)], 0.01).unwrap();
+            println!("{version:?}: status {} in {:.2?}: {:?}", step.status, step.took, step.messages);
+            assert_eq!(step.status, 3, "{version:?}: fmiError");
+            let limit = format!("after {MAX_STEPS_PER_CALL} step attempts in one call");
+            let line = step.messages.iter().find(|m| m.contains(&limit)).unwrap_or_else(|| panic!("{:?}", step.messages));
+            assert!(line.starts_with("3: ") && line.contains("between t = 0 and t = 0.01"), "{line}");
+            assert!(line.contains("gave up at t = ") && line.contains("with a step size of ") && line.contains("extreme"), "{line}");
+            assert!(step.took < std::time::Duration::from_secs(120), "{version:?}: {:.2?}", step.took);
+            assert_eq!(step.states, [Some(15.0 * fmu_export::units::DEGREE), Some(0.0)], "{version:?}: the state at the step's start");
+            assert_eq!(step.reset_status, 0, "{version:?}: fmiReset after the error");
+        }
+    }
 }

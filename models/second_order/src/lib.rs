@@ -243,4 +243,30 @@ mod tests {
         assert!((fast - want_fast).abs() < 1e-14 && (slow - want_slow).abs() < 1e-14, "{fast} {slow}");
         assert_eq!((want_fast, want_slow), (-3.0, -2.0));
     }
+
+    /// Issue 37: a2 = 1e-30 makes the equation stiff, eigenvalues -a1/a2 = -1e31 and about
+    /// -1.2: DOPRI5, stable only for steps under 3.3/1e31 s, would need 3e28 steps for one
+    /// 10 ms communication step. fmi2DoStep and fmi3DoStep return fmiError after
+    /// MAX_STEPS_PER_CALL attempts, the logged line suggesting the implicit methods, and with
+    /// solver = 5 (BDF) the same step succeeds: the bound refuses the method, not the model.
+    /// The time is a hang guard only (about a second in a debug build).
+    #[test]
+    fn a_stiff_extreme_is_refused_by_dopri5_within_the_step_bound_and_bdf_takes_it() {
+        use fmu_export::harness::{c_api_step, FmiVersion};
+        use fmu_export::solvers::MAX_STEPS_PER_CALL;
+        for version in [FmiVersion::Fmi2, FmiVersion::Fmi3] {
+            let step = c_api_step::<SecondOrder>(version, &[("a2", 1e-30)], 0.01).unwrap();
+            println!("{version:?}: status {} in {:.2?}: {:?}", step.status, step.took, step.messages);
+            assert_eq!(step.status, 3, "{version:?}: fmiError");
+            let limit = format!("after {MAX_STEPS_PER_CALL} step attempts in one call");
+            let line = step.messages.iter().find(|m| m.contains(&limit)).unwrap_or_else(|| panic!("{:?}", step.messages));
+            assert!(line.starts_with("3: ") && line.contains("gave up at t = ") && line.contains("with a step size of "), "{line}");
+            assert!(line.contains("is the model stiff (then try the implicit methods, bdf or esdirk)"), "{line}");
+            assert!(step.took < std::time::Duration::from_secs(120), "{version:?}: {:.2?}", step.took);
+            assert_eq!(step.states, [Some(2.0), Some(1.0)], "{version:?}: the state at the step's start");
+            assert_eq!(step.reset_status, 0, "{version:?}: fmiReset after the error");
+            let bdf = c_api_step::<SecondOrder>(version, &[("a2", 1e-30), ("solver", 5.0)], 0.01).unwrap();
+            assert_eq!(bdf.status, 0, "{version:?}: BDF takes the step: {:?}", bdf.messages);
+        }
+    }
 }

@@ -81,6 +81,30 @@ fn nan_derivatives_are_reported_with_the_time_and_the_call() {
     }
 }
 
+/// Issue 37: k = 1e30 makes x' = -k x stiff beyond measure: DOPRI5 is stable only for steps
+/// under 3.3e-30 s, so reaching the first communication point (0.01 s) would take some 3e27
+/// steps (k = 1e300 overflows instead, a failure of its own). The runner's integrator gives up after MAX_STEPS_PER_CALL step attempts in one call
+/// with an error naming the FMU, the time reached, the count and the hint, and x.csv keeps the
+/// rows before the failure (the one at t = 0), as the other failures do. Before the bound the
+/// run did not end.
+#[test]
+fn an_extreme_parameter_ends_the_run_at_the_step_bound() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = me_fmu(dir.path());
+    let started = std::time::Instant::now();
+    let err = fails(runner(dir.path(), &["simulate", fmu.to_str().unwrap(), "--set", "k=1e30", "--solver", "dopri5", "--out", "x.csv"]));
+    let took = started.elapsed();
+    println!("{took:.2?}: {err}");
+    let limit = format!("after {} step attempts in one call", solvers::MAX_STEPS_PER_CALL);
+    assert!(err.contains("me_faults") && err.contains("the runner's dopri5 integration from t = 0 failed"), "{err}");
+    assert!(err.contains("gave up at t = ") && err.contains(&limit) && err.contains("stiff"), "{err}");
+    let (header, rows) = read_csv(&dir.path().join("x.csv"));
+    assert!(err.contains(&format!("x.csv keeps the {} row(s) before the failure", rows.len())), "{err}");
+    assert_eq!(column(&header, &rows, "time"), [0.0], "the row at the start");
+    // A hang guard: a million steps through the FMU's C calls take a few seconds.
+    assert!(took < std::time::Duration::from_secs(180), "{took:.2?}");
+}
+
 /// An event iteration that never settles (newDiscreteStatesNeeded stays true) is cut off.
 #[test]
 fn an_event_iteration_that_never_settles_is_cut_off() {

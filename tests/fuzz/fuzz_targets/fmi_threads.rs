@@ -34,14 +34,11 @@ fn main() {
     eprintln!("fmi_threads: {threads} threads for {seconds}s, seed {seed}");
     let deadline = Instant::now() + Duration::from_secs(seconds);
     let fmus = fmus::all();
-    // Read once before the threads start: std's OnceLock is not instrumented here (see
-    // tsan.supp), so a first read on two threads at once would be reported.
-    driver::bounded_work();
-    // One legal call can still run for hours: a parameter set to an extreme value (a pendulum
-    // of length 1e-308) has the FMU's adaptive solver take astronomically many steps inside one
-    // fmi2DoStep, the unbounded work per call that `driver::bounded_work` names. The run stops
-    // GRACE after its deadline whatever a thread is doing: a race is reported (and aborts) when
-    // it happens, so nothing TSan saw is lost; the counters say how far the run got.
+    // The last guard against a call that never returns: every call's work is bounded (one
+    // fmi2DoStep takes at most solvers::MAX_STEPS_PER_CALL step attempts, issue 37, where a
+    // pendulum of length 1e-20 used to have it step for hours), but should a bound fail, the
+    // run stops GRACE after its deadline whatever a thread is doing: a race is reported (and
+    // aborts) when it happens, so nothing TSan saw is lost; the counters say how far the run got.
     const GRACE: Duration = Duration::from_secs(30);
     std::thread::spawn(move || {
         std::thread::sleep(deadline.saturating_duration_since(Instant::now()) + GRACE);

@@ -185,36 +185,19 @@ fn float(u: &mut Unstructured) -> Result<f64> {
     })
 }
 
-/// Whether calls whose work has no bound are made: a communication step of 1e9 s (or
-/// f64::MAX) without a stop time, or a solver step (`fixed_step`, `max_step`) of 1e-300 s, has
-/// the FMU integrate for hours inside one call. A known problem (issue 37: the solvers are to
-/// bound their work per call and refuse the rest); until then such arguments are tamed (steps
-/// over 100 s become 100 s, solver steps under 1e-6 s become 1e-6 s) unless
-/// FMI_FUZZ_UNBOUNDED_WORK=1 asks for them.
-pub fn bounded_work() -> bool {
-    static UNBOUNDED: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    !*UNBOUNDED.get_or_init(|| std::env::var_os("FMI_FUZZ_UNBOUNDED_WORK").is_some_and(|v| v == "1"))
-}
-
-/// A value for a step-length control, tamed when [`bounded_work`].
-fn solver_step(value: f64) -> f64 {
-    if bounded_work() && value > 0.0 && value < 1e-6 {
-        1e-6
-    } else {
-        value
-    }
-}
-
-/// A communication step: mostly ordinary, sometimes zero, negative, huge or not a number.
+/// A communication step: mostly ordinary, sometimes zero, negative, huge or not a number. A
+/// huge one (1e9 s, f64::MAX) on an oscillating model, like an extreme parameter (`float` sets
+/// any Real to 1e300 or 5e-309, `fixed_step` and `max_step` included), is the FMU's solver's to
+/// refuse: one call takes at most `solvers::MAX_STEPS_PER_CALL` step attempts (issue 37), so
+/// none of them is tamed here.
 fn step_size(u: &mut Unstructured) -> Result<f64> {
-    let h = match u.int_in_range(0..=9u8)? {
+    Ok(match u.int_in_range(0..=9u8)? {
         0 => float(u)?,
         1 => 1e9,
         2 => 0.0,
         3 => -0.01,
         _ => [1e-6, 1e-3, 0.01, 0.1, 0.5, 2.0][u.int_in_range(0..=5usize)?],
-    };
-    Ok(if bounded_work() && h.is_finite() && h > 100.0 { 100.0 } else { h })
+    })
 }
 
 /// Value references: mostly the model's own, sometimes one past the end or anything.
@@ -670,12 +653,7 @@ impl<'a> Sequence<'a> {
                 }
                 11..=13 => {
                     let vrs = value_references(u, fmu.n_variables)?;
-                    let mut v: Vec<f64> = (0..vrs.len()).map(|_| float(u)).collect::<Result<_>>()?;
-                    for (vr, v) in vrs.iter().zip(&mut v) {
-                        if fmu.step_controls.contains(vr) {
-                            *v = solver_step(*v);
-                        }
-                    }
+                    let v: Vec<f64> = (0..vrs.len()).map(|_| float(u)).collect::<Result<_>>()?;
                     name = "fmi2SetReal";
                     status = (f.set_real)(c, ptr(u, &vrs)?, vrs.len(), ptr(u, &v)?);
                 }
@@ -888,12 +866,7 @@ impl<'a> Sequence<'a> {
                 12..=14 => {
                     let vrs = value_references(u, fmu.n_variables)?;
                     let n = length(u, vrs.len())?;
-                    let mut v: Vec<f64> = (0..n).map(|_| float(u)).collect::<Result<_>>()?;
-                    for (vr, v) in vrs.iter().zip(&mut v) {
-                        if fmu.step_controls.contains(vr) {
-                            *v = solver_step(*v);
-                        }
-                    }
+                    let v: Vec<f64> = (0..n).map(|_| float(u)).collect::<Result<_>>()?;
                     name = "fmi3SetFloat64";
                     status = (f.set_float64)(c, ptr(u, &vrs)?, vrs.len(), ptr(u, &v)?, n);
                 }

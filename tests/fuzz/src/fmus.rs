@@ -147,9 +147,6 @@ pub struct Fmu {
     pub n_variables: u32,
     /// The number of continuous states.
     pub n_states: usize,
-    /// The value references of the solver controls that set a step length (`fixed_step`,
-    /// `max_step`): see `driver::bounded_work`.
-    pub step_controls: Vec<u32>,
     /// FMI 2.0.
     pub fmi2: Fmi2,
     /// FMI 3.0.
@@ -315,11 +312,6 @@ fn fmu<M: Model>() -> Fmu {
         name: info.identifier,
         guid: fmu_export::table::guid::<M>(),
         n_variables: fmu_export::table::Table::<M>::new().rows.len() as u32,
-        step_controls: (0..)
-            .zip(&fmu_export::table::Table::<M>::new().rows)
-            .filter(|(_, r)| matches!(r.name, "fixed_step" | "max_step"))
-            .map(|(vr, _)| vr)
-            .collect(),
         n_states: M::N_STATES,
         fmi2: fmi2::<M>(),
         fmi3: fmi3::<M>(),

@@ -1,6 +1,7 @@
 //! `--log-fmi-calls [FILE]`: every FMI call with its arguments, status and duration, one line
-//! per call, written as the calls happen. Checked on this project's FMU through both FMI
-//! versions and both interfaces, in a worker and in-process; on a Reference FMU against the
+//! per call, written as the calls happen. Checked on this project's FMU through FMI 2.0 and 3.0
+//! and on the FMI 1.0 C test FMU, both interfaces, in a worker and in-process; on a Reference
+//! FMU against the
 //! calls fmpy makes on the same run; on a C FMU that crashes in fmi2DoStep, whose log must end
 //! with that call; and for a file that cannot be written.
 

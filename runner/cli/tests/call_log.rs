@@ -266,6 +266,34 @@ fn fmi1_in_both_interfaces() {
     }
 }
 
+/// The FMI 1.0 bouncing ball through Model Exchange for 1 s (one bounce, at 0.45 s): the calls
+/// of the event handling and of its Integer and Boolean outputs are logged too, each fmiOK,
+/// and the bounce's fmiEventUpdate says the states changed (the velocity is reversed).
+#[test]
+fn fmi1_events_and_discrete_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = fmi1_fmu(dir.path(), "bouncing.fmu", "bouncing", false, str::to_owned);
+    let log = logged_run(dir.path(), &fmu, &["--stop-time", "1", "--output-interval", "0.1"]);
+    let calls = parse(&log);
+    for name in [
+        "fmiGetEventIndicators",
+        "fmiCompletedIntegratorStep",
+        "fmiEventUpdate",
+        "fmiGetContinuousStates",
+        "fmiGetInteger",
+        "fmiGetBoolean",
+    ] {
+        let made: Vec<&Call> = calls.iter().filter(|c| c.name == name).collect();
+        assert!(!made.is_empty(), "no {name} in the log:\n{log}");
+        assert!(made.iter().all(|c| c.status.as_deref() == Some("fmiOK")), "{name}: {made:?}");
+    }
+    let bounce = calls.iter().find(|c| c.name == "fmiEventUpdate").unwrap();
+    assert_eq!(bounce.arguments, "intermediateResults=fmiFalse");
+    assert!(bounce.results.contains("stateValuesChanged=fmiTrue"), "{bounce:?}");
+    let (header, rows) = read_csv(&dir.path().join("x.csv"));
+    assert_eq!(column(&header, &rows, "bounces").last(), Some(&1.0), "one bounce in 1 s");
+}
+
 /// A Reference FMU (FMI 2.0 Co-Simulation) run by the runner and by fmpy with the same grid:
 /// the instance's life is the same sequence of calls in both logs, and the steps have the same
 /// points and sizes (to 1e-12: both compute start + k h, perhaps in a different order).

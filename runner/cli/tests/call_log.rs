@@ -1,6 +1,7 @@
 //! `--log-fmi-calls [FILE]`: every FMI call with its arguments, status and duration, one line
-//! per call, written as the calls happen. Checked on this project's FMU through both FMI
-//! versions and both interfaces, in a worker and in-process; on a Reference FMU against the
+//! per call, written as the calls happen. Checked on this project's FMU through FMI 2.0 and 3.0
+//! and on the FMI 1.0 C test FMU, both interfaces, in a worker and in-process; on a Reference
+//! FMU against the
 //! calls fmpy makes on the same run; on a C FMU that crashes in fmi2DoStep, whose log must end
 //! with that call; and for a file that cannot be written.
 
@@ -55,7 +56,9 @@ fn parse(log: &str) -> Vec<Call> {
     for (k, line) in lines.iter().enumerate() {
         let open = line.find('(').unwrap_or_else(|| panic!("no argument list in {line:?}"));
         let name = line[..open].to_owned();
-        assert!(name.starts_with("fmi2") || name.starts_with("fmi3"), "{line:?} names no FMI function");
+        // FMI 1.0 names its functions fmiDoStep, ...; later versions fmi2DoStep, fmi3DoStep.
+        let fmi1 = name.strip_prefix("fmi").is_some_and(|rest| rest.starts_with(|c: char| c.is_ascii_uppercase()));
+        assert!(fmi1 || name.starts_with("fmi2") || name.starts_with("fmi3"), "{line:?} names no FMI function");
         let Some(arrow) = line.rfind(") -> ") else {
             assert_eq!(k + 1, lines.len(), "only the last line may lack its status: {line:?}");
             let arguments = line[open + 1..].strip_suffix(')').unwrap_or_else(|| panic!("{line:?}")).to_owned();
@@ -186,6 +189,109 @@ fn our_fmu_in_both_versions_and_interfaces() {
             }
         }
     }
+}
+
+/// FMI 1.0 (the C test FMU of a linear oscillator) through both interfaces, in a worker and in
+/// this process: the instance's life in the order FMI 1.0 prescribes (instantiate, the start
+/// time set for Model Exchange, initialize, the steps, terminate, free), each call fmiOK, the
+/// Booleans named fmiTrue/fmiFalse; Co-Simulation steps from each point of the grid as for
+/// FMI 2.0 (1e-15: the runner's start + k h), Model Exchange evaluates the derivatives; the last
+/// read returned the CSV's last value of y.
+#[test]
+fn fmi1_in_both_interfaces() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = ["--stop-time", "0.2", "--output-interval", "0.05"];
+    for co_simulation in [true, false] {
+        let fmu = fmi1_fmu(dir.path(), &format!("linear_{co_simulation}.fmu"), "linear", co_simulation, str::to_owned);
+        for mode in [&[][..], &["--in-process"][..]] {
+            let what = format!("co-simulation {co_simulation} {mode:?}");
+            let log = logged_run(dir.path(), &fmu, &[&grid[..], mode].concat());
+            let calls = parse(&log);
+            for c in &calls {
+                let fine = matches!(c.status.as_deref(), Some(s) if s == "fmiOK" || s.starts_with("0x") || s == "(void)");
+                assert!(fine, "{what}: {c:?} did not return fmiOK:\n{log}");
+            }
+            const LIFE: [&str; 10] = [
+                "fmiInstantiateSlave",
+                "fmiInitializeSlave",
+                "fmiDoStep",
+                "fmiTerminateSlave",
+                "fmiFreeSlaveInstance",
+                "fmiInstantiateModel",
+                "fmiSetTime",
+                "fmiInitialize",
+                "fmiTerminate",
+                "fmiFreeModelInstance",
+            ];
+            // Model Exchange sets the time at every step: only the first, before fmiInitialize.
+            let first_of_set_time = calls.iter().position(|c| c.name == "fmiSetTime");
+            let life: Vec<&str> = calls
+                .iter()
+                .enumerate()
+                .filter(|(k, c)| LIFE.contains(&c.name.as_str()) && (c.name != "fmiSetTime" || Some(*k) == first_of_set_time))
+                .map(|(_, c)| c.name.as_str())
+                .collect();
+            let expected: Vec<&str> = if co_simulation {
+                let mut e = vec!["fmiInstantiateSlave", "fmiInitializeSlave"];
+                e.extend(["fmiDoStep"; 4]);
+                e.extend(["fmiTerminateSlave", "fmiFreeSlaveInstance"]);
+                e
+            } else {
+                vec!["fmiInstantiateModel", "fmiSetTime", "fmiInitialize", "fmiTerminate", "fmiFreeModelInstance"]
+            };
+            assert_eq!(life, expected, "{what}:\n{log}");
+            let instantiate = &calls[0];
+            assert_eq!(instantiate.argument("loggingOn"), Some("fmiFalse"), "{what}: {instantiate:?}");
+            if co_simulation {
+                let initialize = calls.iter().find(|c| c.name == "fmiInitializeSlave").unwrap();
+                assert_eq!(initialize.arguments, "tStart=0.0, StopTimeDefined=fmiTrue, tStop=0.2", "{what}");
+                for (k, (t, h)) in steps(&calls, "fmiDoStep").iter().enumerate() {
+                    assert!((t - 0.05 * k as f64).abs() <= 1e-15 && (h - 0.05).abs() <= 1e-15, "{what}: step {k} is ({t}, {h}):\n{log}");
+                }
+                assert!(calls.iter().filter(|c| c.name == "fmiDoStep").all(|c| c.argument("newStep") == Some("fmiTrue")), "{what}");
+            } else {
+                assert_eq!(calls[1].arguments, "time=0.0", "{what}: the start time is set before fmiInitialize");
+                let initialize = calls.iter().find(|c| c.name == "fmiInitialize").unwrap();
+                assert!(initialize.results.starts_with("iterationConverged=fmiTrue"), "{what}: {initialize:?}");
+                let evaluations = calls.iter().filter(|c| c.name == "fmiGetDerivatives").count();
+                assert!(evaluations >= 4, "{what}: {evaluations} fmiGetDerivatives calls for 4 steps:\n{log}");
+                assert!(calls.iter().any(|c| c.name == "fmiGetDerivatives" && c.results.starts_with("derivatives=[")), "{what}:\n{log}");
+            }
+            let (header, rows) = read_csv(&dir.path().join("x.csv"));
+            let y = column(&header, &rows, "y");
+            let last_read = calls.iter().rev().find(|c| c.name == "fmiGetReal").unwrap_or_else(|| panic!("{what}: no read:\n{log}"));
+            let shown = format!("{:?}", y.last().unwrap());
+            assert!(last_read.results.contains(&shown), "{what}: the last read {last_read:?} does not hold y = {shown}");
+        }
+    }
+}
+
+/// The FMI 1.0 bouncing ball through Model Exchange for 1 s (one bounce, at 0.45 s): the calls
+/// of the event handling and of its Integer and Boolean outputs are logged too, each fmiOK,
+/// and the bounce's fmiEventUpdate says the states changed (the velocity is reversed).
+#[test]
+fn fmi1_events_and_discrete_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = fmi1_fmu(dir.path(), "bouncing.fmu", "bouncing", false, str::to_owned);
+    let log = logged_run(dir.path(), &fmu, &["--stop-time", "1", "--output-interval", "0.1"]);
+    let calls = parse(&log);
+    for name in [
+        "fmiGetEventIndicators",
+        "fmiCompletedIntegratorStep",
+        "fmiEventUpdate",
+        "fmiGetContinuousStates",
+        "fmiGetInteger",
+        "fmiGetBoolean",
+    ] {
+        let made: Vec<&Call> = calls.iter().filter(|c| c.name == name).collect();
+        assert!(!made.is_empty(), "no {name} in the log:\n{log}");
+        assert!(made.iter().all(|c| c.status.as_deref() == Some("fmiOK")), "{name}: {made:?}");
+    }
+    let bounce = calls.iter().find(|c| c.name == "fmiEventUpdate").unwrap();
+    assert_eq!(bounce.arguments, "intermediateResults=fmiFalse");
+    assert!(bounce.results.contains("stateValuesChanged=fmiTrue"), "{bounce:?}");
+    let (header, rows) = read_csv(&dir.path().join("x.csv"));
+    assert_eq!(column(&header, &rows, "bounces").last(), Some(&1.0), "one bounce in 1 s");
 }
 
 /// A Reference FMU (FMI 2.0 Co-Simulation) run by the runner and by fmpy with the same grid:

@@ -249,9 +249,14 @@ pub(crate) fn list<T: Debug>(values: &[T]) -> String {
     text
 }
 
-/// An FMI Boolean argument as the standard writes it (`fmi2True`, `fmi3False`).
+/// An FMI Boolean argument as the standard writes it (`fmiTrue` in FMI 1.0, `fmi2True`,
+/// `fmi3False`).
 pub(crate) fn boolean(version: u8, value: bool) -> String {
-    format!("fmi{version}{}", if value { "True" } else { "False" })
+    let value = if value { "True" } else { "False" };
+    match version {
+        1 => format!("fmi{value}"),
+        _ => format!("fmi{version}{value}"),
+    }
 }
 
 #[cfg(test)]
@@ -265,6 +270,14 @@ mod tests {
         let many: Vec<f64> = (0..25).map(f64::from).collect();
         assert_eq!(list(&many), "[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, ... (25 values in all)]");
         assert_eq!(list(&[1e-12, 0.5]), "[1e-12, 0.5]", "floats in the shortest form that reads back");
+    }
+
+    #[test]
+    fn booleans_are_named_as_their_fmi_version_writes_them() {
+        assert_eq!(boolean(1, true), "fmiTrue", "FMI 1.0 has no version in its names");
+        assert_eq!(boolean(1, false), "fmiFalse");
+        assert_eq!(boolean(2, true), "fmi2True");
+        assert_eq!(boolean(3, false), "fmi3False");
     }
 
     #[test]

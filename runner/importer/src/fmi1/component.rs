@@ -7,6 +7,7 @@ use std::ffi::{c_int, CString};
 use fmi_c::fmi1 as c;
 
 use super::{Binary, Registration};
+use crate::call_log::{self, boolean, list};
 use crate::model::{Kind, Variable};
 use crate::reader::Buffer;
 use crate::trace::{self, Call};
@@ -21,9 +22,10 @@ pub(crate) const FATAL: c_int = 4;
 /// How an instance of one interface ends: `fmiTerminate`/`fmiFreeModelInstance` or
 /// `fmiTerminateSlave`/`fmiFreeSlaveInstance`.
 #[derive(Clone, Copy)]
+/// Each with its trace code and its name in the call log.
 pub(crate) struct Ending {
-    pub(crate) terminate: (unsafe extern "C" fn(c::Component) -> c_int, Call),
-    pub(crate) free: (unsafe extern "C" fn(c::Component), Call),
+    pub(crate) terminate: (unsafe extern "C" fn(c::Component) -> c_int, Call, &'static str),
+    pub(crate) free: (unsafe extern "C" fn(c::Component), Call, &'static str),
 }
 
 /// One instance of an FMI 1.0 FMU.
@@ -109,12 +111,30 @@ impl<'a> Component<'a> {
         // SAFETY: one value reference and one value, both valid for the call.
         let (kind, status) = unsafe {
             match value {
-                Value::Real(v) => ("Real", (api.set_real)(comp, &vr, 1, v)),
-                Value::Integer(v) => ("Integer", (api.set_integer)(comp, &vr, 1, v)),
-                Value::Boolean(v) => ("Boolean", (api.set_boolean)(comp, &vr, 1, &(*v as c::Boolean))),
+                Value::Real(v) => {
+                    let entered = call_log::enter("fmiSetReal", || format!("vr=[{vr}], nvr=1, value=[{v:?}]"));
+                    let status = (api.set_real)(comp, &vr, 1, v);
+                    call_log::returned(entered, || c::status_name(status));
+                    ("Real", status)
+                }
+                Value::Integer(v) => {
+                    let entered = call_log::enter("fmiSetInteger", || format!("vr=[{vr}], nvr=1, value=[{v}]"));
+                    let status = (api.set_integer)(comp, &vr, 1, v);
+                    call_log::returned(entered, || c::status_name(status));
+                    ("Integer", status)
+                }
+                Value::Boolean(v) => {
+                    let entered = call_log::enter("fmiSetBoolean", || format!("vr=[{vr}], nvr=1, value=[{}]", boolean(1, *v)));
+                    let status = (api.set_boolean)(comp, &vr, 1, &(*v as c::Boolean));
+                    call_log::returned(entered, || c::status_name(status));
+                    ("Boolean", status)
+                }
                 Value::String(v) => {
                     let s = CString::new(v.as_str()).map_err(|_| format!("the value of {} contains a NUL byte", variable.name))?;
-                    ("String", (api.set_string)(comp, &vr, 1, &s.as_ptr()))
+                    let entered = call_log::enter("fmiSetString", || format!("vr=[{vr}], nvr=1, value=[{v:?}]"));
+                    let status = (api.set_string)(comp, &vr, 1, &s.as_ptr());
+                    call_log::returned(entered, || c::status_name(status));
+                    ("String", status)
                 }
                 Value::Int(_) | Value::Binary(_) | Value::List(_) => {
                     return Err(format!("{}: {value:?} is not a value of an FMI 1.0 variable", variable.name));
@@ -139,7 +159,9 @@ impl<'a> Component<'a> {
         let mut value: c::FmiString = std::ptr::null();
         trace::enter(Call::Fmi1Get, self.time);
         // SAFETY: one value reference and room for one pointer.
+        let entered = call_log::enter("fmiGetString", || format!("vr=[{vr}], nvr=1"));
         let status = unsafe { get(self.raw, &vr, 1, &mut value) };
+        call_log::returned(entered, || c::status_name(status));
         self.check(&format!("fmiGetString of {}", variable.name), status)?;
         // SAFETY: a non-NULL pointer from the FMU is a NUL-terminated string until its next call.
         unsafe { crate::text_of(value, &variable.name, "fmiGetString") }
@@ -152,8 +174,16 @@ impl<'a> Component<'a> {
             // Only Reals: they are in `out`'s order, so read straight into it.
             if let Some(group) = reader.groups.first() {
                 trace::enter(Call::Fmi1Get, self.time);
-                // SAFETY: as many value references as values.
-                let status = unsafe { (self.binary.api.common.get_real)(self.raw, group.vrs.as_ptr(), out.len(), out.as_mut_ptr()) };
+                let (get_real, raw, vrs, values, n) = (self.binary.api.common.get_real, self.raw, &group.vrs, out.as_mut_ptr(), out.len());
+                let status = call_log::call(
+                    "fmiGetReal",
+                    || format!("vr={}, nvr={n}", list(vrs)),
+                    // SAFETY: as many value references as values.
+                    || unsafe { get_real(raw, vrs.as_ptr(), n, values) },
+                    c::status_name,
+                    // SAFETY: the `n` values the call just wrote.
+                    |_| format!("value={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+                );
                 self.check("fmiGetReal", status)?;
             }
             return Ok(());
@@ -167,8 +197,16 @@ impl<'a> Component<'a> {
     #[inline]
     pub(crate) fn set_reals(&mut self, vrs: &[u32], values: &[f64]) -> Result<(), String> {
         trace::enter(Call::Fmi1Set, self.time);
-        // SAFETY: as many value references as values, valid for the call.
-        let status = unsafe { (self.binary.api.common.set_real)(self.raw, vrs.as_ptr(), vrs.len().min(values.len()), values.as_ptr()) };
+        let n = vrs.len().min(values.len());
+        let (set_real, raw) = (self.binary.api.common.set_real, self.raw);
+        let status = call_log::call(
+            "fmiSetReal",
+            || format!("vr={}, nvr={n}, value={}", list(&vrs[..n]), list(&values[..n])),
+            // SAFETY: `n` value references and as many values, valid for the call.
+            || unsafe { set_real(raw, vrs.as_ptr(), n, values.as_ptr()) },
+            c::status_name,
+            |_| String::new(),
+        );
         self.check("fmiSetReal", status)
     }
 
@@ -182,14 +220,30 @@ impl<'a> Component<'a> {
             // SAFETY: each buffer holds one value per value reference of its group.
             let (call, status) = unsafe {
                 match &mut group.buffer {
-                    Buffer::F64(b) => ("fmiGetReal", (api.common.get_real)(comp, vrs, n, b.as_mut_ptr())),
-                    Buffer::I32(b) => ("fmiGetInteger", (api.common.get_integer)(comp, vrs, n, b.as_mut_ptr())),
-                    Buffer::CharBool(b) => ("fmiGetBoolean", (api.common.get_boolean)(comp, vrs, n, b.as_mut_ptr())),
+                    Buffer::F64(b) => {
+                        let entered = call_log::enter("fmiGetReal", || format!("vr={}, nvr={n}", list(&group.vrs)));
+                        let status = (api.common.get_real)(comp, vrs, n, b.as_mut_ptr());
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(b)));
+                        ("fmiGetReal", status)
+                    }
+                    Buffer::I32(b) => {
+                        let entered = call_log::enter("fmiGetInteger", || format!("vr={}, nvr={n}", list(&group.vrs)));
+                        let status = (api.common.get_integer)(comp, vrs, n, b.as_mut_ptr());
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(b)));
+                        ("fmiGetInteger", status)
+                    }
+                    Buffer::CharBool(b) => {
+                        let entered = call_log::enter("fmiGetBoolean", || format!("vr={}, nvr={n}", list(&group.vrs)));
+                        let status = (api.common.get_boolean)(comp, vrs, n, b.as_mut_ptr());
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(b)));
+                        ("fmiGetBoolean", status)
+                    }
                     Buffer::Text(texts) => {
                         let Some(get_string) = api.functions.get_string else {
                             return Err(format!("{}: the FMU does not export fmiGetString", self.name));
                         };
                         let mut pointers = vec![std::ptr::null::<std::ffi::c_char>(); n];
+                        let entered = call_log::enter("fmiGetString", || format!("vr={}, nvr={n}", list(&group.vrs)));
                         let status = get_string(comp, vrs, n, pointers.as_mut_ptr());
                         if status == OK || status == WARNING {
                             for (text, &p) in texts.iter_mut().zip(&pointers) {
@@ -198,6 +252,7 @@ impl<'a> Component<'a> {
                                     if p.is_null() { String::new() } else { std::ffi::CStr::from_ptr(p).to_string_lossy().into_owned() };
                             }
                         }
+                        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(texts)));
                         ("fmiGetString", status)
                     }
                     _ => return Err(format!("{}: a {} variable cannot be read from an FMI 1.0 FMU", self.name, group.kind)),
@@ -220,11 +275,17 @@ impl Drop for Component<'_> {
         // and freeing is the last call.
         unsafe {
             if self.terminate_allowed {
-                trace::enter(self.ending.terminate.1, self.time);
-                (self.ending.terminate.0)(self.raw);
+                let (terminate, code, name) = self.ending.terminate;
+                trace::enter(code, self.time);
+                let entered = call_log::enter(name, String::new);
+                let status = terminate(self.raw);
+                call_log::returned(entered, || c::status_name(status));
             }
-            trace::enter(self.ending.free.1, self.time);
-            (self.ending.free.0)(self.raw);
+            let (free, code, name) = self.ending.free;
+            trace::enter(code, self.time);
+            let entered = call_log::enter(name, String::new);
+            free(self.raw);
+            call_log::returned(entered, || "(void)");
         }
     }
 }

@@ -7,6 +7,7 @@ use fmi_c::fmi1 as c;
 
 use super::component::{Component, Ending, DISCARD, OK, WARNING};
 use super::{Binary, Registration, SlaveApi};
+use crate::call_log::{self, boolean, list};
 use crate::trace::{self, Call};
 use crate::{Fmu, Reader, Step, Value, Variable};
 
@@ -30,6 +31,14 @@ impl<'a> CoSimulation<'a> {
         let mime = CString::new(MIME_TYPE).expect("no NUL");
         let registration = Registration::new(name);
         trace::enter(Call::Fmi1InstantiateSlave, f64::NAN);
+        let entered = call_log::enter("fmiInstantiateSlave", || {
+            format!(
+                "instanceName={name:?}, fmuGUID={:?}, fmuLocation={:?}, mimeType={MIME_TYPE:?}, timeout=0.0, visible=fmiFalse, interactive=fmiFalse, loggingOn={}",
+                fmu.token,
+                fmu.resource_uri,
+                boolean(1, debug_logging)
+            )
+        });
         // SAFETY: every pointer is valid for the call; the callbacks are static functions.
         let raw = unsafe {
             (api.instantiate_slave)(
@@ -44,9 +53,10 @@ impl<'a> CoSimulation<'a> {
                 debug_logging as c::Boolean,
             )
         };
+        call_log::returned_instance(entered, raw);
         let ending = Ending {
-            terminate: (api.terminate_slave, Call::Fmi1TerminateSlave),
-            free: (api.free_slave_instance, Call::Fmi1FreeSlaveInstance),
+            terminate: (api.terminate_slave, Call::Fmi1TerminateSlave, "fmiTerminateSlave"),
+            free: (api.free_slave_instance, Call::Fmi1FreeSlaveInstance, "fmiFreeSlaveInstance"),
         };
         let component = Component::new(binary, name, registration, ending, (raw, "fmiInstantiateSlave"))?;
         Ok(CoSimulation { component, api, start: 0.0, stop: f64::INFINITY })
@@ -69,6 +79,14 @@ impl<'a> CoSimulation<'a> {
     pub fn exit_initialization_mode(&mut self) -> Result<(), String> {
         let stop_defined = self.stop.is_finite();
         trace::enter(Call::Fmi1InitializeSlave, self.start);
+        let entered = call_log::enter("fmiInitializeSlave", || {
+            format!(
+                "tStart={:?}, StopTimeDefined={}, tStop={:?}",
+                self.start,
+                boolean(1, stop_defined),
+                if stop_defined { self.stop } else { 0.0 }
+            )
+        });
         // SAFETY: a live component and scalar arguments.
         let status = unsafe {
             (self.api.initialize_slave)(
@@ -78,6 +96,7 @@ impl<'a> CoSimulation<'a> {
                 if stop_defined { self.stop } else { 0.0 },
             )
         };
+        call_log::returned(entered, || c::status_name(status));
         self.component.check("fmiInitializeSlave", status)?;
         self.component.terminate_allowed = true;
         Ok(())
@@ -90,7 +109,9 @@ impl<'a> CoSimulation<'a> {
         };
         trace::enter(Call::Fmi1ResetSlave, self.component.time);
         // SAFETY: a live component.
+        let entered = call_log::enter("fmiResetSlave", String::new);
         let status = unsafe { reset(self.component.raw) };
+        call_log::returned(entered, || c::status_name(status));
         self.component.check("fmiResetSlave", status)?;
         self.component.terminate_allowed = false;
         Ok(())
@@ -125,7 +146,11 @@ impl<'a> CoSimulation<'a> {
         let n = vrs.len().min(orders.len()).min(values.len());
         trace::enter(Call::Fmi1Set, self.component.time);
         // SAFETY: `n` value references, orders and values.
+        let entered = call_log::enter("fmiSetRealInputDerivatives", || {
+            format!("vr={}, nvr={n}, order={}, value={}", list(&vrs[..n]), list(&orders[..n]), list(&values[..n]))
+        });
         let status = unsafe { set(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) };
+        call_log::returned(entered, || c::status_name(status));
         self.component.check("fmiSetRealInputDerivatives", status)
     }
 
@@ -137,7 +162,10 @@ impl<'a> CoSimulation<'a> {
         let n = vrs.len().min(orders.len()).min(out.len());
         trace::enter(Call::Fmi1Get, self.component.time);
         // SAFETY: `n` value references and orders, room for `n` values.
+        let entered =
+            call_log::enter("fmiGetRealOutputDerivatives", || format!("vr={}, nvr={n}, order={}", list(&vrs[..n]), list(&orders[..n])));
         let status = unsafe { get(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr()) };
+        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(&out[..n])));
         self.component.check("fmiGetRealOutputDerivatives", status)
     }
 
@@ -158,8 +186,15 @@ impl<'a> CoSimulation<'a> {
     #[inline(always)]
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<Step, String> {
         trace::enter(Call::Fmi1DoStep, t);
-        // SAFETY: a live component and scalar arguments.
-        let status = unsafe { (self.api.do_step)(self.component.raw, t, h, c::TRUE) };
+        let (do_step, raw) = (self.api.do_step, self.component.raw);
+        let status = call_log::call(
+            "fmiDoStep",
+            || format!("currentCommunicationPoint={t:?}, communicationStepSize={h:?}, newStep=fmiTrue"),
+            // SAFETY: a live component and scalar arguments.
+            || unsafe { do_step(raw, t, h, c::TRUE) },
+            c::status_name,
+            |_| String::new(),
+        );
         if status == DISCARD {
             return Ok(self.discarded(t));
         }
@@ -179,7 +214,9 @@ impl<'a> CoSimulation<'a> {
             let mut last = f64::NAN;
             trace::enter(Call::Fmi1GetRealStatus, t);
             // SAFETY: a live component and an out pointer.
+            let entered = call_log::enter("fmiGetRealStatus", || "s=fmiLastSuccessfulTime".to_owned());
             let status: c_int = unsafe { get(self.component.raw, c::LAST_SUCCESSFUL_TIME, &mut last) };
+            call_log::returned_with(entered, || c::status_name(status), || format!("value={last:?}"));
             (status == OK || status == WARNING).then_some(last).filter(|t| t.is_finite())
         });
         let when = match last_time {

@@ -13,6 +13,7 @@ use fmi_c::fmi1 as c;
 
 use super::component::{Component, Ending, OK};
 use super::{Binary, ModelApi, Registration};
+use crate::call_log::{self, boolean, list};
 use crate::exchange::{EventUpdate, Exchange, Names};
 use crate::logging::LogContext;
 use crate::trace::{self, Call};
@@ -37,10 +38,17 @@ pub(crate) fn instantiate<'a>(fmu: &'a Fmu, binary: &'a Binary, name: &str, debu
     let c_name = CString::new(name).map_err(|_| format!("instance name {name:?} contains a NUL byte"))?;
     let registration = Registration::new(name);
     trace::enter(Call::Fmi1InstantiateModel, f64::NAN);
+    let entered = call_log::enter("fmiInstantiateModel", || {
+        format!("instanceName={name:?}, GUID={:?}, loggingOn={}", fmu.token, boolean(1, debug_logging))
+    });
     // SAFETY: every pointer is valid for the call; the callbacks are static functions.
     let raw =
         unsafe { (api.instantiate_model)(c_name.as_ptr(), fmu.token.as_ptr(), c::ModelCallbacks::standard(), debug_logging as c::Boolean) };
-    let ending = Ending { terminate: (api.terminate, Call::Fmi1Terminate), free: (api.free_model_instance, Call::Fmi1FreeModelInstance) };
+    call_log::returned_instance(entered, raw);
+    let ending = Ending {
+        terminate: (api.terminate, Call::Fmi1Terminate, "fmiTerminate"),
+        free: (api.free_model_instance, Call::Fmi1FreeModelInstance, "fmiFreeModelInstance"),
+    };
     let component = Component::new(binary, name, registration, ending, (raw, "fmiInstantiateModel"))?;
     let (nx, nz) = (fmu.description.number_of_continuous_states, fmu.description.number_of_event_indicators);
     let exchange = Exchange1 { component, api, tolerance: None, initial: Cell::new(None) };
@@ -54,6 +62,19 @@ fn update_of(info: &c::EventInfo) -> EventUpdate {
         terminate: info.terminate_simulation != 0,
         next_event_time: (info.upcoming_time_event != 0).then_some(info.next_event_time),
     }
+}
+
+/// The event info fmiInitialize and fmiEventUpdate return, for the call log.
+fn event_info(info: &c::EventInfo) -> String {
+    format!(
+        "iterationConverged={}, stateValueReferencesChanged={}, stateValuesChanged={}, terminateSimulation={}, upcomingTimeEvent={}, nextEventTime={:?}",
+        boolean(1, info.iteration_converged != 0),
+        boolean(1, info.state_value_references_changed != 0),
+        boolean(1, info.state_values_changed != 0),
+        boolean(1, info.terminate_simulation != 0),
+        boolean(1, info.upcoming_time_event != 0),
+        info.next_event_time
+    )
 }
 
 impl Exchange for Exchange1<'_> {
@@ -96,31 +117,64 @@ impl Exchange for Exchange1<'_> {
 
     #[inline(always)]
     fn set_time(&self, t: f64) -> c_int {
-        // SAFETY: a live component and a scalar argument.
-        unsafe { (self.api.set_time)(self.component.raw, t) }
+        let (set_time, raw) = (self.api.set_time, self.component.raw);
+        call_log::call(
+            "fmiSetTime",
+            || format!("time={t:?}"),
+            // SAFETY: a live component and a scalar argument.
+            || unsafe { set_time(raw, t) },
+            c::status_name,
+            |_| String::new(),
+        )
     }
 
     #[inline(always)]
     fn set_continuous_states(&self, x: &[f64]) -> c_int {
-        // SAFETY: an array of x.len() states.
-        unsafe { (self.api.set_continuous_states)(self.component.raw, x.as_ptr(), x.len()) }
+        let (set_continuous_states, raw) = (self.api.set_continuous_states, self.component.raw);
+        call_log::call(
+            "fmiSetContinuousStates",
+            || format!("x={}, nx={}", list(x), x.len()),
+            // SAFETY: an array of x.len() states.
+            || unsafe { set_continuous_states(raw, x.as_ptr(), x.len()) },
+            c::status_name,
+            |_| String::new(),
+        )
     }
 
     #[inline(always)]
     fn get_derivatives(&self, dx: &mut [f64]) -> c_int {
-        // SAFETY: an array of dx.len() derivatives.
-        unsafe { (self.api.get_derivatives)(self.component.raw, dx.as_mut_ptr(), dx.len()) }
+        let (get_derivatives, raw, values, n) = (self.api.get_derivatives, self.component.raw, dx.as_mut_ptr(), dx.len());
+        call_log::call(
+            "fmiGetDerivatives",
+            || format!("nx={n}"),
+            // SAFETY: an array of n derivatives.
+            || unsafe { get_derivatives(raw, values, n) },
+            c::status_name,
+            // SAFETY: the `n` values the call just wrote.
+            |_| format!("derivatives={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 
     #[inline(always)]
     fn get_event_indicators(&self, z: &mut [f64]) -> c_int {
-        // SAFETY: an array of z.len() indicators.
-        unsafe { (self.api.get_event_indicators)(self.component.raw, z.as_mut_ptr(), z.len()) }
+        let (get_event_indicators, raw, values, n) = (self.api.get_event_indicators, self.component.raw, z.as_mut_ptr(), z.len());
+        call_log::call(
+            "fmiGetEventIndicators",
+            || format!("ni={n}"),
+            // SAFETY: an array of n indicators.
+            || unsafe { get_event_indicators(raw, values, n) },
+            c::status_name,
+            // SAFETY: the `n` values the call just wrote.
+            |_| format!("eventIndicators={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 
     fn get_continuous_states(&self, x: &mut [f64]) -> c_int {
+        let entered = call_log::enter("fmiGetContinuousStates", || format!("nx={}", x.len()));
         // SAFETY: an array of x.len() states.
-        unsafe { (self.api.get_continuous_states)(self.component.raw, x.as_mut_ptr(), x.len()) }
+        let status = unsafe { (self.api.get_continuous_states)(self.component.raw, x.as_mut_ptr(), x.len()) };
+        call_log::returned_with(entered, || c::status_name(status), || format!("x={}", list(x)));
+        status
     }
 
     fn enter_event_mode(&self) -> c_int {
@@ -135,7 +189,9 @@ impl Exchange for Exchange1<'_> {
         }
         let mut info = c::EventInfo::default();
         // SAFETY: a valid out pointer.
+        let entered = call_log::enter("fmiEventUpdate", || "intermediateResults=fmiFalse".to_owned());
         let status = unsafe { (self.api.event_update)(self.component.raw, c::FALSE, &mut info) };
+        call_log::returned_with(entered, || c::status_name(status), || event_info(&info));
         (status, update_of(&info))
     }
 
@@ -150,7 +206,9 @@ impl Exchange for Exchange1<'_> {
     fn completed_integrator_step(&self) -> (c_int, bool, bool) {
         let mut call_event_update: c::Boolean = c::FALSE;
         // SAFETY: a valid out pointer.
+        let entered = call_log::enter("fmiCompletedIntegratorStep", String::new);
         let status = unsafe { (self.api.completed_integrator_step)(self.component.raw, &mut call_event_update) };
+        call_log::returned_with(entered, || c::status_name(status), || format!("callEventUpdate={}", boolean(1, call_event_update != 0)));
         (status, call_event_update != 0, false)
     }
 
@@ -172,10 +230,14 @@ impl Exchange for Exchange1<'_> {
     fn exit_initialization_mode(&mut self) -> Result<(), String> {
         let mut info = c::EventInfo::default();
         trace::enter(Call::Fmi1Initialize, self.component.time);
+        let entered = call_log::enter("fmiInitialize", || {
+            format!("toleranceControlled={}, relativeTolerance={:?}", boolean(1, self.tolerance.is_some()), self.tolerance.unwrap_or(0.0))
+        });
         // SAFETY: a live component and a valid out pointer.
         let status = unsafe {
             (self.api.initialize)(self.component.raw, self.tolerance.is_some() as c::Boolean, self.tolerance.unwrap_or(0.0), &mut info)
         };
+        call_log::returned_with(entered, || c::status_name(status), || event_info(&info));
         self.component.check("fmiInitialize", status)?;
         self.component.terminate_allowed = true;
         self.initial.set(Some(info));

@@ -11,10 +11,12 @@ fn default_printer(line: &str) {
     eprintln!("{line}");
 }
 
-/// Sends every FMU log line (`[instance] level (category): text`) to `printer` from now on.
-pub fn set_log_printer(printer: fn(&str)) {
-    if let Ok(mut p) = PRINTER.write() {
-        *p = printer;
+/// Sends every FMU log line (`[instance] level (category): text`) to `printer` from now on;
+/// returns the printer it replaces.
+pub fn set_log_printer(printer: fn(&str)) -> fn(&str) {
+    match PRINTER.write() {
+        Ok(mut p) => std::mem::replace(&mut *p, printer),
+        Err(_) => default_printer,
     }
 }
 

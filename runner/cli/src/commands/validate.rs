@@ -189,7 +189,10 @@ fn reference_finding(fmu: &Path, report: &Report, given: Option<&reference::Refe
     let options =
         simulate::Options { fmu: fmu.display().to_string(), out: Some(work.path().join("run.csv")), ..simulate::Options::default() };
     let target = Target { path: fmu.to_path_buf(), experiment: Default::default() };
+    // The FMU's messages during this run are not the report's (the run's error keeps its reason).
+    let printer = fmi_importer::set_log_printer(|_| {});
     let outcome = simulate::simulate(&options, &target, Some(checked), tube).and_then(|o| o.ok_or_else(|| "no check was made".to_owned()));
+    fmi_importer::set_log_printer(printer);
     Some(match outcome {
         Err(e) => fail(format!("the run to compare with {} failed: {e}", checked.label)),
         Ok(Ok(verdict)) => Finding::passed(REFERENCE_CHECK, format!("the run matches {}", simulate::passed(&verdict, checked, tube))),

@@ -69,7 +69,9 @@ def test_all_75_functions_are_exported_from_the_x86_64_linux_binary(model, tmp_p
             resources = {n for n in names if n.startswith("resources/")}
             assert resources == {n for n in z2.namelist() if n.startswith("resources/")}
             assert all(z.read(n) == z2.read(n) for n in resources)
-    assert names - resources == {"modelDescription.xml", f"binaries/x86_64-linux/{model}.so", "documentation/index.html"}
+    # Plus the reference result of the default experiment under FMI-LS-REF (FMI 3.0 only).
+    ls_ref = {"extra/org.fmi-standard.fmi-ls-ref/fmi-ls-manifest.xml", f"extra/org.fmi-standard.fmi-ls-ref/{model}_out.csv"}
+    assert names - resources == {"modelDescription.xml", f"binaries/x86_64-linux/{model}.so", "documentation/index.html", *ls_ref}
     d = extract(str(path), unzipdir=str(tmp_path / "fmu"))
     lib = ctypes.CDLL(f"{d}/binaries/x86_64-linux/{model}.so")
     assert [name for name in FMI3_FUNCTIONS if not hasattr(lib, name)] == []

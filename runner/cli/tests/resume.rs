@@ -294,3 +294,39 @@ fn a_full_disk_is_reported_and_the_rows_on_it_stay_intact() {
     ok(run(&args(out.to_str().unwrap()), &["--resume"]));
     assert_eq!(std::fs::read(&out).unwrap(), expected);
 }
+
+/// A destination that is a stream (`--out /dev/null`, `/dev/stdout`, a FIFO) is written directly:
+/// the atomic temp-file-and-rename of result files, and a sweep's `<out>.partial`, would replace
+/// the device with a regular file (as root, `--out /dev/null` did replace /dev/null). A FIFO
+/// stands in for the device here: after `simulate` and `sweep`, it is still a FIFO, its reader got
+/// the whole CSV, and nothing was created beside it. `--resume` to a stream is refused.
+#[test]
+fn a_device_or_pipe_destination_is_written_not_replaced() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("rows");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let fifo_arg = fifo.to_str().unwrap();
+    for args in [
+        vec!["simulate", "second_order", "--stop-time", "1", "--out", fifo_arg],
+        vec!["sweep", "second_order", "--param", "a0=10:12:1", "--metric", "peak=max(q)", "--out", fifo_arg],
+    ] {
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
+        };
+        ok(runner(dir.path(), &args));
+        let text = reader.join().unwrap();
+        assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo(), "{args:?}: the FIFO was replaced");
+        let lines: Vec<&str> = text.lines().collect();
+        match args[0] {
+            "simulate" => assert!(lines[0].starts_with("time,") && lines.len() > 10, "{args:?}: {text}"),
+            _ => assert_eq!(lines.len(), 4, "{args:?}: the header and 3 points: {text}"),
+        }
+        let beside: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(beside, [std::ffi::OsString::from("rows")], "{args:?}: nothing created beside the FIFO");
+    }
+    let o =
+        runner(dir.path(), &["sweep", "second_order", "--param", "a0=10:12:1", "--metric", "peak=max(q)", "--out", fifo_arg, "--resume"]);
+    assert!(!o.status.success() && stderr(&o).contains("--resume needs a regular file"), "{}", stderr(&o));
+}

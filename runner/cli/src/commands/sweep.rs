@@ -278,8 +278,9 @@ fn isolation(timeout: Option<Duration>, worker_memory: Option<u64>, threads: usi
     workers::isolation(timeout, worker_memory.unwrap_or_else(|| runner_sandbox::default_memory_mib(threads)))
 }
 
-/// Where the rows go: standard output, or a durable file: `<out>.partial`, extended as points
-/// finish and renamed to `<out>` when complete, with its record beside it.
+/// Where the rows go: standard output (or a device or pipe named by `--out`), or a durable file:
+/// `<out>.partial`, extended as points finish and renamed to `<out>` when complete, with its
+/// record beside it.
 // One value per sweep: the variants' sizes do not matter.
 #[allow(clippy::large_enum_variant)]
 enum Destination {
@@ -331,6 +332,15 @@ impl Destination {
             writer.write_record(&table.header).map_err(|e| format!("cannot write CSV: {e}"))?;
             return Ok(Opened::Run(Destination::Stdout(writer)));
         };
+        if output::is_stream(out) {
+            // `<out>.partial` beside /dev/null would be a file in /dev, renamed over the device.
+            if resume {
+                return Err(format!("--resume needs a regular file: {} is a device or a pipe, which keeps no partial file", out.display()));
+            }
+            let mut writer = output::csv_writer(Some(out))?;
+            writer.write_record(&table.header).map_err(|e| format!("cannot write CSV: {e}"))?;
+            return Ok(Opened::Run(Destination::Stdout(writer)));
+        }
         let n = table.space.len;
         let current = current()?;
         let (partial_path, record_path) = (partial::partial_path(out), partial::record_path(out));
@@ -590,9 +600,9 @@ fn finish(finished: Finished, options: &Options, settings: &Settings, table: &Ta
             Destination::Stdout(_) => format!("interrupted after {delivered} of {n} points"),
         });
     }
-    let (destination_name, csv_on_stdout) = match (&destination, &settings.out) {
-        (Destination::File { .. }, Some(out)) => (out.display().to_string(), false),
-        _ => ("standard output".to_owned(), true),
+    let (destination_name, csv_on_stdout) = match &settings.out {
+        Some(out) => (out.display().to_string(), false),
+        None => ("standard output".to_owned(), true),
     };
     match destination {
         Destination::File { partial, .. } => partial.finish()?,

@@ -1,6 +1,8 @@
 //! Result files are never half-written: each is written under a temporary name beside its
 //! destination and renamed into place only once complete, so an interrupted or failed command
-//! leaves the previous file (or none), never a truncated one that looks finished.
+//! leaves the previous file (or none), never a truncated one that looks finished. A destination
+//! that is a stream (`/dev/null`, `/dev/stdout`, a FIFO) is written directly: a rename would
+//! replace the device with a regular file.
 
 use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
@@ -26,12 +28,26 @@ pub fn check_destination(dest: &Path) -> Result<(), String> {
     }
 }
 
-/// A result file being written: a temporary file in the destination's directory (deleted if
-/// dropped before [`ResultFile::commit`]).
+/// Whether `dest` exists and is neither a regular file nor a directory (after symbolic links): a
+/// device, a FIFO or a socket, written as a stream.
+pub fn is_stream(dest: &Path) -> bool {
+    std::fs::metadata(dest).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
+/// Where a result file's bytes go until it is committed.
+enum Sink {
+    /// A temporary file in the destination's directory (deleted if dropped before
+    /// [`ResultFile::commit`]).
+    Temp(BufWriter<tempfile::NamedTempFile>),
+    /// The destination itself, a stream ([`is_stream`]).
+    Stream(BufWriter<std::fs::File>),
+}
+
+/// A result file being written.
 pub struct ResultFile {
     /// `None` only inside `commit`.
-    temp: Option<BufWriter<tempfile::NamedTempFile>>,
-    /// The temporary file's path, registered for the second Ctrl-C.
+    sink: Option<Sink>,
+    /// The temporary file's path, registered for the second Ctrl-C (empty for a stream).
     partial: PathBuf,
     dest: PathBuf,
 }
@@ -39,6 +55,10 @@ pub struct ResultFile {
 impl ResultFile {
     /// Starts writing `dest`; its directory must exist.
     pub fn create(dest: &Path) -> Result<ResultFile, String> {
+        if is_stream(dest) {
+            let file = std::fs::OpenOptions::new().write(true).open(dest).map_err(|e| format!("cannot write {}: {e}", dest.display()))?;
+            return Ok(ResultFile { sink: Some(Sink::Stream(BufWriter::new(file))), partial: PathBuf::new(), dest: dest.to_path_buf() });
+        }
         let dir = directory_of(dest);
         let name = dest.file_name().ok_or_else(|| format!("{} is not a file name", dest.display()))?.to_string_lossy();
         let prefix = format!(".{name}.");
@@ -52,7 +72,7 @@ impl ResultFile {
             builder.tempfile_in(dir).map_err(|e| format!("cannot create a file in {} for {}: {e}", dir.display(), dest.display()))?;
         let partial = temp.path().to_path_buf();
         interrupt::register_partial(&partial);
-        Ok(ResultFile { temp: Some(BufWriter::new(temp)), partial, dest: dest.to_path_buf() })
+        Ok(ResultFile { sink: Some(Sink::Temp(BufWriter::new(temp))), partial, dest: dest.to_path_buf() })
     }
 
     /// The destination.
@@ -60,16 +80,20 @@ impl ResultFile {
         &self.dest
     }
 
-    /// Flushes and renames the file into place.
+    /// Flushes and renames the file into place (a stream: flushes).
     pub fn commit(mut self) -> Result<(), String> {
         let dest = &self.dest;
-        let buffered = self.temp.take().expect("a ResultFile is committed once");
-        let temp = buffered.into_inner().map_err(|e| format!("cannot write {}: {}", dest.display(), e.error()))?;
-        temp.persist(dest).map(|_| ()).map_err(|e| format!("cannot move the finished {} into place: {}", dest.display(), e.error))
+        match self.sink.take().expect("a ResultFile is committed once") {
+            Sink::Temp(buffered) => {
+                let temp = buffered.into_inner().map_err(|e| format!("cannot write {}: {}", dest.display(), e.error()))?;
+                temp.persist(dest).map(|_| ()).map_err(|e| format!("cannot move the finished {} into place: {}", dest.display(), e.error))
+            }
+            Sink::Stream(mut stream) => stream.flush().map_err(|e| format!("cannot write {}: {e}", dest.display())),
+        }
     }
 
-    fn file(&mut self) -> &mut BufWriter<tempfile::NamedTempFile> {
-        self.temp.as_mut().expect("a ResultFile is not written after commit")
+    fn sink(&mut self) -> &mut Sink {
+        self.sink.as_mut().expect("a ResultFile is not written after commit")
     }
 }
 
@@ -83,17 +107,27 @@ impl Drop for ResultFile {
 
 impl Write for ResultFile {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.file().write(buf)
+        match self.sink() {
+            Sink::Temp(f) => f.write(buf),
+            Sink::Stream(f) => f.write(buf),
+        }
     }
     fn flush(&mut self) -> std::io::Result<()> {
-        self.file().flush()
+        match self.sink() {
+            Sink::Temp(f) => f.flush(),
+            Sink::Stream(f) => f.flush(),
+        }
     }
 }
 
-// A zip writer seeks back to patch its local headers (the FMUs `runner build` packs).
+// A zip writer seeks back to patch its local headers (the FMUs `runner build` packs); a stream
+// refuses, as the device does.
 impl Seek for ResultFile {
     fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
-        self.file().seek(pos)
+        match self.sink() {
+            Sink::Temp(f) => f.seek(pos),
+            Sink::Stream(f) => f.seek(pos),
+        }
     }
 }
 

@@ -40,11 +40,26 @@ EXPECTED_FAILURES = {
     ("fmpy", v, "ModelExchange", rtol, model): reason + " (issue 37)"
     for (rtol, model), reason in _ME_AGREEMENT.items() for v in ("2.0", "3.0")
 }
+# fmi-sim's Model Exchange is explicit Euler at a fixed step (see importers.py), measured with
+# fmi-sim 0.7 from crates.io.
+_FMI_SIM_ME = {
+    "quarter_car": "fmi-sim's fixed-step Euler: z_r deviates from the runner by 6.3 % of its range at "
+                   "t = 8.55 s (the rule allows 5 %)",
+    "trebuchet": "fmi-sim's Model Exchange runs on past the landing: it ends at t = 2.944 s, where the "
+                 "FMU asks to terminate at the landing, t = 2.794 s, in fmpy and the runner",
+    # The rest only in the full matrix (tests/matrix/run).
+    "bumper": "fmi-sim's fixed-step Euler: in_contact switches at another sample than the runner's "
+              "(t = 0.484 s), a whole range",
+    "double_rocker": "fmi-sim's fixed-step Euler: theta3_ddot deviates by 6.6 % of its range at t = 1.14 s, "
+                     "next to the limit position",
+    "offset_crank_slider": "fmi-sim's fixed-step Euler: r1_ddot deviates by 6.6 % of its range at t = 1.49 s, "
+                           "next to the limit position",
+    "pendulum": "fmi-sim's fixed-step Euler: the conserved energy drifts by 2.6 times its (rounding-sized) "
+                "range over 10 s",
+}
 EXPECTED_FAILURES.update({
-    ("fmi-sim", "3.0", i, None, m):
-        "fmi-sim 0.7 refuses a unit attribute on a Float64 variable (\"unknown field unit in element "
-        "FmiFloat64\"); units are moving into TypeDefinitions, as the Reference FMUs write them (issue 37)"
-    for i in ("CoSimulation", "ModelExchange") for m in im.MODELS
+    ("fmi-sim", v, "ModelExchange", None, model): reason + " (issue 37)"
+    for model, reason in _FMI_SIM_ME.items() for v in ("2.0", "3.0")
 })
 
 

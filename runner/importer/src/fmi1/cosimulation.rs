@@ -7,7 +7,8 @@ use fmi_c::fmi1 as c;
 
 use super::component::{Component, Ending, DISCARD, OK, WARNING};
 use super::{Binary, Registration, SlaveApi};
-use crate::call_log::{self, boolean, list};
+use crate::call_log::{self, boolean};
+use crate::fmi2::cosimulation::{get_real_output_derivatives, set_real_input_derivatives};
 use crate::trace::{self, Call};
 use crate::{Fmu, Reader, Step, Value, Variable};
 
@@ -143,14 +144,8 @@ impl<'a> CoSimulation<'a> {
         let Some(set) = self.component.binary.api.functions.set_real_input_derivatives else {
             return Err(format!("{}: the FMU does not export fmiSetRealInputDerivatives", self.component.name));
         };
-        let n = vrs.len().min(orders.len()).min(values.len());
         trace::enter(Call::Fmi1Set, self.component.time);
-        // SAFETY: `n` value references, orders and values.
-        let entered = call_log::enter("fmiSetRealInputDerivatives", || {
-            format!("vr={}, nvr={n}, order={}, value={}", list(&vrs[..n]), list(&orders[..n]), list(&values[..n]))
-        });
-        let status = unsafe { set(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) };
-        call_log::returned(entered, || c::status_name(status));
+        let status = set_real_input_derivatives("fmiSetRealInputDerivatives", set, self.component.raw, vrs, orders, values, c::status_name);
         self.component.check("fmiSetRealInputDerivatives", status)
     }
 
@@ -159,13 +154,8 @@ impl<'a> CoSimulation<'a> {
         let Some(get) = self.component.binary.api.functions.get_real_output_derivatives else {
             return Err(format!("{}: the FMU does not export fmiGetRealOutputDerivatives", self.component.name));
         };
-        let n = vrs.len().min(orders.len()).min(out.len());
         trace::enter(Call::Fmi1Get, self.component.time);
-        // SAFETY: `n` value references and orders, room for `n` values.
-        let entered =
-            call_log::enter("fmiGetRealOutputDerivatives", || format!("vr={}, nvr={n}, order={}", list(&vrs[..n]), list(&orders[..n])));
-        let status = unsafe { get(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr()) };
-        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(&out[..n])));
+        let status = get_real_output_derivatives("fmiGetRealOutputDerivatives", get, self.component.raw, vrs, orders, out, c::status_name);
         self.component.check("fmiGetRealOutputDerivatives", status)
     }
 

@@ -77,14 +77,9 @@ impl<'a> CoSimulation<'a> {
         let Some(set) = self.component.binary.api.functions.set_real_input_derivatives else {
             return Err(format!("{}: the FMU does not export fmi2SetRealInputDerivatives", self.component.name));
         };
-        let n = vrs.len().min(orders.len()).min(values.len());
         trace::enter(Call::SetReal, self.component.time);
-        // SAFETY: `n` value references, orders and values, valid for the call.
-        let entered = call_log::enter("fmi2SetRealInputDerivatives", || {
-            format!("vr={}, nvr={n}, order={}, value={}", list(&vrs[..n]), list(&orders[..n]), list(&values[..n]))
-        });
-        let status = unsafe { set(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) };
-        call_log::returned(entered, || c::status_name(status));
+        let status =
+            set_real_input_derivatives("fmi2SetRealInputDerivatives", set, self.component.raw, vrs, orders, values, c::status_name);
         self.component.check("fmi2SetRealInputDerivatives", status)
     }
 
@@ -94,13 +89,8 @@ impl<'a> CoSimulation<'a> {
         let Some(get) = self.component.binary.api.functions.get_real_output_derivatives else {
             return Err(format!("{}: the FMU does not export fmi2GetRealOutputDerivatives", self.component.name));
         };
-        let n = vrs.len().min(orders.len()).min(out.len());
         trace::enter(Call::GetReal, self.component.time);
-        // SAFETY: `n` value references and orders, room for `n` values, valid for the call.
-        let entered =
-            call_log::enter("fmi2GetRealOutputDerivatives", || format!("vr={}, nvr={n}, order={}", list(&vrs[..n]), list(&orders[..n])));
-        let status = unsafe { get(self.component.raw, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr()) };
-        call_log::returned_with(entered, || c::status_name(status), || format!("value={}", list(&out[..n])));
+        let status = get_real_output_derivatives("fmi2GetRealOutputDerivatives", get, self.component.raw, vrs, orders, out, c::status_name);
         self.component.check("fmi2GetRealOutputDerivatives", status)
     }
 
@@ -166,4 +156,43 @@ impl<'a> CoSimulation<'a> {
         };
         Ok(Step::Ended { reason: format!("the model ended the simulation at {when}: {reason}"), last_time })
     }
+}
+
+/// `SetRealInputDerivatives` of FMI 2.0 or 1.0 (`name`; the same C signature in both), logged:
+/// the `orders[k]`-th time derivative of input `vrs[k]` is `values[k]`. Returns the status.
+pub(crate) fn set_real_input_derivatives(
+    name: &'static str,
+    set: c::SetRealInputDerivatives,
+    raw: c::Component,
+    vrs: &[u32],
+    orders: &[i32],
+    values: &[f64],
+    status_name: fn(c_int) -> &'static str,
+) -> c_int {
+    let n = vrs.len().min(orders.len()).min(values.len());
+    let entered =
+        call_log::enter(name, || format!("vr={}, nvr={n}, order={}, value={}", list(&vrs[..n]), list(&orders[..n]), list(&values[..n])));
+    // SAFETY: `n` value references, orders and values, valid for the call.
+    let status = unsafe { set(raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) };
+    call_log::returned(entered, || status_name(status));
+    status
+}
+
+/// `GetRealOutputDerivatives` of FMI 2.0 or 1.0 (`name`; the same C signature in both), logged:
+/// `out[k]` = the `orders[k]`-th time derivative of output `vrs[k]`. Returns the status.
+pub(crate) fn get_real_output_derivatives(
+    name: &'static str,
+    get: c::GetRealOutputDerivatives,
+    raw: c::Component,
+    vrs: &[u32],
+    orders: &[i32],
+    out: &mut [f64],
+    status_name: fn(c_int) -> &'static str,
+) -> c_int {
+    let n = vrs.len().min(orders.len()).min(out.len());
+    let entered = call_log::enter(name, || format!("vr={}, nvr={n}, order={}", list(&vrs[..n]), list(&orders[..n])));
+    // SAFETY: `n` value references and orders, room for `n` values, valid for the call.
+    let status = unsafe { get(raw, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr()) };
+    call_log::returned_with(entered, || status_name(status), || format!("value={}", list(&out[..n])));
+    status
 }

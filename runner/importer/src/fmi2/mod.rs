@@ -3,7 +3,7 @@
 //! exported the FMU beyond the standard.
 
 mod component;
-mod cosimulation;
+pub(crate) mod cosimulation;
 mod description;
 mod model_exchange;
 

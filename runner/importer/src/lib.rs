@@ -41,6 +41,7 @@ pub mod fmi2;
 pub mod fmi3;
 mod logging;
 pub mod model;
+pub mod number_text;
 mod reader;
 pub mod scratch;
 pub mod state;

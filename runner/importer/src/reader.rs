@@ -4,6 +4,7 @@
 //! integers too wide for an f64).
 
 use crate::model::{FmiVersion, Kind, Variable};
+use crate::number_text;
 
 /// The values of one type, as the FMI functions of the FMU's version fill them.
 #[derive(Debug, Clone)]
@@ -99,8 +100,8 @@ impl Buffer {
     /// them, Float32 in its own shortest form, Float64 as its f64 is printed.
     fn text_of_number(&self, x: f64) -> String {
         match self {
-            Buffer::F32(_) => format!("{:?}", x as f32),
-            Buffer::F64(_) => format!("{x:?}"),
+            Buffer::F32(_) => number_text::f32_text(x as f32),
+            Buffer::F64(_) => number_text::f64_text(x),
             _ => (x as i64).to_string(),
         }
     }
@@ -202,7 +203,7 @@ impl Reader {
     pub fn text_of_number(&self, c: usize, x: f64) -> String {
         if self.direct {
             // Read straight into `values`, not into the buffers.
-            return format!("{x:?}");
+            return number_text::f64_text(x);
         }
         self.groups[self.columns[c].0].buffer.text_of_number(x)
     }

@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use fmi_importer::call_log::CallLogTarget;
+use fmi_importer::number_text;
 use fmi_importer::{Causality, Description, Kind, Value, Variable};
 use runner_engine::exec::{Held, Runs};
 use runner_engine::input::InputTable;
@@ -347,8 +348,21 @@ pub fn run(options: &Options) -> Result<(), String> {
         Some(None) => Some(reference::shipped_required(&target.path)?),
         Some(Some(path)) => Some(reference::Reference::read(path)?),
     };
-    warn_if_nonstandard(&target.path);
-    let outcome = simulate(options, &target, checked.as_ref(), tube)?;
+    // The standard's check reads the description again with the validator's own parser: on the
+    // other core while this one loads the FMU, its warning printed before the run starts (or
+    // before the error of a run that could not start).
+    let outcome = std::thread::scope(|scope| {
+        let check = scope.spawn(|| fmi_validate::archive_description_problems(&target.path));
+        let mut check = Some(check);
+        let mut warn = || {
+            if let Some(check) = check.take() {
+                warn_if_nonstandard(&target.path, check.join().unwrap_or_default());
+            }
+        };
+        let outcome = simulate(options, &target, checked.as_ref(), tube, &mut warn);
+        warn();
+        outcome
+    })?;
     if let (Some(reference), Some(outcome)) = (&checked, outcome) {
         let verdict = outcome.map_err(|mismatch| format!("reference check failed: {mismatch}"))?;
         eprintln!("reference check passed: {}", passed(&verdict, reference, tube));
@@ -368,12 +382,13 @@ pub fn passed(verdict: &reference::Verdict, reference: &reference::Reference, tu
 /// The run (or runs, with `--overlay`) of `target` that `options` ask for, its CSV written and
 /// its plot drawn; with `checked`, the outcome of the run's check against it with `tube` (`Err`
 /// of the outer result: the run itself failed). `runner validate --reference-file` makes its
-/// check through this too.
+/// check through this too. `before_run` is called once the FMU is loaded, before it runs.
 pub fn simulate(
     options: &Options,
     target: &Target,
     checked: Option<&reference::Reference>,
     tube: reference::Tube,
+    before_run: &mut dyn FnMut(),
 ) -> Result<Option<Result<reference::Verdict, reference::Mismatch>>, String> {
     // In a worker, only the description is read here: the FMU's binary runs in the worker alone.
     let (held, source) = workers::open(&target.path, &options.integration, options.in_process)?;
@@ -381,6 +396,7 @@ pub fn simulate(
     let config = workers::isolation(timeout, runner_sandbox::default_memory_mib(1))?;
     let mut runs = Runs::new(&held, &config, &source);
     let simulation = resolve(options, target, &held)?;
+    before_run();
     let mut samples = checked.map(|_| Vec::new());
     let traces = execute(&simulation, &mut runs, options, held.identifier(), samples.as_mut())?;
     if let Some(path) = &options.plot {
@@ -395,10 +411,9 @@ pub fn simulate(
 /// The numbers of a run's CSV output columns at each time, kept for the reference check.
 type Samples = Vec<(f64, Vec<f64>)>;
 
-/// Warns in one line when the FMU's description breaks the standard (what `runner validate`'s
-/// static checks find): the runner may run what fmpy and others refuse.
-fn warn_if_nonstandard(fmu: &Path) {
-    let problems = fmi_validate::archive_description_problems(fmu);
+/// Warns in one line when the FMU's description breaks the standard (`problems`, what `runner
+/// validate`'s static checks find): the runner may run what fmpy and others refuse.
+fn warn_if_nonstandard(fmu: &Path, problems: Vec<String>) {
     if let Some(first) = problems.first() {
         let more = match problems.len() {
             1 => String::new(),
@@ -438,9 +453,9 @@ fn execute(
             last = t;
             row.clear();
             if simulation.overlaid.is_some() {
-                row.push(format!("{:?}", case.si));
+                row.push(number_text::f64_text(case.si));
             }
-            row.push(format!("{t:?}"));
+            row.push(number_text::f64_text(t));
             // Exactly as the FMU gave them: 64-bit integers in full, Binary in hexadecimal.
             row.extend((0..simulation.output_columns).map(|c| texts.text(c, values)));
             if let Some(samples) = samples.as_deref_mut() {

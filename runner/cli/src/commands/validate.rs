@@ -191,7 +191,8 @@ fn reference_finding(fmu: &Path, report: &Report, given: Option<&reference::Refe
     let target = Target { path: fmu.to_path_buf(), experiment: Default::default() };
     // The FMU's messages during this run are not the report's (the run's error keeps its reason).
     let printer = fmi_importer::set_log_printer(|_| {});
-    let outcome = simulate::simulate(&options, &target, Some(checked), tube).and_then(|o| o.ok_or_else(|| "no check was made".to_owned()));
+    let outcome = simulate::simulate(&options, &target, Some(checked), tube, &mut || {})
+        .and_then(|o| o.ok_or_else(|| "no check was made".to_owned()));
     fmi_importer::set_log_printer(printer);
     Some(match outcome {
         Err(e) => fail(format!("the run to compare with {} failed: {e}", checked.label)),

@@ -83,3 +83,20 @@ def test_the_build_packs_the_fmi3_fmu_where_the_ssd_names_it():
         for entry, version in (("resources/fmu3/road.fmu", "3.0"), ("resources/quarter_car.fmu", "2.0")):
             with zipfile.ZipFile(z.open(entry)) as fmu:
                 assert f'fmiVersion="{version}"' in fmu.read("modelDescription.xml").decode(), entry
+
+
+@pytest.mark.parametrize("element, message", [
+    ('<ssc:Dimension size="2"/>', "connector 'z_r_dot' of component 'road' is an array connector (ssc:Dimension, sizes 2): "
+                                  "array connectors are not supported, only scalars"),
+    ('<ssd:Clock name="tick"/>', "connector 'z_r_dot' of component 'road' is clocked by clock 'tick' (ssd:Clock): "
+                                 "clocked connectors are not supported"),
+], ids=["array", "clocked"])
+def test_array_and_clocked_connectors_are_refused_by_name(tmp_path, element, message):
+    """What the master cannot pass is refused before anything is loaded, with the SSD's line."""
+    folder = fmi3_twin(tmp_path)
+    ssd = folder / "SystemStructure.ssd"
+    ssd.write_text(ssd.read_text().replace('<ssc:Float64 unit="m/s"/></ssd:Connector>',
+                                           f'<ssc:Float64 unit="m/s"/>{element}</ssd:Connector>', 1))
+    done = runner("simulate", folder, "--out", tmp_path / "x.csv")
+    assert done.returncode != 0
+    assert f"SystemStructure.ssd, line 15: {message}" in done.stderr, done.stderr

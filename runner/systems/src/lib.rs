@@ -1,5 +1,5 @@
-//! Systems of FMUs: an SSP 1.0 system structure (a `.ssp` archive, a `SystemStructure.ssd`, or
-//! a folder holding one) read and flattened ([`ssd`]), its FMUs loaded ([`System::open`]), and
+//! Systems of FMUs: an SSP 1.0 or 2.0 system structure (a `.ssp` archive, a `SystemStructure.ssd`,
+//! or a folder holding one) read and flattened ([`ssd`]), its FMUs loaded ([`System::open`]), and
 //! run by a fixed-step co-simulation master ([`master`]): Jacobi (every component steps from t
 //! with the outputs at t, libcosim's and fmpy's semantics) or Gauss-Seidel in data-flow order.
 

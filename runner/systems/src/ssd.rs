@@ -1,12 +1,18 @@
-//! Reading an SSP 1.0 system structure: the SystemStructure.ssd, its parameter files (.ssv) and
-//! parameter mappings (.ssm), into a flat [`Structure`]: FMU components named by their path
-//! (`car`, or `sub.car` inside a nested system), the connections between FMU variables with
+//! Reading an SSP 1.0 or 2.0 system structure: the SystemStructure.ssd, its parameter files
+//! (.ssv) and parameter mappings (.ssm), into a flat [`Structure`]: FMU components named by their
+//! path (`car`, or `sub.car` inside a nested system), the connections between FMU variables with
 //! nested systems' connectors resolved, and the parameter values each component gets.
+//!
+//! SSP 2.0 keeps SSP 1.0's namespaces (`http://ssp-standard.org/SSP1/...`) and says
+//! `version="2.0"`; what it adds for FMI 3.0 is read here: the types Float64, Float32 and Int8 to
+//! UInt64 on connectors and in parameter files. Its array connectors (`ssc:Dimension`,
+//! `startIndices`), clocks (`ssc:Clock` connectors) and clocked connectors (`ssd:Clock`) are
+//! refused, naming the connector: the master passes scalar values once per step.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use fmi_importer::Interface;
+use fmi_importer::{Interface, Kind};
 
 use crate::xml::{self, Element};
 
@@ -30,6 +36,75 @@ pub struct Assignment {
     pub origin: String,
 }
 
+/// The type an SSD gives a connector: SSP 1.0's Real and Integer, which stand for any width, or
+/// one of SSP 2.0's FMI 3.0 types.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConnectorType {
+    /// `ssc:Real`: a Float64 or Float32 variable (FMI 2.0's Real).
+    Real,
+    /// `ssc:Integer`: an integer variable of any width.
+    Integer,
+    /// `ssc:Float64`, `ssc:Int8`, `ssc:Boolean`, ...: a variable of exactly this type
+    /// (Float64 is [`Kind::Real`], Int32 is [`Kind::Integer`]).
+    Exact(Kind),
+}
+
+impl ConnectorType {
+    /// The type of the element named `name` (`Real`, `Float64`, `UInt16`, ...); `None` for
+    /// `Clock` and what is not a type.
+    pub fn from_element(name: &str) -> Option<ConnectorType> {
+        Some(match name {
+            "Real" => ConnectorType::Real,
+            "Integer" => ConnectorType::Integer,
+            "Float64" => ConnectorType::Exact(Kind::Real),
+            "Float32" => ConnectorType::Exact(Kind::Float32),
+            "Int8" => ConnectorType::Exact(Kind::Int8),
+            "UInt8" => ConnectorType::Exact(Kind::UInt8),
+            "Int16" => ConnectorType::Exact(Kind::Int16),
+            "UInt16" => ConnectorType::Exact(Kind::UInt16),
+            "Int32" => ConnectorType::Exact(Kind::Integer),
+            "UInt32" => ConnectorType::Exact(Kind::UInt32),
+            "Int64" => ConnectorType::Exact(Kind::Int64),
+            "UInt64" => ConnectorType::Exact(Kind::UInt64),
+            "Boolean" => ConnectorType::Exact(Kind::Boolean),
+            "String" => ConnectorType::Exact(Kind::String),
+            "Enumeration" => ConnectorType::Exact(Kind::Enumeration),
+            "Binary" => ConnectorType::Exact(Kind::Binary),
+            _ => return None,
+        })
+    }
+
+    /// The SSP element's name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ConnectorType::Real => "Real",
+            ConnectorType::Integer => "Integer",
+            ConnectorType::Exact(kind) => kind.name_in(fmi_importer::FmiVersion::Fmi3),
+        }
+    }
+
+    /// True when a variable of type `kind` fits a connector of this type (SSP: a connector's
+    /// type that differs from its FMU variable's is an error).
+    pub fn accepts(self, kind: Kind) -> bool {
+        match self {
+            ConnectorType::Real => matches!(kind, Kind::Real | Kind::Float32),
+            ConnectorType::Integer => kind.integer_range().is_some(),
+            ConnectorType::Exact(k) => k == kind,
+        }
+    }
+}
+
+/// A connector an SSD declares on an FMU component.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Connector {
+    /// The FMU variable's name.
+    pub name: String,
+    /// Its type, when the SSD gives one.
+    pub data_type: Option<ConnectorType>,
+    /// The SSD's line, for messages.
+    pub line: usize,
+}
+
 /// An FMU component of the flattened system.
 #[derive(Debug, Clone)]
 pub struct ComponentSpec {
@@ -41,6 +116,8 @@ pub struct ComponentSpec {
     pub implementation: Option<Interface>,
     /// The unit of each connector that declares one.
     pub connector_units: HashMap<String, String>,
+    /// The connectors the SSD declares, in its order.
+    pub connectors: Vec<Connector>,
     /// Parameter values, in the order they apply (a later one wins).
     pub parameters: Vec<Assignment>,
 }
@@ -152,7 +229,7 @@ impl Structure {
         }
         let version = root.attribute("version").unwrap_or("");
         if !(version.starts_with("1.") || version.starts_with("2.")) {
-            return Err(format!("{file}: SSP version '{version}' is not supported (1.0, and 2.0 where it is the same)"));
+            return Err(format!("{file}: SSP version '{version}' is not supported (1.0 or 2.0)"));
         }
         let mut reader = Reader {
             base,
@@ -220,6 +297,34 @@ fn fixed_step(e: &Element, file: &str) -> Result<Option<f64>, String> {
     Ok(None)
 }
 
+/// The connector `c` of the element `owner` and its unit (Real, Float64 and Float32 have one),
+/// or why it is refused: an array connector (`ssc:Dimension`), a clock (`ssc:Clock`, the type)
+/// or a clocked connector (`ssd:Clock name=...`, the association with a clock).
+fn connector<'e>(c: &'e Element, owner: &str, file: &str) -> Result<(Connector, Option<&'e str>), String> {
+    let name = c.required("name", file)?;
+    let at = |what: String| format!("{file}, line {}: connector '{name}' of {owner} {what}", c.line);
+    if c.child("Dimension").is_some() {
+        let sizes: Vec<&str> =
+            c.children("Dimension").map(|d| d.attribute("size").or(d.attribute("sizeConnector")).unwrap_or("?")).collect();
+        return Err(at(format!(
+            "is an array connector (ssc:Dimension, sizes {}): array connectors are not supported, only scalars",
+            sizes.join(" x ")
+        )));
+    }
+    // Both the type Clock and the association with a clock are a `Clock` element; the
+    // association alone has a name.
+    if let Some(clock) = c.child("Clock") {
+        return Err(match clock.attribute("name") {
+            Some(by) => at(format!("is clocked by clock '{by}' (ssd:Clock): clocked connectors are not supported")),
+            None => at("is a Clock (ssc:Clock): clocks are not supported".to_owned()),
+        });
+    }
+    let typed = c.children.iter().find_map(|t| ConnectorType::from_element(&t.name).map(|ty| (ty, t)));
+    let unit = typed.and_then(|(_, t)| t.attribute("unit"));
+    let connector = Connector { name: name.to_owned(), data_type: typed.map(|(ty, _)| ty), line: c.line };
+    Ok((connector, unit))
+}
+
 fn linear_transformation(e: &Element, file: &str) -> Result<Option<(f64, f64)>, String> {
     if let Some(t) = e.child("LinearTransformation") {
         return Ok(Some((t.number("factor", file)?.unwrap_or(1.0), t.number("offset", file)?.unwrap_or(0.0))));
@@ -265,6 +370,14 @@ impl Reader<'_> {
         // The system's own connectors are the nodes "<path>.<connector>", which is what its
         // parent's connections call "<name>.<connector>".
         let own = prefix.strip_suffix('.').unwrap_or("");
+        // A system's own connectors carry no type the run needs, but an array or a clock there
+        // is refused as on a component.
+        if let Some(connectors) = system.child("Connectors") {
+            for c in connectors.children("Connector") {
+                let owner = if own.is_empty() { "the top system".to_owned() } else { format!("system '{own}'") };
+                connector(c, &owner, &file)?;
+            }
+        }
         if let Some(bindings) = system.child("ParameterBindings") {
             for assignment in self.read_bindings(bindings, &file)? {
                 self.system_bindings.push((prefix.to_owned(), assignment));
@@ -299,6 +412,14 @@ impl Reader<'_> {
                 };
                 let start = node(c.attribute("startElement"), c.required("startConnector", &file)?);
                 let end = node(c.attribute("endElement"), c.required("endConnector", &file)?);
+                for (indices, connector) in [("startIndices", &start), ("endIndices", &end)] {
+                    if let Some(list) = c.attribute(indices) {
+                        return Err(format!(
+                            "{file}, line {}: the connection from '{start}' to '{end}' selects elements {list} of the array connector '{connector}' ({indices}): array connectors are not supported",
+                            c.line
+                        ));
+                    }
+                }
                 let suppress = c.flag("suppressUnitConversion", &file)?.unwrap_or(false);
                 self.edges.push((start, end, linear_transformation(c, &file)?, suppress, c.line));
             }
@@ -314,8 +435,14 @@ impl Reader<'_> {
                 element.line
             ));
         }
-        let source = element.required("source", file)?;
         let at = || format!("{file}, line {}: component '{path}'", element.line);
+        // SSP 2.0 lets an architecture name components before their implementations exist.
+        let source = element.attribute("source").ok_or_else(|| {
+            format!(
+                "{}: no source: the component has no FMU to run (SSP 2.0 allows that for an architecture, not for a system to simulate)",
+                at()
+            )
+        })?;
         let source = match self.confined {
             Some(_) => self.inside(source, &at)?,
             None => {
@@ -348,24 +475,22 @@ impl Reader<'_> {
         };
         let index = self.components.len();
         let mut connector_units = HashMap::new();
-        if let Some(connectors) = element.child("Connectors") {
-            for c in connectors.children("Connector") {
-                let name = c.required("name", file)?.to_owned();
-                if let Some(unit) = ["Real", "Integer", "Boolean", "String", "Enumeration", "Binary"]
-                    .iter()
-                    .find_map(|t| c.child(t))
-                    .and_then(|t| t.attribute("unit"))
-                {
-                    connector_units.insert(name.clone(), unit.to_owned());
+        let mut connectors = Vec::new();
+        if let Some(list) = element.child("Connectors") {
+            for c in list.children("Connector") {
+                let (declared, unit) = connector(c, &format!("component '{path}'"), file)?;
+                if let Some(unit) = unit {
+                    connector_units.insert(declared.name.clone(), unit.to_owned());
                 }
-                self.fmu_nodes.insert(format!("{path}.{name}"), (index, name));
+                self.fmu_nodes.insert(format!("{path}.{}", declared.name), (index, declared.name.clone()));
+                connectors.push(declared);
             }
         }
         let parameters = match element.child("ParameterBindings") {
             Some(b) => self.read_bindings(b, file)?,
             None => Vec::new(),
         };
-        self.components.push(ComponentSpec { name: path, source, implementation, connector_units, parameters });
+        self.components.push(ComponentSpec { name: path, source, implementation, connector_units, connectors, parameters });
         Ok(())
     }
 
@@ -564,17 +689,58 @@ impl Reader<'_> {
     }
 }
 
+/// A parameter's value: SSP 1.0's Real, Integer, Boolean and String, and SSP 2.0's Float64,
+/// Float32 and Int8 to UInt64 (an integer within its type's range). SSP 2.0's array parameters (a
+/// `ssc:Dimension`, a list of values, several `ssv:Value`s) are refused, naming the parameter.
 fn parameter_value(p: &Element, file: &str) -> Result<ParameterValue, String> {
     let at = |what: &str| format!("{file}, line {}: parameter '{}': {what}", p.line, p.attribute("name").unwrap_or(""));
-    let typed = p.children.first().ok_or_else(|| at("no value (ssv:Real, ssv:Integer, ssv:Boolean or ssv:String)"))?;
-    let text = typed.attribute("value").ok_or_else(|| at("no value attribute"))?;
+    let typed =
+        p.children.first().ok_or_else(|| at("no value (ssv:Real, ssv:Float64, ssv:Integer, ssv:Int32, ssv:Boolean, ssv:String, ...)"))?;
+    let array = |count: usize| at(&format!("an array parameter ({count} values): array parameters are not supported, only scalars"));
+    if p.child("Dimension").is_some() {
+        return Err(at("an array parameter (ssc:Dimension): array parameters are not supported, only scalars"));
+    }
+    // SSP 2.0: a String may give its value as one ssv:Value child instead of the attribute.
+    let values: Vec<&Element> = typed.children("Value").collect();
+    if values.len() > 1 {
+        return Err(array(values.len()));
+    }
+    let text = values.first().map_or(typed.attribute("value"), |v| v.attribute("value")).ok_or_else(|| at("no value attribute"))?;
+    // Numbers, Booleans: an xs:list in SSP 2.0, where more than one item is an array.
+    let scalar = || {
+        let items = text.split_whitespace().count();
+        if items > 1 {
+            Err(array(items))
+        } else {
+            Ok(text.trim())
+        }
+    };
+    let integer = |kind: Kind| -> Result<ParameterValue, String> {
+        let text = scalar()?;
+        let (low, high) = kind.integer_range().expect("an integer type");
+        let name = if typed.name == "Integer" { "Integer" } else { kind.name_in(fmi_importer::FmiVersion::Fmi3) };
+        let i: i128 = text.parse().map_err(|_| at(&format!("'{text}' is not an integer")))?;
+        if i < low || i > high {
+            return Err(at(&format!("{i} is outside {name}'s range {low} to {high}")));
+        }
+        i64::try_from(i).map(ParameterValue::Integer).map_err(|_| at(&format!("{i} is above {} (not supported)", i64::MAX)))
+    };
     match typed.name.as_str() {
-        "Real" => {
+        "Real" | "Float64" | "Float32" => {
+            scalar()?;
             let x = typed.number("value", file)?.ok_or_else(|| at("no value"))?;
             Ok(ParameterValue::Real(x, typed.attribute("unit").map(str::to_owned)))
         }
-        "Integer" => text.trim().parse().map(ParameterValue::Integer).map_err(|_| at(&format!("'{text}' is not an integer"))),
-        "Boolean" => match text.trim() {
+        // SSP 1.0's Integer is an xs:int, as Int32.
+        "Integer" | "Int32" => integer(Kind::Integer),
+        "Int8" => integer(Kind::Int8),
+        "UInt8" => integer(Kind::UInt8),
+        "Int16" => integer(Kind::Int16),
+        "UInt16" => integer(Kind::UInt16),
+        "UInt32" => integer(Kind::UInt32),
+        "Int64" => integer(Kind::Int64),
+        "UInt64" => integer(Kind::UInt64),
+        "Boolean" => match scalar()? {
             "true" | "1" => Ok(ParameterValue::Boolean(true)),
             "false" | "0" => Ok(ParameterValue::Boolean(false)),
             _ => Err(at(&format!("'{text}' is not true or false"))),
@@ -673,5 +839,202 @@ mod tests {
         let wrong_version =
             Structure::parse(r#"<ssd:SystemStructureDescription version="0.9" name="t"/>"#, Path::new("/"), "t.ssd").unwrap_err();
         assert!(wrong_version.contains("SSP version '0.9' is not supported"));
+    }
+}
+
+/// SSP 2.0 files as the standard writes them (its namespaces are SSP 1.0's, its version 2.0):
+/// the FMI 3.0 types on connectors and in parameter files, and the refusals of what the master
+/// cannot pass (arrays, clocks), each naming the connector or parameter.
+#[cfg(test)]
+mod ssp2 {
+    use super::*;
+
+    const HEAD: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="2.0" name="t">"#;
+
+    /// An SSD whose component `a` has the connectors `connectors` (XML) and whose system holds
+    /// `more` after its elements (connectors, connections).
+    fn ssd(connectors: &str, more: &str) -> String {
+        format!(
+            "{HEAD}\n<ssd:System name=\"s\"><ssd:Elements>\n<ssd:Component name=\"a\" source=\"a.fmu\"><ssd:Connectors>\n{connectors}\n</ssd:Connectors></ssd:Component>\n</ssd:Elements>{more}</ssd:System></ssd:SystemStructureDescription>"
+        )
+    }
+
+    fn parse(text: &str) -> Result<Structure, String> {
+        Structure::parse(text, Path::new("/sys"), "t.ssd")
+    }
+
+    /// Every type SSP 2.0 puts on a connector is read as that type: the FMI 3.0 widths exactly,
+    /// SSP 1.0's Real and Integer as any float or integer width. Units stay with the floats.
+    #[test]
+    fn every_connector_type_is_read() {
+        let types = [
+            ("Real", ConnectorType::Real),
+            ("Float64", ConnectorType::Exact(Kind::Real)),
+            ("Float32", ConnectorType::Exact(Kind::Float32)),
+            ("Integer", ConnectorType::Integer),
+            ("Int8", ConnectorType::Exact(Kind::Int8)),
+            ("UInt8", ConnectorType::Exact(Kind::UInt8)),
+            ("Int16", ConnectorType::Exact(Kind::Int16)),
+            ("UInt16", ConnectorType::Exact(Kind::UInt16)),
+            ("Int32", ConnectorType::Exact(Kind::Integer)),
+            ("UInt32", ConnectorType::Exact(Kind::UInt32)),
+            ("Int64", ConnectorType::Exact(Kind::Int64)),
+            ("UInt64", ConnectorType::Exact(Kind::UInt64)),
+            ("Boolean", ConnectorType::Exact(Kind::Boolean)),
+            ("String", ConnectorType::Exact(Kind::String)),
+            ("Enumeration", ConnectorType::Exact(Kind::Enumeration)),
+            ("Binary", ConnectorType::Exact(Kind::Binary)),
+        ];
+        let connectors: String = types
+            .iter()
+            .map(|(t, _)| {
+                let attribute = match *t {
+                    "Real" | "Float64" | "Float32" => r#" unit="m/s""#,
+                    "Enumeration" => r#" name="E""#,
+                    "Binary" => r#" mime-type="application/octet-stream""#,
+                    _ => "",
+                };
+                format!(r#"<ssd:Connector name="c{t}" kind="input"><ssc:{t}{attribute}/></ssd:Connector>"#)
+            })
+            .collect();
+        let s = parse(&ssd(&connectors, "")).unwrap();
+        let read = &s.components[0].connectors;
+        assert_eq!(read.len(), types.len());
+        for ((name, expected), c) in types.iter().zip(read) {
+            assert_eq!((c.name.as_str(), c.data_type), (format!("c{name}").as_str(), Some(*expected)));
+            assert_eq!(expected.as_str(), *name, "the type's name is the element's");
+            assert_eq!(c.line, 5, "all on the line after <ssd:Connectors>");
+        }
+        let mut units: Vec<&str> = s.components[0].connector_units.keys().map(String::as_str).collect();
+        units.sort();
+        assert_eq!(units, ["cFloat32", "cFloat64", "cReal"]);
+        // Which FMU variable fits which connector type.
+        let fits = |t: ConnectorType, k: Kind| t.accepts(k);
+        assert!(fits(ConnectorType::Real, Kind::Real) && fits(ConnectorType::Real, Kind::Float32));
+        assert!(fits(ConnectorType::Integer, Kind::Int64) && fits(ConnectorType::Integer, Kind::UInt8));
+        assert!(fits(ConnectorType::Exact(Kind::Integer), Kind::Integer), "Int32 is FMI 3.0's Int32 and FMI 2.0's Integer");
+        assert!(!fits(ConnectorType::Exact(Kind::Real), Kind::Float32), "a Float64 connector is no Float32 variable");
+        assert!(!fits(ConnectorType::Exact(Kind::Integer), Kind::Int64));
+        assert!(!fits(ConnectorType::Integer, Kind::Boolean) && !fits(ConnectorType::Integer, Kind::Enumeration));
+        assert!(!fits(ConnectorType::Real, Kind::Integer));
+    }
+
+    /// An untyped connector (SSP: the FMU's variable decides) is read without a type.
+    #[test]
+    fn a_connector_without_a_type_takes_the_variables() {
+        let s = parse(&ssd(r#"<ssd:Connector name="u" kind="input"/>"#, "")).unwrap();
+        assert_eq!(s.components[0].connectors[0].data_type, None);
+    }
+
+    #[test]
+    fn array_connectors_are_refused_by_name() {
+        let array = r#"<ssd:Connector name="u" kind="input"><ssc:Float64/><ssc:Dimension size="3"/><ssc:Dimension sizeConnector="n"/></ssd:Connector>"#;
+        assert_eq!(
+            parse(&ssd(array, "")).unwrap_err(),
+            "t.ssd, line 5: connector 'u' of component 'a' is an array connector (ssc:Dimension, sizes 3 x n): array connectors are not supported, only scalars"
+        );
+        // On a system's own connector too.
+        let system = r#"<ssd:Connectors><ssd:Connector name="bus" kind="output"><ssc:Int8/><ssc:Dimension size="4"/></ssd:Connector></ssd:Connectors>"#;
+        let err = parse(&ssd(r#"<ssd:Connector name="y" kind="output"/>"#, system)).unwrap_err();
+        assert!(err.contains("connector 'bus' of the top system is an array connector (ssc:Dimension, sizes 4)"), "{err}");
+        // A connection to some elements of an array connector.
+        let scalars = r#"<ssd:Connector name="y" kind="output"/><ssd:Connector name="u" kind="input"/>"#;
+        let indices = r#"<ssd:Connections><ssd:Connection startElement="a" startConnector="y" startIndices="2" endElement="a" endConnector="u"/></ssd:Connections>"#;
+        assert_eq!(
+            parse(&ssd(scalars, indices)).unwrap_err(),
+            "t.ssd, line 7: the connection from 'a.y' to 'a.u' selects elements 2 of the array connector 'a.y' (startIndices): array connectors are not supported"
+        );
+    }
+
+    /// SSP 2.0 has two `Clock` elements on a connector: the type (ssc:Clock, a clock itself) and
+    /// the association (ssd:Clock name=..., a variable that ticks with a clock). Both are refused.
+    #[test]
+    fn clocks_and_clocked_connectors_are_refused_by_name() {
+        let clock = r#"<ssd:Connector name="tick" kind="output"><ssc:Clock intervalVariability="triggered"/></ssd:Connector>"#;
+        assert_eq!(
+            parse(&ssd(clock, "")).unwrap_err(),
+            "t.ssd, line 5: connector 'tick' of component 'a' is a Clock (ssc:Clock): clocks are not supported"
+        );
+        let clocked = r#"<ssd:Connector name="y" kind="output"><ssc:Int32/><ssd:Clock name="tick"/></ssd:Connector>"#;
+        assert_eq!(
+            parse(&ssd(clocked, "")).unwrap_err(),
+            "t.ssd, line 5: connector 'y' of component 'a' is clocked by clock 'tick' (ssd:Clock): clocked connectors are not supported"
+        );
+    }
+
+    /// SSP 2.0's parameter types: Float64 and Float32 as Reals, Int8 to UInt64 as integers in
+    /// their type's range, a String's value as a Value element; arrays refused by name.
+    #[test]
+    fn parameter_files_in_ssp2_types() {
+        let set = |parameters: &str| {
+            let binding = format!(
+                r#"<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="2.0" name="p"><ssv:Parameters>{parameters}</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>"#
+            );
+            let text = format!(
+                r#"{HEAD}<ssd:System name="s"><ssd:Elements><ssd:Component name="a" source="a.fmu">{binding}</ssd:Component></ssd:Elements></ssd:System></ssd:SystemStructureDescription>"#
+            );
+            parse(&text).map(|s| s.components[0].parameters.iter().map(|a| (a.variable.clone(), a.value.clone())).collect::<Vec<_>>())
+        };
+        let read = set(r#"<ssv:Parameter name="f"><ssv:Float64 value="2.5" unit="m"/></ssv:Parameter>
+<ssv:Parameter name="g"><ssv:Float32 value="-0.5"/></ssv:Parameter>
+<ssv:Parameter name="i"><ssv:Int8 value="-128"/></ssv:Parameter>
+<ssv:Parameter name="j"><ssv:UInt16 value="65535"/></ssv:Parameter>
+<ssv:Parameter name="k"><ssv:Int32 value="7"/></ssv:Parameter>
+<ssv:Parameter name="l"><ssv:Int64 value="-9223372036854775808"/></ssv:Parameter>
+<ssv:Parameter name="m"><ssv:UInt64 value="9223372036854775807"/></ssv:Parameter>
+<ssv:Parameter name="b"><ssv:Boolean value="true"/></ssv:Parameter>
+<ssv:Parameter name="s"><ssv:String><ssv:Value value="profile.csv"/></ssv:String></ssv:Parameter>"#)
+        .unwrap();
+        assert_eq!(
+            read,
+            [
+                ("f".into(), ParameterValue::Real(2.5, Some("m".into()))),
+                ("g".into(), ParameterValue::Real(-0.5, None)),
+                ("i".into(), ParameterValue::Integer(-128)),
+                ("j".into(), ParameterValue::Integer(65535)),
+                ("k".into(), ParameterValue::Integer(7)),
+                ("l".into(), ParameterValue::Integer(i64::MIN)),
+                ("m".into(), ParameterValue::Integer(i64::MAX)),
+                ("b".into(), ParameterValue::Boolean(true)),
+                ("s".into(), ParameterValue::String("profile.csv".into())),
+            ]
+        );
+        let err = |p: &str| set(p).unwrap_err();
+        assert!(err(r#"<ssv:Parameter name="i"><ssv:Int8 value="128"/></ssv:Parameter>"#)
+            .ends_with("parameter 'i': 128 is outside Int8's range -128 to 127"));
+        assert!(err(r#"<ssv:Parameter name="u"><ssv:UInt32 value="-1"/></ssv:Parameter>"#)
+            .ends_with("parameter 'u': -1 is outside UInt32's range 0 to 4294967295"));
+        assert!(err(r#"<ssv:Parameter name="m"><ssv:UInt64 value="18446744073709551615"/></ssv:Parameter>"#)
+            .ends_with("parameter 'm': 18446744073709551615 is above 9223372036854775807 (not supported)"));
+        assert!(err(r#"<ssv:Parameter name="x0"><ssv:Float64 value="0 0 0"/></ssv:Parameter>"#)
+            .ends_with("parameter 'x0': an array parameter (3 values): array parameters are not supported, only scalars"));
+        assert!(err(r#"<ssv:Parameter name="A"><ssv:Float64 value="1"/><ssc:Dimension size="1"/></ssv:Parameter>"#)
+            .ends_with("parameter 'A': an array parameter (ssc:Dimension): array parameters are not supported, only scalars"));
+        assert!(err(r#"<ssv:Parameter name="t"><ssv:String><ssv:Value value="a"/><ssv:Value value="b"/></ssv:String></ssv:Parameter>"#)
+            .ends_with("parameter 't': an array parameter (2 values): array parameters are not supported, only scalars"));
+        assert!(err(r#"<ssv:Parameter name="e"><ssv:Enumeration value="Red"/></ssv:Parameter>"#)
+            .ends_with("parameter 'e': values of type Enumeration are not supported"));
+    }
+
+    /// Broken SSP 2.0 files get a message with the file, the line and what is wrong.
+    #[test]
+    fn malformed_ssp2_files_are_explained() {
+        let unclosed = ssd(r#"<ssd:Connector name="u" kind="input"><ssc:Float64></ssd:Connector>"#, "");
+        let err = parse(&unclosed).unwrap_err();
+        assert!(err.starts_with("t.ssd, line 5: not well-formed XML"), "{err}");
+        let unnamed = ssd(r#"<ssd:Connector kind="input"><ssc:Float64/></ssd:Connector>"#, "");
+        assert_eq!(parse(&unnamed).unwrap_err(), "t.ssd, line 5: <Connector> has no attribute 'name'");
+        let bad_number = ssd(r#"<ssd:Connector name="u" kind="input"/>"#, "")
+            .replace("</ssd:System>", r#"</ssd:System><ssd:DefaultExperiment startTime="zero"/>"#);
+        assert!(parse(&bad_number).unwrap_err().contains("'zero' is not a finite number"));
+        // SSP 2.0 allows a component without an implementation (an architecture); it cannot run.
+        let sourceless = format!(
+            r#"{HEAD}<ssd:System name="s"><ssd:Elements><ssd:Component name="planned"/></ssd:Elements></ssd:System></ssd:SystemStructureDescription>"#
+        );
+        assert!(parse(&sourceless).unwrap_err().contains("component 'planned': no source: the component has no FMU to run"));
+        let future = HEAD.replace(r#"version="2.0""#, r#"version="3.0""#);
+        let err = parse(&format!("{future}</ssd:SystemStructureDescription>")).unwrap_err();
+        assert_eq!(err, "t.ssd: SSP version '3.0' is not supported (1.0 or 2.0)");
     }
 }

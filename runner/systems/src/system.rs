@@ -4,9 +4,9 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use fmi_importer::{Causality, Fmu, Unpacked};
+use fmi_importer::{Causality, Description, Fmu, Kind, Unpacked};
 
-use crate::ssd::Structure;
+use crate::ssd::{ComponentSpec, Structure};
 
 /// A component: its FMU and which of its outputs depend directly on which inputs.
 pub struct Component {
@@ -79,19 +79,63 @@ impl System {
             None => Structure::read(&ssd)?,
         };
         let mut components = Vec::with_capacity(structure.components.len());
-        for spec in &structure.components {
+        for (index, spec) in structure.components.iter().enumerate() {
             let at = |e: String| format!("component '{}': {e}", spec.name);
             let source = spec.source.strip_prefix(ssd.parent().unwrap_or(Path::new(""))).unwrap_or(&spec.source);
             if !spec.source.is_file() {
                 return Err(at(format!("its FMU {} is not in the system", source.display())));
             }
             let unpacked = Unpacked::open_as(&spec.source, spec.implementation).map_err(at)?;
+            let linked = structure.links.iter().flat_map(|l| [&l.from, &l.to]).filter(|(c, _)| *c == index);
+            check_connectors(&unpacked.description, unpacked.fmi3.as_ref(), spec, linked.map(|(_, v)| v.as_str())).map_err(at)?;
             let feedthrough = feedthrough(&unpacked);
             let fmu = Fmu::load_unpacked(&spec.source, unpacked.dir.path(), Some(unpacked.interface)).map_err(at)?;
             components.push(Component { name: spec.name.clone(), fmu, feedthrough, _dir: unpacked.dir });
         }
         Ok(System { path: path.to_path_buf(), structure, components, _archive: archive })
     }
+}
+
+/// The SSD's connectors against the FMU: a connector's declared type must be its variable's
+/// (SSP calls a difference an error), and a connected variable must be a scalar value that no
+/// clock governs (FMI 3.0 arrays, Clocks and clocked variables are refused by name; the master
+/// passes scalar values once per step). `d` is the FMU's description, `fmi3` its FMI 3.0 one as
+/// written (clocks are there); `linked`: the component's connected variables.
+fn check_connectors<'n>(
+    d: &Description,
+    fmi3: Option<&fmi_schema::fmi3::ModelDescription>,
+    spec: &ComponentSpec,
+    linked: impl Iterator<Item = &'n str>,
+) -> Result<(), String> {
+    for c in &spec.connectors {
+        let (Some(declared), Some(v)) = (c.data_type, d.variable(&c.name)) else { continue };
+        if !declared.accepts(v.kind) {
+            return Err(format!(
+                "connector '{}' (line {}) is declared {}, but the FMU's variable '{}' is {}",
+                c.name,
+                c.line,
+                declared.as_str(),
+                v.name,
+                v.kind.name_in(d.fmi_version)
+            ));
+        }
+    }
+    for name in linked {
+        let Some(v) = d.variable(name) else { continue };
+        if v.kind == Kind::Clock {
+            return Err(format!("'{name}' is a Clock: clocked connections are not supported"));
+        }
+        if v.is_array() {
+            return Err(format!("'{name}' is an array variable: array connections are not supported, only scalars"));
+        }
+        let clocks = fmi3.and_then(|raw| raw.variable(name)).and_then(|raw| raw.clocks.as_ref());
+        if let Some(clocks) = clocks.filter(|c| !c.is_empty()) {
+            let names: Vec<String> =
+                clocks.iter().map(|&vr| d.variable_by_reference(vr).map_or(format!("valueReference {vr}"), |c| c.name.clone())).collect();
+            return Err(format!("'{name}' is clocked by {}: clocked connections are not supported", names.join(", ")));
+        }
+    }
+    Ok(())
 }
 
 /// Output name -> inputs it depends on, from the raw ModelStructure of either FMI version.
@@ -133,6 +177,60 @@ fn feedthrough(unpacked: &Unpacked) -> HashMap<String, Vec<String>> {
         out.entry(v.name.clone()).or_insert_with(|| inputs.clone());
     }
     out
+}
+
+/// An SSD's connectors against an FMI 3.0 FMU's variables: declared types must match, and
+/// connected Clocks, clocked variables and arrays are refused by name.
+#[cfg(test)]
+mod connectors {
+    use super::*;
+    use crate::ssd::{Connector, ConnectorType};
+
+    const XML: &str = r#"<fmiModelDescription fmiVersion="3.0" modelName="m" instantiationToken="t"><CoSimulation modelIdentifier="m"/><ModelVariables>
+<Float64 name="time" valueReference="0" causality="independent" variability="continuous"/>
+<Float64 name="y" valueReference="1" causality="output" variability="continuous"/>
+<Int32 name="n" valueReference="2" causality="input" start="0"/>
+<Clock name="tick" valueReference="3" causality="input" intervalVariability="constant" intervalDecimal="1"/>
+<Int32 name="count" valueReference="4" causality="output" variability="discrete" clocks="3"/>
+<Float64 name="v" valueReference="5" causality="output" variability="continuous"><Dimension start="2"/></Float64>
+</ModelVariables><ModelStructure><Output valueReference="1"/><Output valueReference="4"/><Output valueReference="5"/></ModelStructure></fmiModelDescription>"#;
+
+    fn check(declared: &[(&str, ConnectorType)], linked: &[&str]) -> Result<(), String> {
+        let raw = fmi_schema::fmi3::ModelDescription::from_xml(XML).unwrap();
+        let d = fmi_importer::fmi3::describe(&raw);
+        let spec = ComponentSpec {
+            name: "a".into(),
+            source: PathBuf::from("a.fmu"),
+            implementation: None,
+            connector_units: HashMap::new(),
+            connectors: declared.iter().map(|(n, t)| Connector { name: (*n).into(), data_type: Some(*t), line: 9 }).collect(),
+            parameters: Vec::new(),
+        };
+        check_connectors(&d, Some(&raw), &spec, linked.iter().copied())
+    }
+
+    #[test]
+    fn declared_types_must_be_the_variables() {
+        assert_eq!(check(&[("y", ConnectorType::Exact(Kind::Real)), ("n", ConnectorType::Exact(Kind::Integer))], &["y", "n"]), Ok(()));
+        assert_eq!(check(&[("y", ConnectorType::Real), ("n", ConnectorType::Integer)], &[]), Ok(()), "SSP 1.0's types fit any width");
+        assert_eq!(
+            check(&[("n", ConnectorType::Exact(Kind::Int8))], &[]).unwrap_err(),
+            "connector 'n' (line 9) is declared Int8, but the FMU's variable 'n' is Int32"
+        );
+        assert_eq!(
+            check(&[("y", ConnectorType::Exact(Kind::Float32))], &[]).unwrap_err(),
+            "connector 'y' (line 9) is declared Float32, but the FMU's variable 'y' is Float64"
+        );
+    }
+
+    #[test]
+    fn connected_clocks_clocked_variables_and_arrays_are_refused() {
+        assert_eq!(check(&[], &["tick"]).unwrap_err(), "'tick' is a Clock: clocked connections are not supported");
+        assert_eq!(check(&[], &["count"]).unwrap_err(), "'count' is clocked by tick: clocked connections are not supported");
+        assert_eq!(check(&[], &["v"]).unwrap_err(), "'v' is an array variable: array connections are not supported, only scalars");
+        // Unconnected, they are no concern of the master's.
+        assert_eq!(check(&[], &["y"]), Ok(()));
+    }
 }
 
 /// Hostile archives: a system someone sends may only use the files it holds. Each archive

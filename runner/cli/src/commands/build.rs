@@ -322,8 +322,8 @@ pub fn build(requested: &[String]) -> Result<Vec<PathBuf>, String> {
     for name in &wanted_systems {
         let models = system_models(&root, name, &known)?;
         for m in &models {
-            if !ids.contains(m) {
-                ids.push(m.clone());
+            if !ids.contains(&m.model) {
+                ids.push(m.model.clone());
             }
         }
         uses.push((name, models));
@@ -338,26 +338,52 @@ pub fn build(requested: &[String]) -> Result<Vec<PathBuf>, String> {
     Ok(built)
 }
 
+/// A model of this workspace that a system uses, as the FMU its source names:
+/// `resources/<model>.fmu` is the FMI 2.0 FMU (`target/fmu/`), `resources/fmu3/<model>.fmu` the
+/// FMI 3.0 one (`target/fmu3/`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SystemModel {
+    pub model: String,
+    pub fmi3: bool,
+}
+
+impl SystemModel {
+    /// Its path in the archive, as the SSD names it.
+    fn entry(&self) -> String {
+        if self.fmi3 {
+            format!("resources/fmu3/{}.fmu", self.model)
+        } else {
+            format!("resources/{}.fmu", self.model)
+        }
+    }
+}
+
 /// The models system `name` takes from this workspace: its components' sources
-/// `resources/<model>.fmu`.
-fn system_models(root: &Path, name: &str, known: &[String]) -> Result<Vec<String>, String> {
+/// `resources/<model>.fmu` (FMI 2.0) and `resources/fmu3/<model>.fmu` (FMI 3.0).
+fn system_models(root: &Path, name: &str, known: &[String]) -> Result<Vec<SystemModel>, String> {
     let ssd = root.join("systems").join(name).join("SystemStructure.ssd");
     let structure = fmi_systems::ssd::Structure::read(&ssd)?;
     let dir = root.join("systems").join(name);
     let mut models = Vec::new();
     for c in &structure.components {
         let relative = c.source.strip_prefix(&dir).unwrap_or(&c.source);
-        let model = relative.strip_prefix("resources").ok().and_then(|p| p.to_str()).and_then(|p| p.strip_suffix(".fmu"));
+        let in_resources = relative.strip_prefix("resources").ok();
+        let (fmi3, file) = match in_resources.and_then(|p| p.strip_prefix("fmu3").ok()) {
+            Some(file) => (true, Some(file)),
+            None => (false, in_resources),
+        };
+        let model = file.and_then(|p| p.to_str()).and_then(|p| p.strip_suffix(".fmu"));
         match model {
             Some(m) if known.iter().any(|k| k == m) => {
-                if !models.iter().any(|x: &String| x == m) {
-                    models.push(m.to_owned());
+                let wanted = SystemModel { model: m.to_owned(), fmi3 };
+                if !models.contains(&wanted) {
+                    models.push(wanted);
                 }
             }
             _ if c.source.is_file() => {}
             _ => {
                 return Err(format!(
-                    "system {name}: component '{}' has source {}, neither resources/<model>.fmu of a model here ({}) nor a file in systems/{name}",
+                    "system {name}: component '{}' has source {}, neither resources/<model>.fmu (FMI 2.0) nor resources/fmu3/<model>.fmu (FMI 3.0) of a model here ({}) nor a file in systems/{name}",
                     c.name,
                     relative.display(),
                     known.join(", ")
@@ -369,8 +395,8 @@ fn system_models(root: &Path, name: &str, known: &[String]) -> Result<Vec<String
 }
 
 /// Packs `systems/<name>/` (the SSD, parameter files, any other files) and the FMUs of `models`
-/// as `resources/<model>.fmu` into `target/ssp/<name>.ssp`.
-pub fn pack_system(root: &Path, name: &str, models: &[String]) -> Result<PathBuf, String> {
+/// (as their sources name them) into `target/ssp/<name>.ssp`.
+pub fn pack_system(root: &Path, name: &str, models: &[SystemModel]) -> Result<PathBuf, String> {
     let dir = root.join("systems").join(name);
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     let mut pending = vec![dir.clone()];
@@ -389,8 +415,8 @@ pub fn pack_system(root: &Path, name: &str, models: &[String]) -> Result<PathBuf
         }
     }
     for m in models {
-        let fmu = workspace::fmu_path(root, m);
-        files.push((format!("resources/{m}.fmu"), std::fs::read(&fmu).map_err(|e| format!("cannot read {}: {e}", fmu.display()))?));
+        let fmu = if m.fmi3 { workspace::fmu3_path(root, &m.model) } else { workspace::fmu_path(root, &m.model) };
+        files.push((m.entry(), std::fs::read(&fmu).map_err(|e| format!("cannot read {}: {e}", fmu.display()))?));
     }
     files.sort_by(|a, b| (a.0 != "SystemStructure.ssd", &a.0).cmp(&(b.0 != "SystemStructure.ssd", &b.0)));
     let dest = workspace::target_dir(root).join("ssp").join(format!("{name}.ssp"));

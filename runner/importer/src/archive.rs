@@ -124,33 +124,56 @@ impl Checked {
     /// Extracts the checked archive into the existing directory `dest`.
     pub fn extract(self, dest: &Path) -> Result<(), String> {
         let Checked { mut zip, plan, at, .. } = self;
-        for (i, relative, is_dir, declared) in plan {
-            let target = dest.join(&relative);
-            let what = shown(&relative.to_string_lossy());
-            // The temporary path means nothing to the user; the entry's path inside the archive does.
-            let fail = |e: &dyn std::fmt::Display| format!("{at}: cannot extract '{what}': {e}");
-            if is_dir || relative.as_os_str().is_empty() {
-                std::fs::create_dir_all(&target).map_err(|e| fail(&e))?;
-                continue;
-            }
-            if let Some(parent) = target.parent() {
-                std::fs::create_dir_all(parent).map_err(|e| fail(&e))?;
-            }
-            let mut entry = zip.by_index(i).map_err(|e| fail(&e))?;
-            // create_new: never overwrite (or follow a link at) a path an earlier entry made.
-            let file = std::fs::OpenOptions::new().write(true).create_new(true).open(&target).map_err(|e| fail(&e))?;
-            // A large buffer: a shared library in 8 KiB writes is 150 system calls.
-            let mut out = std::io::BufWriter::with_capacity(1 << 18, file);
-            // Declared sizes can lie: copy at most one byte more than declared, enough to tell.
-            // Each file then stays within its declared size, so the total stays within the limit.
-            let copied = std::io::copy(&mut (&mut entry).take(declared.saturating_add(1)), &mut out).map_err(|e| fail(&e))?;
-            if copied > declared {
-                return Err(fail(&format!("it unpacks to more than its declared size of {declared} bytes")));
-            }
-            out.flush().map_err(|e| fail(&e))?;
+        for entry in plan {
+            extract_entry(&mut zip, entry, dest, &at)?;
         }
         Ok(())
     }
+
+    /// Extracts the file `name` (a path inside the archive) into `dest` first, if the archive
+    /// has it; [`Checked::extract`] then extracts the others.
+    pub fn extract_first(&mut self, name: &str, dest: &Path) -> Result<(), String> {
+        match self.plan.iter().position(|(_, relative, is_dir, _)| !is_dir && relative == Path::new(name)) {
+            Some(k) => {
+                let entry = self.plan.remove(k);
+                extract_entry(&mut self.zip, entry, dest, &self.at)
+            }
+            None => Ok(()),
+        }
+    }
+}
+
+/// Extracts one planned entry (index, path inside the target, is a directory, declared size)
+/// of the archive `at` into `dest`.
+fn extract_entry(
+    zip: &mut zip::ZipArchive<std::fs::File>,
+    (i, relative, is_dir, declared): (usize, PathBuf, bool, u64),
+    dest: &Path,
+    at: &str,
+) -> Result<(), String> {
+    let target = dest.join(&relative);
+    let what = shown(&relative.to_string_lossy());
+    // The temporary path means nothing to the user; the entry's path inside the archive does.
+    let fail = |e: &dyn std::fmt::Display| format!("{at}: cannot extract '{what}': {e}");
+    if is_dir || relative.as_os_str().is_empty() {
+        return std::fs::create_dir_all(&target).map_err(|e| fail(&e));
+    }
+    if let Some(parent) = target.parent() {
+        std::fs::create_dir_all(parent).map_err(|e| fail(&e))?;
+    }
+    let mut entry = zip.by_index(i).map_err(|e| fail(&e))?;
+    // create_new: never overwrite (or follow a link at) a path an earlier entry made.
+    let file = std::fs::OpenOptions::new().write(true).create_new(true).open(&target).map_err(|e| fail(&e))?;
+    // A large buffer: a shared library in 8 KiB writes is 150 system calls.
+    let mut out = std::io::BufWriter::with_capacity(1 << 18, file);
+    // Declared sizes can lie: copy at most one byte more than declared, enough to tell.
+    // Each file then stays within its declared size, so the total stays within the limit.
+    let copied = std::io::copy(&mut (&mut entry).take(declared.saturating_add(1)), &mut out).map_err(|e| fail(&e))?;
+    if copied > declared {
+        return Err(fail(&format!("it unpacks to more than its declared size of {declared} bytes")));
+    }
+    out.flush().map_err(|e| fail(&e))?;
+    Ok(())
 }
 
 /// Opens the zip at `archive` and checks every entry's name and declared size against the rules

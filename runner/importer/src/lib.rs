@@ -171,10 +171,18 @@ impl Unpacked {
             return Err(format!("FMU file {} does not exist", path.display()));
         }
         // Checked first: a refused archive creates no directory, and its size picks the place.
-        let checked = archive::check_zip(path, archive::Limits::FMU)?;
+        let mut checked = archive::check_zip(path, archive::Limits::FMU)?;
         let dir = scratch::unpack_dir(checked.total_bytes())?;
-        checked.extract(dir.path())?;
-        let found = inspect(path, dir.path(), interface)?;
+        // The description is read while the rest (the binary: most of the bytes) unpacks on
+        // another core.
+        checked.extract_first("modelDescription.xml", dir.path())?;
+        let (extracted, read) = std::thread::scope(|scope| {
+            let rest = scope.spawn(|| checked.extract(dir.path()));
+            let read = read_description(path, dir.path(), interface);
+            (rest.join().unwrap_or_else(|_| Err(format!("{}: unpacking failed", path.display()))), read)
+        });
+        extracted?;
+        let found = find_binary(read?, path, dir.path())?;
         Ok(Unpacked {
             description: found.description,
             fmi1: found.fmi1,
@@ -204,6 +212,23 @@ struct Inspected {
 /// Reads the description of the FMU `path` unpacked in `dir`, chooses `interface` (`None`:
 /// Co-Simulation when offered, else Model Exchange) and finds the binary for this platform.
 fn inspect(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Inspected, String> {
+    find_binary(read_description(path, dir, interface)?, path, dir)
+}
+
+/// What [`read_description`] reads: [`Inspected`] but the binary's path.
+struct Described {
+    states: Option<exchange::StateStructure>,
+    description: Description,
+    fmi1: Option<fmi_schema::fmi1::ModelDescription>,
+    fmi2: Option<fmi_schema::fmi2::ModelDescription>,
+    fmi3: Option<fmi_schema::fmi3::ModelDescription>,
+    interface: Interface,
+    identifier: String,
+}
+
+/// Reads the description of the FMU `path` from `dir` (where at least its
+/// modelDescription.xml is unpacked) and chooses `interface`.
+fn read_description(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Described, String> {
     let xml_path = dir.join("modelDescription.xml");
     let xml = std::fs::read_to_string(&xml_path).map_err(|e| format!("{}: no readable modelDescription.xml: {e}", path.display()))?;
     let at = |e: &dyn std::fmt::Display| format!("{}: modelDescription.xml: {e}", path.display());
@@ -252,6 +277,18 @@ fn inspect(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Insp
     if identifier.is_empty() || identifier.contains(['/', '\0']) {
         return Err(format!("{}: modelIdentifier {identifier:?} is not a file name (FMI requires a C identifier)", path.display()));
     }
+    let states = match (&fmi2, &fmi3) {
+        (Some(md), _) => fmi2::state_structure(md),
+        (_, Some(md)) => fmi3::state_structure(md),
+        _ => None,
+    };
+    Ok(Described { states, description, fmi1, fmi2, fmi3, interface, identifier })
+}
+
+/// The binary for this platform of the FMU `path` unpacked in `dir`, added to what `described`
+/// read.
+fn find_binary(described: Described, path: &Path, dir: &Path) -> Result<Inspected, String> {
+    let Described { states, description, fmi1, fmi2, fmi3, interface, identifier } = described;
     let platform = match description.fmi_version {
         FmiVersion::Fmi1 => fmi1::PLATFORM,
         FmiVersion::Fmi2 => fmi2::PLATFORM,
@@ -265,11 +302,6 @@ fn inspect(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Insp
             platforms(&dir.join("binaries"))
         ));
     }
-    let states = match (&fmi2, &fmi3) {
-        (Some(md), _) => fmi2::state_structure(md),
-        (_, Some(md)) => fmi3::state_structure(md),
-        _ => None,
-    };
     Ok(Inspected { states, description, fmi1, fmi2, fmi3, interface, identifier, binary })
 }
 

@@ -82,7 +82,6 @@ fn run_system(options: &Options) -> Result<(), String> {
         ("--plot", options.plot.is_some()),
         ("--overlay", options.overlay.is_some()),
         ("--input-file", options.input_file.is_some()),
-        ("--timeout", options.timeout.is_some()),
         ("--record-events", options.record_events),
         ("--log", options.log),
         ("--start-time", options.start_time.is_some()),
@@ -94,13 +93,22 @@ fn run_system(options: &Options) -> Result<(), String> {
         ("--log-fmi-calls", options.log_fmi_calls.is_some()),
     ];
     if let Some((flag, _)) = single.iter().find(|(_, given)| *given) {
-        return Err(format!("{flag} is for single FMUs; a system takes --stop-time, --output-interval, --tolerance, --set COMPONENT.VARIABLE=VALUE, --master, --coupling and --out"));
+        return Err(format!("{flag} is for single FMUs; a system takes --stop-time, --output-interval, --tolerance, --set COMPONENT.VARIABLE=VALUE, --master, --coupling, --timeout, --in-process and --out"));
     }
+    let timeout = runner_sandbox::timeout("--timeout", options.timeout)?;
+    let isolation = match options.in_process {
+        true if timeout.is_some() => {
+            return Err("--timeout needs a worker process (a run in this process cannot be stopped): drop --in-process".to_owned())
+        }
+        true => None,
+        false => Some(crate::commands::system::isolation(timeout, runner_sandbox::default_memory_mib(1))?),
+    };
     crate::commands::system::simulate(
         Path::new(&options.fmu),
         &options.run,
-        crate::commands::system::Algorithm { master: options.master.as_deref(), coupling: options.coupling.as_deref() },
+        &crate::commands::system::Algorithm { master: options.master.clone(), coupling: options.coupling.clone() },
         options.out.as_deref(),
+        isolation,
     )
 }
 

@@ -201,7 +201,7 @@ fn a_killed_system_sweep_resumes_to_the_uninterrupted_csv() {
 }
 
 /// systems/quarter_car_road (built by `runner build`): the Ex. 4 sweep and a run in worker
-/// processes write exactly the bytes of the same in-process.
+/// processes write exactly the bytes of the same in-process; `--plot` draws both.
 #[test]
 fn quarter_car_road_in_workers_equals_in_process_to_the_bit() {
     let here = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -217,14 +217,20 @@ fn quarter_car_road_in_workers_equals_in_process_to_the_bit() {
         ok(runner(dir.path(), &args));
         std::fs::read(dir.path().join(out)).unwrap()
     };
-    assert_eq!(sweep("workers.csv", &[]), sweep("threads.csv", &["--in-process"]));
+    assert_eq!(sweep("workers.csv", &["--plot", "sweep.svg"]), sweep("threads.csv", &["--in-process"]));
+    // --plot draws a system's sweep as a single FMU's: each metric against the first parameter.
+    let svg = std::fs::read_to_string(dir.path().join("sweep.svg")).unwrap();
+    assert!(svg.contains("quarter_car_road: t, a against road.speed") && svg.contains("road.speed (m/s)"), "the title and axis");
     let simulate = |out: &str, extra: &[&str]| {
         let mut args = vec!["simulate", s, "--stop-time", "0.5", "--master", "gauss-seidel", "--out", out];
         args.extend_from_slice(extra);
         ok(runner(dir.path(), &args));
         std::fs::read(dir.path().join(out)).unwrap()
     };
-    let worker = simulate("worker.csv", &[]);
+    let worker = simulate("worker.csv", &["--plot", "run.svg", "--plot-vars", "car.z_s,road.z_r"]);
+    // --plot draws the columns named, labelled with their component, in their units.
+    let svg = std::fs::read_to_string(dir.path().join("run.svg")).unwrap();
+    assert!(svg.contains("quarter_car_road: outputs") && svg.contains("car.z_s (m)") && svg.contains("road.z_r (m)"), "panels");
     assert!(worker.iter().filter(|&&b| b == b'\n').count() > 100, "rows are there");
     assert_eq!(worker, simulate("in_process.csv", &["--in-process"]));
 }

@@ -31,7 +31,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::experiment::RunDefaults;
 use crate::interrupt;
-use crate::report::output;
+use crate::report::{self, output};
+use plots::outputs::{figure, Axis};
+use plots::trace::Trace;
 
 /// The hidden command a system's worker runs (`runner system-worker`).
 pub const WORKER_COMMAND: &str = "system-worker";
@@ -389,6 +391,7 @@ pub fn simulate(
     algorithm: &Algorithm,
     out: Option<&Path>,
     isolation: Option<Config>,
+    plot: Option<Plot>,
 ) -> Result<(), String> {
     let system = System::open(path)?;
     let bound = bind(&system, algorithm)?;
@@ -396,12 +399,17 @@ pub fn simulate(
     let grid = grid(&system, run)?;
     // Checked here too, so a typo is refused before a worker starts.
     let sets = bound.parse_sets(&run.set)?;
+    let axes = plot.as_ref().map(|p| p.axes(&bound)).transpose()?;
+    let mut trace = Trace { names: bound.columns.clone(), columns: vec![Vec::new(); bound.columns.len()], ..Trace::default() };
     let mut writer = output::csv_writer(out)?;
     let mut header = vec!["time".to_owned()];
     header.extend(bound.columns.iter().cloned());
     writer.write_record(&header).map_err(|e| format!("cannot write CSV: {e}"))?;
     let mut row = Vec::with_capacity(header.len());
     let mut write = |t: f64, values: &[f64]| {
+        if axes.is_some() {
+            trace.push(t, values);
+        }
         row.clear();
         row.push(number(t));
         row.extend(values.iter().map(|&x| number(x)));
@@ -433,13 +441,58 @@ pub fn simulate(
     // The rows before a failure are kept, as for single FMUs.
     let kept = writer.get_ref().describe();
     output::finish_csv(writer)?;
-    match result {
-        Ok(None) => Ok(()),
-        Ok(Some(why)) => {
-            eprintln!("the simulation ended early: {why}");
-            Ok(())
+    let ended = result.map_err(|failure| format!("{failure} (the rows before it are in {kept})"))?;
+    if let Some(why) = ended {
+        eprintln!("the simulation ended early: {why}");
+    }
+    if let (Some(plot), Some((ys, x))) = (plot, axes) {
+        let mut title = format!("{}: outputs", system.structure.name);
+        if let Some(x) = &x {
+            title.push_str(&format!(" against {}", x.name));
         }
-        Err(failure) => Err(format!("{failure} (the rows before it are in {kept})")),
+        report::write_plot(plot.path, &figure(title, &[(None, &trace, Vec::new())], &ys, x.as_ref())?)?;
+        eprintln!("wrote {}", plot.path.display());
+    }
+    Ok(())
+}
+
+/// What `--plot` draws of a system's run: one panel per `vars` (`COMPONENT.VARIABLE` columns;
+/// default every component's continuous Real outputs) against time or `x`.
+pub struct Plot<'a> {
+    pub path: &'a Path,
+    pub vars: &'a [String],
+    pub x: Option<&'a str>,
+}
+
+impl Plot<'_> {
+    /// The y axes and the x axis, each a column of `bound` in its component's display unit.
+    fn axes(&self, bound: &Bound) -> Result<(Vec<Axis>, Option<Axis>), String> {
+        let axis = |name: &str| -> Result<Axis, String> {
+            let name = name.trim();
+            let (c, v) = bound.resolve(name)?;
+            if bound.column(name).is_none() || !v.kind.is_numeric() {
+                return Err(format!("{name}: a system's plot draws the columns of its CSV (COMPONENT.VARIABLE of a numeric output or of an output that feeds a connection)"));
+            }
+            let description = &bound.system.components[c].fmu.description;
+            let own = Axis::of(description, v);
+            let label = format!("{}.{}", bound.system.components[c].name, own.label);
+            Ok(Axis { name: name.to_owned(), label, conversion: own.conversion })
+        };
+        let ys: Vec<Axis> = if self.vars.is_empty() {
+            let mut ys = Vec::new();
+            for component in &bound.system.components {
+                for v in plots::trace::continuous_outputs(&component.fmu.description) {
+                    ys.push(axis(&format!("{}.{}", component.name, v.name))?);
+                }
+            }
+            ys
+        } else {
+            self.vars.iter().map(|n| axis(n)).collect::<Result<_, _>>()?
+        };
+        if ys.is_empty() {
+            return Err("the system's components have no continuous Real outputs to plot: choose columns with --plot-vars".to_owned());
+        }
+        Ok((ys, self.x.map(axis).transpose()?))
     }
 }
 

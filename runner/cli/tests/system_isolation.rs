@@ -132,11 +132,32 @@ fn a_hanging_component_times_out_its_point_only() {
     assert!(err.contains("--timeout needs a worker process"), "{err}");
 }
 
+/// System worker processes whose parent is this test process: orphans, which a killed runner
+/// must not leave (its workers die with it).
+fn orphaned_system_workers() -> Vec<u32> {
+    let me = std::process::id();
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else { continue };
+        let stat = std::fs::read_to_string(entry.path().join("stat")).unwrap_or_default();
+        let ppid = stat.rsplit(')').next().and_then(|rest| rest.split_whitespace().nth(1)).and_then(|p| p.parse::<u32>().ok());
+        let cmdline = std::fs::read(entry.path().join("cmdline")).unwrap_or_default();
+        if ppid == Some(me) && cmdline.split(|&b| b == 0).nth(1) == Some(b"system-worker") {
+            found.push(pid);
+        }
+    }
+    found
+}
+
 /// A system sweep streams its rows to `<out>.partial`: killed (SIGKILL) once rows are there, it
-/// continues with `--resume` and ends with exactly the bytes of an uninterrupted in-process run.
+/// leaves no worker behind, continues with `--resume` and ends with exactly the bytes of an
+/// uninterrupted in-process run.
 /// A partial file of the system before a change of its parameters is refused.
 #[test]
 fn a_killed_system_sweep_resumes_to_the_uninterrupted_csv() {
+    // Orphaned workers would be reparented to this process (a child subreaper): looked for below.
+    // SAFETY: prctl on this process.
+    assert_eq!(unsafe { libc::prctl(libc::PR_SET_CHILD_SUBREAPER, 1) }, 0);
     let dir = tempfile::tempdir().unwrap();
     let root = faulty_system(dir.path(), "resume", "");
     let r = root.to_str().unwrap();
@@ -174,6 +195,8 @@ fn a_killed_system_sweep_resumes_to_the_uninterrupted_csv() {
     }
     child.kill().unwrap();
     child.wait().unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    assert_eq!(orphaned_system_workers(), Vec::<u32>::new(), "a killed runner's workers die with it");
     let bytes = std::fs::read(&partial).unwrap();
     let complete = &bytes[..bytes.iter().rposition(|&b| b == b'\n').map_or(0, |p| p + 1)];
     assert!(expected.starts_with(complete), "the partial file's complete rows are the reference's first rows");

@@ -20,6 +20,7 @@ use fmi_importer::trace::{self, Call, CallSlot};
 use fmi_importer::Variable;
 use fmi_systems::master::Assignment;
 use fmi_systems::{Bound, Coupling, Master, Outcome as RunOutcome, System, SystemFiles};
+use runner_engine::isolated;
 use runner_engine::metrics::Metrics;
 use runner_engine::request::MetricSet;
 use runner_engine::run::Grid;
@@ -100,7 +101,7 @@ fn number(x: f64) -> String {
 /// after `timeout`, each worker limited to `memory_mib` MiB, sharing a [`Page`] with its
 /// supervisor.
 pub fn isolation(timeout: Option<std::time::Duration>, memory_mib: u64) -> Result<Config, String> {
-    let config = runner_engine::isolated::config(WorkerCommand::this_program(&[WORKER_COMMAND])?, timeout, memory_mib)?;
+    let config = isolated::config(WorkerCommand::this_program(&[WORKER_COMMAND])?, timeout, memory_mib)?;
     Ok(Config { shared_bytes: std::mem::size_of::<Page>(), ..config })
 }
 
@@ -560,6 +561,9 @@ impl<'a> Sweep<'a> {
             }
             Some(mut workers) => {
                 workers.setup(&Setup::Load { files: self.system.files(), algorithm: self.algorithm.clone() });
+                // A component that allows one instance per process gets a process per point.
+                let components = &self.system.components;
+                workers.one_job_per_worker(components.iter().any(|c| isolated::once_per_process(&c.fmu.description, c.fmu.interface)));
                 let mut deliver = deliver;
                 run_batch(
                     workers,

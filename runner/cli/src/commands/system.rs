@@ -9,8 +9,9 @@
 //! master tells the importer's call slot which component it drives
 //! (`fmi_importer::trace::set_context`), and the worker keeps the components' names in the
 //! memory it shares with its supervisor, so the report names the component, the FMI call and
-//! the time. The supervisor unpacks the system once; its workers load that copy
-//! ([`System::load_copy`]) and leave nothing behind when they die.
+//! the time. The supervisor opens the system once (unpacks it, and loads the components'
+//! binaries to read and check it); its workers load that copy ([`System::load_copy`]) and leave
+//! nothing behind when they die.
 
 use std::ops::Range;
 use std::path::Path;
@@ -155,11 +156,11 @@ struct Page {
 }
 
 impl Page {
-    /// Records the components' names (as many as fit).
-    fn write_names(&self, system: &System) {
+    /// Records the components' names, in order (as many as fit).
+    fn write_names<'n>(&self, names: impl IntoIterator<Item = &'n str>) {
         let mut at = 0;
-        for component in &system.components {
-            let name = component.name.as_bytes();
+        for name in names {
+            let name = name.as_bytes();
             if at + name.len() + 1 > NAMES {
                 break;
             }
@@ -175,7 +176,9 @@ impl Page {
     fn name(&self, c: usize) -> Option<String> {
         let len = (self.names_len.load(Ordering::Acquire) as usize).min(NAMES);
         let bytes: Vec<u8> = self.names[..len].iter().map(|b| b.load(Ordering::Relaxed)).collect();
-        bytes.split(|&b| b == 0).nth(c).map(|n| String::from_utf8_lossy(n).into_owned())
+        // Each name ends with a NUL: without the last, the pieces are the names.
+        let names = bytes.strip_suffix(&[0]).filter(|n| !n.is_empty())?;
+        names.split(|&b| b == 0).nth(c).map(|n| String::from_utf8_lossy(n).into_owned())
     }
 
     /// Where the worker was: `in fmi2DoStep of component 'car' at t = 0.31`.
@@ -323,7 +326,7 @@ pub fn serve() -> Result<(), String> {
         Ok(system) => system,
         Err(e) => return serving.ready(Err(e)),
     };
-    page.write_names(&system);
+    page.write_names(system.components.iter().map(|c| c.name.as_str()));
     let bound = match bind(&system, &algorithm) {
         Ok(bound) => bound,
         Err(e) => return serving.ready(Err(e)),
@@ -578,5 +581,41 @@ impl<'a> Sweep<'a> {
                 )
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What a supervisor reads after a worker died: the call and time of the importer's slot
+    /// and the component the master set, by the name the worker recorded (by number when the
+    /// names did not fit).
+    #[test]
+    fn a_dead_workers_place_names_the_component() {
+        let memory = SharedMemory::new(std::mem::size_of::<Page>()).unwrap();
+        // SAFETY: a fresh region sized for the page, zeroed.
+        let page = unsafe { memory.view::<Page>() };
+        page.slot.clear();
+        page.write_names(["road", "car"]);
+        page.slot.call.store(Call::DoStep as u32, Ordering::Relaxed);
+        page.slot.time.store(0.31f64.to_bits(), Ordering::Relaxed);
+        page.slot.context.store(2, Ordering::Relaxed);
+        assert_eq!(page.place(), "in fmi2DoStep of component 'car' at t = 0.31");
+        page.slot.context.store(1, Ordering::Relaxed);
+        assert_eq!(page.place(), "in fmi2DoStep of component 'road' at t = 0.31");
+        page.slot.context.store(3, Ordering::Relaxed);
+        assert_eq!(page.place(), "in fmi2DoStep of component 3 at t = 0.31");
+        page.slot.context.store(0, Ordering::Relaxed);
+        assert_eq!(page.place(), "in fmi2DoStep at t = 0.31");
+        page.slot.call.store(Call::Load as u32, Ordering::Relaxed);
+        assert_eq!(page.place(), "while loading the components' binaries");
+        // Names that do not fit are left out, not cut.
+        let long = "x".repeat(NAMES);
+        page.write_names(["road", long.as_str()]);
+        page.slot.call.store(Call::Instantiate as u32, Ordering::Relaxed);
+        page.slot.time.store(f64::NAN.to_bits(), Ordering::Relaxed);
+        page.slot.context.store(2, Ordering::Relaxed);
+        assert_eq!(page.place(), "in fmi2Instantiate of component 2");
     }
 }

@@ -641,7 +641,7 @@ fn execute(
                 kept.extend(std::iter::repeat_n(f64::NAN, m));
             }
         }
-        failed += usize::from(r.status != "ok");
+        failed += usize::from(partial::failed(&r.status));
         row.push(r.status);
         destination.append(&row)?;
         progress.inc(1);

@@ -33,7 +33,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::experiment::RunDefaults;
 use crate::interrupt;
-use crate::report::{self, output};
+use crate::report::{self, output, partial};
 use plots::outputs::{figure, Axis};
 use plots::trace::Trace;
 
@@ -297,7 +297,9 @@ impl<'a> SweepPlan<'a> {
         });
         match result {
             Ok(RunOutcome::Finished) => PointResult { metrics: Some(self.metrics.evaluate(&acc)), status: "ok".to_owned() },
-            Ok(RunOutcome::Ended(why)) => PointResult { metrics: Some(self.metrics.evaluate(&acc)), status: format!("ended early: {why}") },
+            Ok(RunOutcome::Ended(why)) => {
+                PointResult { metrics: Some(self.metrics.evaluate(&acc)), status: format!("{}{why}", partial::ENDED_EARLY) }
+            }
             Err(failure) => PointResult { metrics: None, status: format!("failed: {failure}") },
         }
     }

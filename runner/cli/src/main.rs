@@ -393,6 +393,10 @@ enum Cmd {
     /// A worker process of sweep, simulate, compare and linearize (started by the runner itself).
     #[command(hide = true)]
     Worker,
+    /// A worker process that runs SSP systems for sweep and simulate (started by the runner
+    /// itself).
+    #[command(hide = true, name = "system-worker")]
+    SystemWorker,
 }
 
 /// How `runner sweep` isolates its points, and resumes.
@@ -563,6 +567,13 @@ fn main() {
         }
         return;
     }
+    if let Cmd::SystemWorker = cli.command {
+        if let Err(e) = runner::commands::system::serve() {
+            eprintln!("runner system-worker: {e}");
+            std::process::exit(1);
+        }
+        return;
+    }
     interrupt::install();
     // FMU log lines go above the progress bar, when one is drawn.
     fmi_importer::set_log_printer(progress::eprint_line);
@@ -693,7 +704,7 @@ fn main() {
         Cmd::Handbook { out, format, threads } => Format::named(&format)
             .map_err(|e| format!("--format: {e}"))
             .and_then(|format| handbook::run(&handbook::Options { out, format, threads }).map(|_| ())),
-        Cmd::Worker => unreachable!("served above"),
+        Cmd::Worker | Cmd::SystemWorker => unreachable!("served above"),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

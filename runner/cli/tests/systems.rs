@@ -8,32 +8,11 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{column, fails, faulty_fmu, ok, read_csv, runner};
+use common::{column, fails, faulty_fmu, ok, read_csv, runner, system};
 
 fn feedthrough() -> Option<PathBuf> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference-fmus/fmi2/Feedthrough.fmu");
     path.is_file().then_some(path)
-}
-
-const HEAD: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
-<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
-    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
-    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
-    xmlns:ssm="http://ssp-standard.org/SSP1/SystemStructureParameterMapping" version="1.0" name="test">"#;
-
-/// A system folder `dir/name` holding `ssd` (between HEAD and the closing tag), the FMU files
-/// `fmus` as resources/<file>, and `extra` files.
-fn system(dir: &Path, name: &str, ssd: &str, fmus: &[(&str, &Path)], extra: &[(&str, &str)]) -> PathBuf {
-    let root = dir.join(name);
-    std::fs::create_dir_all(root.join("resources")).unwrap();
-    std::fs::write(root.join("SystemStructure.ssd"), format!("{HEAD}\n{ssd}\n</ssd:SystemStructureDescription>\n")).unwrap();
-    for (file, path) in fmus {
-        std::fs::copy(path, root.join("resources").join(file)).unwrap();
-    }
-    for (file, text) in extra {
-        std::fs::write(root.join(file), text).unwrap();
-    }
-    root
 }
 
 fn component(name: &str, connectors: &str, extra: &str) -> String {

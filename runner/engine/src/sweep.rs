@@ -361,62 +361,76 @@ impl<'a> Plan<'a> {
         points: Range<usize>,
         threads: usize,
         stop: &(dyn Fn() -> bool + Sync),
-        mut deliver: impl FnMut(usize, PointResult) -> Result<(), String>,
+        deliver: impl FnMut(usize, PointResult) -> Result<(), String>,
     ) -> Result<(), String> {
-        if threads == 0 {
-            return Err("--threads must be at least 1".to_owned());
-        }
-        let pool =
-            rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("cannot start {threads} threads: {e}"))?;
-        let n = points.end.min(self.space.len);
-        // Workers take points in order from a shared counter (dynamic scheduling: points differ
-        // in cost), so results arrive nearly in order and the reorder buffer stays a few rows
-        // long whatever the sweep's size.
-        let next = AtomicUsize::new(points.start);
-        let failed = AtomicBool::new(false);
-        let halted = || failed.load(Ordering::Relaxed) || stop();
-        let (sender, receiver) = mpsc::sync_channel::<(usize, PointResult)>(4 * threads);
-        std::thread::scope(|scope| {
-            scope.spawn(|| {
-                pool.broadcast(|_| {
-                    let sender = sender.clone();
-                    let mut point = Vec::new();
-                    loop {
-                        if halted() {
-                            break;
-                        }
-                        let i = next.fetch_add(1, Ordering::Relaxed);
-                        if i >= n {
-                            break;
-                        }
-                        let result = self.run_point(fmu, i, &mut point, stop);
-                        if sender.send((i, result)).is_err() {
-                            break;
-                        }
-                    }
-                });
-                drop(sender);
-            });
-            let mut waiting: BTreeMap<usize, PointResult> = BTreeMap::new();
-            let mut row = points.start;
-            let mut outcome = Ok(());
-            for (i, result) in receiver.iter() {
-                if outcome.is_err() || stop() {
-                    continue; // drain, so no worker blocks on a full channel
-                }
-                waiting.insert(i, result);
-                while let Some(r) = waiting.remove(&row) {
-                    if let Err(e) = deliver(row, r) {
-                        outcome = Err(e);
-                        failed.store(true, Ordering::Relaxed);
+        let points = points.start..points.end.min(self.space.len);
+        on_threads(points, threads, stop, |i, point| self.run_point(fmu, i, point, stop), deliver)
+    }
+}
+
+/// Runs `run(i, scratch)` for every point `i` of `points` on `threads` threads of this process
+/// and calls `deliver(i, result)` in point order as results arrive. Stops early when `stop()`
+/// turns true (the points in progress are abandoned) or `deliver` fails (its error is
+/// returned). The threads' side of every in-process sweep (of an FMU, of a system).
+pub fn on_threads(
+    points: Range<usize>,
+    threads: usize,
+    stop: &(dyn Fn() -> bool + Sync),
+    run: impl Fn(usize, &mut Vec<f64>) -> PointResult + Sync,
+    mut deliver: impl FnMut(usize, PointResult) -> Result<(), String>,
+) -> Result<(), String> {
+    if threads == 0 {
+        return Err("--threads must be at least 1".to_owned());
+    }
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+    let n = points.end;
+    // Workers take points in order from a shared counter (dynamic scheduling: points differ
+    // in cost), so results arrive nearly in order and the reorder buffer stays a few rows
+    // long whatever the sweep's size.
+    let next = AtomicUsize::new(points.start);
+    let failed = AtomicBool::new(false);
+    let halted = || failed.load(Ordering::Relaxed) || stop();
+    let (sender, receiver) = mpsc::sync_channel::<(usize, PointResult)>(4 * threads);
+    std::thread::scope(|scope| {
+        scope.spawn(|| {
+            pool.broadcast(|_| {
+                let sender = sender.clone();
+                let mut point = Vec::new();
+                loop {
+                    if halted() {
                         break;
                     }
-                    row += 1;
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= n {
+                        break;
+                    }
+                    let result = run(i, &mut point);
+                    if sender.send((i, result)).is_err() {
+                        break;
+                    }
                 }
+            });
+            drop(sender);
+        });
+        let mut waiting: BTreeMap<usize, PointResult> = BTreeMap::new();
+        let mut row = points.start;
+        let mut outcome = Ok(());
+        for (i, result) in receiver.iter() {
+            if outcome.is_err() || stop() {
+                continue; // drain, so no worker blocks on a full channel
             }
-            outcome
-        })
-    }
+            waiting.insert(i, result);
+            while let Some(r) = waiting.remove(&row) {
+                if let Err(e) = deliver(row, r) {
+                    outcome = Err(e);
+                    failed.store(true, Ordering::Relaxed);
+                    break;
+                }
+                row += 1;
+            }
+        }
+        outcome
+    })
 }
 
 #[cfg(test)]

@@ -269,11 +269,13 @@ impl Call {
     }
 }
 
-/// The last call entered and the model time then (f64 bits; NaN before the time is known).
+/// The last call entered and the model time then (f64 bits; NaN before the time is known), and
+/// the part of a larger run those calls were for ([`set_context`]: a system's component).
 #[repr(C)]
 pub struct CallSlot {
     pub call: AtomicU32,
     pub time: AtomicU64,
+    pub context: AtomicU32,
 }
 
 impl CallSlot {
@@ -284,10 +286,16 @@ impl CallSlot {
         (call, Some(time).filter(|t| t.is_finite()))
     }
 
-    /// Forgets the last call (a new run starts).
+    /// The context recorded last (0: none).
+    pub fn context(&self) -> u32 {
+        self.context.load(Ordering::Relaxed)
+    }
+
+    /// Forgets the last call and context (a new run starts).
     pub fn clear(&self) {
         self.call.store(Call::None as u32, Ordering::Relaxed);
         self.time.store(f64::NAN.to_bits(), Ordering::Relaxed);
+        self.context.store(0, Ordering::Relaxed);
     }
 }
 
@@ -307,6 +315,20 @@ pub(crate) fn enter(call: Call, time: f64) {
         let slot = unsafe { &*slot };
         slot.call.store(call as u32, Ordering::Relaxed);
         slot.time.store(time.to_bits(), Ordering::Relaxed);
+    }
+}
+
+/// Notes that the calls from now on are made for part `context` of a larger run, which only
+/// its caller can name: a system's master sets its component's index plus one before it drives
+/// that component, so a worker that dies in an FMI call is reported with the component (0: no
+/// part). Without a slot it costs what [`enter`] does, a load and a test: on quarter_car_road
+/// (two components, six calls a step) 45 instructions a step, 1.3 % of the FMUs' own step.
+#[inline]
+pub fn set_context(context: u32) {
+    let slot = SLOT.load(Ordering::Relaxed);
+    if !slot.is_null() {
+        // SAFETY: set_slot only takes slots that live for the rest of the process.
+        unsafe { &*slot }.context.store(context, Ordering::Relaxed);
     }
 }
 

@@ -537,6 +537,7 @@ impl<'a> Bound<'a> {
         let mut row = vec![0.0; plan.recorded.as_ref().map_or(0, Vec::len)];
         let mut instances = Vec::with_capacity(components.len());
         for (c, component) in components.iter().enumerate() {
+            driving(c);
             let mut instance =
                 component.fmu.instantiate(&format!("{instance_name}.{}", component.name), false).map_err(fail(c, grid.start))?;
             instance.set_solver(grid.solver);
@@ -565,6 +566,7 @@ impl<'a> Bound<'a> {
             }
         }
         for (c, instance) in instances.iter_mut().enumerate() {
+            driving(c);
             instance.exit_initialization_mode().map_err(fail(c, grid.start))?;
         }
         for c in 0..n_components {
@@ -598,6 +600,7 @@ impl<'a> Bound<'a> {
                         pass_rates(plan, components, c, &mut instances[c], &mut passed[c], &values, &rates, &start, t)?;
                     }
                 }
+                driving(c);
                 if let Some(ended) = step(&mut instances[c], t, t_next).map_err(fail(c, t))? {
                     // The others may have stepped on: the last row is the one at t.
                     return Ok(Outcome::Ended(Failure { component: Some(components[c].name.clone()), time: t, message: ended }));
@@ -618,6 +621,10 @@ impl<'a> Bound<'a> {
                 }
             }
             emit(plan, &mut sample, t_next, &values, &mut row)?;
+        }
+        for (c, instance) in instances.into_iter().enumerate() {
+            driving(c);
+            drop(instance);
         }
         Ok(Outcome::Finished)
     }
@@ -694,6 +701,13 @@ struct RateReads {
 /// Time derivatives of orders 1 to [`MAX_COUPLING_ORDER`] of a slot's value.
 type Rates = [f64; MAX_COUPLING_ORDER];
 
+/// Notes that the FMI calls from now on drive component `c`: a worker process that dies in one
+/// is reported with the component (see `fmi_importer::trace::set_context`).
+#[inline(always)]
+fn driving(c: usize) {
+    fmi_importer::trace::set_context(c as u32 + 1);
+}
+
 /// The failure of component `c` at `time`.
 #[cold]
 fn failure(components: &[Component], c: usize, time: f64, message: String) -> Failure {
@@ -711,6 +725,7 @@ fn read(
     values: &mut [f64],
     t: f64,
 ) -> Result<(), Failure> {
+    driving(c);
     let (vars, offset) = &plan.reads[c];
     if vars.is_empty() {
         return Ok(());
@@ -729,6 +744,7 @@ fn transfer(
     values: &[f64],
     t: f64,
 ) -> Result<(), Failure> {
+    driving(c);
     let inputs = &plan.inputs[c];
     if !inputs.vrs.is_empty() {
         for (x, &(from, factor, offset)) in buffer.iter_mut().zip(&inputs.reals) {
@@ -768,6 +784,7 @@ fn read_rates(
     rates: &mut [Rates],
     t: f64,
 ) -> Result<(), Failure> {
+    driving(c);
     let r = &plan.rates[c];
     if r.call_vrs.is_empty() {
         return Ok(());
@@ -795,6 +812,7 @@ fn pass_rates(
     start: &Start,
     t: f64,
 ) -> Result<(), Failure> {
+    driving(c);
     let inputs = &plan.inputs[c];
     if inputs.rates.is_empty() {
         return Ok(());

@@ -4,7 +4,8 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use fmi_importer::{Causality, Description, Fmu, Kind, Unpacked};
+use fmi_importer::{Causality, Description, Fmu, Interface, Kind, Unpacked};
+use serde::{Deserialize, Serialize};
 
 use crate::ssd::{ComponentSpec, Structure};
 
@@ -16,14 +17,20 @@ pub struct Component {
     /// Output name -> the inputs it depends on directly (ModelStructure; all inputs where the
     /// FMU does not say).
     pub feedthrough: HashMap<String, Vec<String>>,
-    // After `fmu`: the binary closes before its files go.
-    _dir: tempfile::TempDir,
+    /// Where its FMU is unpacked, and through which interface it runs.
+    dir: PathBuf,
+    interface: Interface,
+    // After `fmu`: the binary closes before its files go (`None`: another process's copy).
+    _dir: Option<tempfile::TempDir>,
 }
 
 /// A loaded system.
 pub struct System {
     /// Where it was read from.
     pub path: PathBuf,
+    /// Its SystemStructure.ssd, and the extracted archive it is in (an `.ssp`'s).
+    ssd: PathBuf,
+    archive_root: Option<PathBuf>,
     pub structure: Structure,
     pub components: Vec<Component>,
     // Last: the FMUs close before the extracted archive goes.
@@ -90,10 +97,81 @@ impl System {
             check_connectors(&unpacked.description, unpacked.fmi3.as_ref(), spec, linked.map(|(_, v)| v.as_str())).map_err(at)?;
             let feedthrough = feedthrough(&unpacked);
             let fmu = Fmu::load_unpacked(&spec.source, unpacked.dir.path(), Some(unpacked.interface)).map_err(at)?;
-            components.push(Component { name: spec.name.clone(), fmu, feedthrough, _dir: unpacked.dir });
+            let (dir, interface) = (unpacked.dir.path().to_path_buf(), unpacked.interface);
+            components.push(Component { name: spec.name.clone(), fmu, feedthrough, dir, interface, _dir: Some(unpacked.dir) });
         }
-        Ok(System { path: path.to_path_buf(), structure, components, _archive: archive })
+        let archive_root = archive.as_ref().map(|d| d.path().to_path_buf());
+        Ok(System { path: path.to_path_buf(), ssd, archive_root, structure, components, _archive: archive })
     }
+
+    /// Where this system's files are, for a worker process to load this copy
+    /// ([`System::load_copy`]) while this process keeps it.
+    pub fn files(&self) -> SystemFiles {
+        SystemFiles {
+            path: self.path.clone(),
+            ssd: self.ssd.clone(),
+            archive_root: self.archive_root.clone(),
+            components: self
+                .components
+                .iter()
+                .map(|c| ComponentFiles { dir: c.dir.clone(), interface: c.interface, feedthrough: c.feedthrough.clone() })
+                .collect(),
+        }
+    }
+
+    /// Loads the system another process opened, from its copy `files` (a worker: it extracts
+    /// and unpacks nothing, so if it dies it leaves nothing behind; the other process deletes
+    /// the files).
+    pub fn load_copy(files: &SystemFiles) -> Result<System, String> {
+        let structure = match &files.archive_root {
+            Some(root) => Structure::read_in_archive(&files.ssd, root).map_err(|e| format!("{}: {e}", files.path.display()))?,
+            None => Structure::read(&files.ssd)?,
+        };
+        if structure.components.len() != files.components.len() {
+            return Err(format!("{}: the system changed while it was being run", files.path.display()));
+        }
+        let mut components = Vec::with_capacity(files.components.len());
+        for (spec, copy) in structure.components.iter().zip(&files.components) {
+            let fmu =
+                Fmu::load_unpacked(&spec.source, &copy.dir, Some(copy.interface)).map_err(|e| format!("component '{}': {e}", spec.name))?;
+            components.push(Component {
+                name: spec.name.clone(),
+                fmu,
+                feedthrough: copy.feedthrough.clone(),
+                dir: copy.dir.clone(),
+                interface: copy.interface,
+                _dir: None,
+            });
+        }
+        Ok(System {
+            path: files.path.clone(),
+            ssd: files.ssd.clone(),
+            archive_root: files.archive_root.clone(),
+            structure,
+            components,
+            _archive: None,
+        })
+    }
+}
+
+/// Where a system opened by one process is on disk ([`System::files`]), for another to load.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SystemFiles {
+    /// The system as given (for messages).
+    pub path: PathBuf,
+    pub ssd: PathBuf,
+    pub archive_root: Option<PathBuf>,
+    /// Per component, in the structure's order.
+    pub components: Vec<ComponentFiles>,
+}
+
+/// Where a component's FMU is unpacked, its interface and its direct feedthrough (read from
+/// the raw description when it was unpacked).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ComponentFiles {
+    pub dir: PathBuf,
+    pub interface: Interface,
+    pub feedthrough: HashMap<String, Vec<String>>,
 }
 
 /// The SSD's connectors against the FMU: a connector's declared type must be its variable's

@@ -80,10 +80,8 @@ pub struct Options {
 /// `runner simulate SYSTEM`, refusing the options that are for single FMUs.
 fn run_system(options: &Options) -> Result<(), String> {
     let single = [
-        ("--plot", options.plot.is_some()),
         ("--overlay", options.overlay.is_some()),
         ("--input-file", options.input_file.is_some()),
-        ("--timeout", options.timeout.is_some()),
         ("--record-events", options.record_events),
         ("--log", options.log),
         ("--start-time", options.start_time.is_some()),
@@ -95,13 +93,23 @@ fn run_system(options: &Options) -> Result<(), String> {
         ("--log-fmi-calls", options.log_fmi_calls.is_some()),
     ];
     if let Some((flag, _)) = single.iter().find(|(_, given)| *given) {
-        return Err(format!("{flag} is for single FMUs; a system takes --stop-time, --output-interval, --tolerance, --set COMPONENT.VARIABLE=VALUE, --master, --coupling and --out"));
+        return Err(format!("{flag} is for single FMUs; a system takes --stop-time, --output-interval, --tolerance, --set COMPONENT.VARIABLE=VALUE, --master, --coupling, --timeout, --in-process, --out, --plot, --plot-vars and --plot-x"));
     }
+    let timeout = runner_sandbox::timeout("--timeout", options.timeout)?;
+    let isolation = match options.in_process {
+        true if timeout.is_some() => {
+            return Err("--timeout needs a worker process (a run in this process cannot be stopped): drop --in-process".to_owned())
+        }
+        true => None,
+        false => Some(crate::commands::system::isolation(timeout, runner_sandbox::default_memory_mib(1))?),
+    };
     crate::commands::system::simulate(
         Path::new(&options.fmu),
         &options.run,
-        crate::commands::system::Algorithm { master: options.master.as_deref(), coupling: options.coupling.as_deref() },
+        &crate::commands::system::Algorithm { master: options.master.clone(), coupling: options.coupling.clone() },
         options.out.as_deref(),
+        isolation,
+        options.plot.as_deref().map(|path| crate::commands::system::Plot { path, vars: &options.plot_vars, x: options.plot_x.as_deref() }),
     )
 }
 
@@ -318,13 +326,13 @@ fn resolve<'a>(options: &Options, target: &Target, held: &'a Held) -> Result<Sim
 
 /// Runs `runner simulate`.
 pub fn run(options: &Options) -> Result<(), String> {
-    if fmi_systems::is_system(Path::new(&options.fmu)) {
-        return run_system(options);
-    }
     if let Some(plot) = &options.plot {
         report::check_plot(plot)?;
     } else if !options.plot_vars.is_empty() || options.plot_x.is_some() {
         return Err("--plot-vars and --plot-x choose what --plot FILE draws: give --plot too".to_owned());
+    }
+    if fmi_systems::is_system(Path::new(&options.fmu)) {
+        return run_system(options);
     }
     let timeout = runner_sandbox::timeout("--timeout", options.timeout)?;
     if options.in_process && timeout.is_some() {

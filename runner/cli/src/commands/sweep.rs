@@ -13,8 +13,10 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use fmi_importer::Value;
+use fmi_systems::System;
 use runner_engine::exec::{self, Held, Points};
 use runner_engine::isolated::Engine;
+use runner_engine::metrics::Metrics;
 use runner_engine::request::{MetricSet, SweepRequest};
 use runner_engine::run::Grid;
 use runner_engine::sweep::{parse_range, Plan, PointResult, Space};
@@ -22,6 +24,7 @@ use runner_engine::variables;
 use runner_sandbox::{Config, Workers};
 use sha2::{Digest, Sha256};
 
+use crate::commands::system;
 use crate::experiment::{self, RunDefaults, Target};
 use crate::integration::Integration;
 use crate::interrupt;
@@ -68,31 +71,120 @@ pub struct Options {
     pub coupling: Option<String>,
 }
 
-/// `runner sweep SYSTEM`, refusing the options that are for single FMUs.
+/// `runner sweep SYSTEM`: as a sweep of an FMU (worker processes or threads, rows streamed to
+/// `<out>.partial`, `--resume`, the plot), each point an instance of the whole system.
 fn run_system(options: &Options) -> Result<Summary, String> {
-    let single = [
-        ("--plot", options.plot.is_some()),
-        ("--input-file", options.input_file.is_some()),
-        ("--point-timeout", options.point_timeout.is_some()),
-        ("--worker-memory", options.worker_memory.is_some()),
-        ("--resume", options.resume),
-    ];
-    if let Some((flag, _)) = single.iter().find(|(_, given)| *given) {
-        return Err(format!("{flag} is for single FMUs; a system sweep takes --param COMPONENT.PARAM=..., --metric, --threads, --stop-time, --output-interval, --tolerance, --set, --master, --coupling and --out"));
+    if options.input_file.is_some() {
+        return Err("--input-file drives the inputs of one FMU: a system's inputs come from its connections (and --set); it is not supported for systems".to_owned());
     }
-    if options.params.is_empty() {
-        return Err("nothing to sweep: give --param COMPONENT.PARAM=START:STOP:STEP or COMPONENT.PARAM=V1,V2,...".to_owned());
+    let threads = thread_count(options)?;
+    let sandbox = sandbox_limits(options, threads)?;
+    let system = System::open(Path::new(&options.fmu))?;
+    let algorithm = system::Algorithm { master: options.master.clone(), coupling: options.coupling.clone() };
+    let sweep = system::Sweep::new(&system, &options.run, &algorithm, &options.params, &options.metrics)?;
+    let plan = sweep.plan();
+    let n = plan.space.len;
+    let isolation = match sandbox {
+        Some((timeout, memory)) => Some(system::isolation(timeout, memory)?),
+        None => None,
+    };
+    let workers = match &isolation {
+        Some(config) => Some(Workers::start(config.clone(), threads.min(n))?),
+        None => None,
+    };
+    if let Some(plot) = &options.plot {
+        report::check_plot(plot)?;
     }
-    let (points, failed) = crate::commands::system::sweep(
-        Path::new(&options.fmu),
-        &options.run,
-        crate::commands::system::Algorithm { master: options.master.as_deref(), coupling: options.coupling.as_deref() },
-        &options.params,
-        &options.metrics,
-        options.threads,
-        options.out.as_deref(),
-    )?;
-    Ok(Summary { points, failed })
+    let m = plan.metrics.metrics.len();
+    let mut header: Vec<String> = plan.space.ranges.iter().map(|(n, _)| n.clone()).collect();
+    header.extend(plan.metrics.metrics.iter().map(|(n, _)| n.clone()));
+    header.push("status".to_owned());
+    let table = Table { header, m, space: &plan.space };
+    let out = options.out.as_deref();
+    if let Some(out) = out {
+        output::check_destination(out)?;
+    }
+    let current = || system_record(&sweep, options.point_timeout);
+    let destination = match Destination::open(out, options.resume, current, &table)? {
+        Opened::Run(destination) => destination,
+        Opened::Complete(summary) => return Ok(summary),
+    };
+    let clock = Instant::now();
+    let finished = execute(n, destination, &table, |first, deliver| sweep.execute(workers, threads, first..n, deliver))?;
+    let written = finish(finished, options, out, &table)?;
+    report(&plan.space, &plan.metrics, threads, isolation.is_some(), &written, clock.elapsed().as_secs_f64());
+    if let Some(path) = &options.plot {
+        let x_unit = plan.swept().next().and_then(|v| v.unit.as_deref());
+        let name = system.structure.name.as_str();
+        plot_metrics(path, &plan.space, &plan.metrics, x_unit, sweep.spec().metrics.texts(), name, &written.kept)?;
+    }
+    Ok(Summary { points: n, failed: written.failed })
+}
+
+/// The record of a system sweep: what `--resume` compares. The system is identified by the
+/// digest of its files (the archive, or the structure, parameter files and FMUs of a folder)
+/// and of every component's FMU.
+fn system_record(sweep: &system::Sweep, timeout: Option<f64>) -> Result<Record, String> {
+    let system = sweep.system();
+    let spec = sweep.spec();
+    let mut entries: Vec<(String, String)> = Vec::new();
+    let mut put = |k: &str, v: String| entries.push((k.to_owned(), v));
+    put("system", system.path.display().to_string());
+    put("system_sha256", system_sha256(system)?);
+    put("points", sweep.plan().space.len.to_string());
+    for (name, values) in &spec.ranges {
+        put("param", range_text(name, values));
+    }
+    for text in spec.metrics.texts() {
+        put("metric", text.clone());
+    }
+    for text in &spec.sets {
+        put("set", text.clone());
+    }
+    let grid = &spec.grid;
+    put("start_time", format!("{:?}", grid.start));
+    put("stop_time", format!("{:?}", grid.stop));
+    put("output_interval", format!("{:?}", grid.interval));
+    put("tolerance", grid.tolerance.map_or("the FMUs' defaults".to_owned(), |t| format!("{t:?}")));
+    let algorithm = sweep.algorithm();
+    put("master", algorithm.master.clone().unwrap_or_else(|| "jacobi".to_owned()));
+    put("coupling", algorithm.coupling.clone().unwrap_or_else(|| "the best both ends allow".to_owned()));
+    put("point_timeout", timeout.map_or("none".to_owned(), |t| format!("{t:?} s")));
+    Ok(Record { entries })
+}
+
+/// The sha256 of a system's files: an archive's bytes; for a folder (or the folder of an
+/// `.ssd`), each structure, parameter, mapping and FMU file under it by name; then each
+/// component's FMU.
+fn system_sha256(system: &System) -> Result<String, String> {
+    let path = &system.path;
+    let mut files: Vec<PathBuf> = Vec::new();
+    if path.extension().is_some_and(|e| e == "ssp") {
+        files.push(path.clone());
+    } else {
+        let root = if path.is_dir() { path.clone() } else { path.parent().unwrap_or(Path::new(".")).to_path_buf() };
+        let mut folders = vec![root];
+        while let Some(folder) = folders.pop() {
+            let entries = std::fs::read_dir(&folder).map_err(|e| format!("cannot read {}: {e}", folder.display()))?;
+            for entry in entries.flatten() {
+                let p = entry.path();
+                if p.is_dir() {
+                    folders.push(p);
+                } else if p.extension().and_then(|e| e.to_str()).is_some_and(|e| matches!(e, "ssd" | "ssv" | "ssm" | "ssb" | "fmu")) {
+                    files.push(p);
+                }
+            }
+        }
+        files.sort();
+    }
+    files.extend(system.structure.components.iter().map(|c| c.source.clone()));
+    let mut hash = Sha256::new();
+    for file in &files {
+        hash.update(file.display().to_string().as_bytes());
+        hash.update([0]);
+        hash.update(file_sha256(file)?.as_bytes());
+    }
+    Ok(format!("{:x}", hash.finalize()))
 }
 
 /// What a finished sweep reports.
@@ -140,13 +232,7 @@ fn record(
     put("interface", interface.name().to_owned());
     put("points", plan.space.len.to_string());
     for (name, values) in &plan.space.ranges {
-        let mut hash = Sha256::new();
-        for x in values {
-            hash.update(x.to_bits().to_le_bytes());
-        }
-        let digest = format!("{:x}", hash.finalize());
-        let (first, last) = (values.first().copied().unwrap_or(f64::NAN), values.last().copied().unwrap_or(f64::NAN));
-        put("param", format!("{name}: {} values from {first:?} to {last:?} (sha256 {})", values.len(), &digest[..16]));
+        put("param", range_text(name, values));
     }
     for text in request.metrics.texts() {
         put("metric", text.clone());
@@ -177,6 +263,17 @@ fn record(
         put("input_file", format!("{} columns, {} rows (sha256 {:x})", inputs.names.len(), inputs.time.len(), hash.finalize()));
     }
     Record { entries }
+}
+
+/// A swept parameter's values as a record names them: their count, ends and digest.
+fn range_text(name: &str, values: &[f64]) -> String {
+    let mut hash = Sha256::new();
+    for x in values {
+        hash.update(x.to_bits().to_le_bytes());
+    }
+    let digest = format!("{:x}", hash.finalize());
+    let (first, last) = (values.first().copied().unwrap_or(f64::NAN), values.last().copied().unwrap_or(f64::NAN));
+    format!("{name}: {} values from {first:?} to {last:?} (sha256 {})", values.len(), &digest[..16])
 }
 
 /// The sha256 of the file at `path` in hex, read in pieces (no copy of the whole file).
@@ -231,22 +328,13 @@ impl Settings {
         }
         let ranges = param_texts.iter().map(|p| parse_range(p)).collect::<Result<Vec<_>, _>>()?;
         let metrics = MetricSet::parse(&metric_texts)?;
-        let threads = options.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-        if threads == 0 {
-            return Err("--threads must be at least 1".to_owned());
-        }
-        let timeout = runner_sandbox::timeout("--point-timeout", options.point_timeout)?;
-        if options.in_process && timeout.is_some() {
-            return Err("--point-timeout needs worker processes (a thread cannot be stopped): drop --in-process".to_owned());
-        }
-        if options.in_process && options.worker_memory.is_some() {
-            return Err("--worker-memory limits worker processes: drop --in-process".to_owned());
-        }
+        let threads = thread_count(options)?;
+        let sandbox = sandbox_limits(options, threads)?;
         let solver = options.integration.solver()?;
         let (out, plot) = output_paths(options, defaults);
-        let isolation = match options.in_process {
-            true => None,
-            false => Some(isolation(timeout, options.worker_memory, threads)?),
+        let isolation = match sandbox {
+            Some((timeout, memory)) => Some(workers::isolation(timeout, memory)?),
+            None => None,
         };
         Ok(Settings { target, ranges, metrics, threads, point_timeout: options.point_timeout, isolation, solver, out, plot })
     }
@@ -272,10 +360,26 @@ impl Settings {
     }
 }
 
-/// The workers' sandbox: `--point-timeout`, and `--worker-memory` (default: three quarters of
-/// the machine's memory, shared among `threads` workers).
-fn isolation(timeout: Option<Duration>, worker_memory: Option<u64>, threads: usize) -> Result<Config, String> {
-    workers::isolation(timeout, worker_memory.unwrap_or_else(|| runner_sandbox::default_memory_mib(threads)))
+/// `--threads`, or one per core.
+fn thread_count(options: &Options) -> Result<usize, String> {
+    let threads = options.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if threads == 0 {
+        return Err("--threads must be at least 1".to_owned());
+    }
+    Ok(threads)
+}
+
+/// The workers' limits, `None` with `--in-process`: `--point-timeout`, and `--worker-memory`
+/// in MiB (default: three quarters of the machine's memory, shared among `threads` workers).
+fn sandbox_limits(options: &Options, threads: usize) -> Result<Option<(Option<Duration>, u64)>, String> {
+    let timeout = runner_sandbox::timeout("--point-timeout", options.point_timeout)?;
+    if options.in_process && timeout.is_some() {
+        return Err("--point-timeout needs worker processes (a thread cannot be stopped): drop --in-process".to_owned());
+    }
+    if options.in_process && options.worker_memory.is_some() {
+        return Err("--worker-memory limits worker processes: drop --in-process".to_owned());
+    }
+    Ok((!options.in_process).then(|| (timeout, options.worker_memory.unwrap_or_else(|| runner_sandbox::default_memory_mib(threads)))))
 }
 
 /// Where the rows go: standard output (or a device or pipe named by `--out`), or a durable file:
@@ -481,12 +585,16 @@ pub fn run(options: &Options) -> Result<Summary, String> {
         None => Points::Threads(settings.threads),
     };
     let clock = Instant::now();
-    let finished = execute(&held, &plan, &request, on, destination, &table)?;
-    let written = finish(finished, options, &settings, &table)?;
+    let finished = execute(n, destination, &table, |first, deliver| {
+        exec::sweep(&held, &plan, &request, on, first..n, &interrupt::requested, deliver)
+    })?;
+    let written = finish(finished, options, settings.out.as_deref(), &table)?;
     let elapsed = clock.elapsed().as_secs_f64();
-    report(&settings, &plan, &written, elapsed);
+    report(&plan.space, &plan.metrics, settings.threads, settings.isolation.is_some(), &written, elapsed);
     if let Some(path) = &settings.plot {
-        plot_metrics(path, &plan, &request, held.description(), &written.kept)?;
+        let x_unit = plan.swept[0].unit.as_deref();
+        let name = held.description().model_name.as_str();
+        plot_metrics(path, &plan.space, &plan.metrics, x_unit, request.metrics.texts(), name, &written.kept)?;
     }
     Ok(Summary { points: n, failed: written.failed })
 }
@@ -500,16 +608,14 @@ struct Finished {
     outcome: Result<(), String>,
 }
 
-/// Runs the points from the destination's first on, each row appended as it finishes.
+/// Runs the `n` points from the destination's first on, by `run(first, deliver)`, each row
+/// appended as it is delivered.
 fn execute(
-    held: &Held,
-    plan: &Plan,
-    request: &SweepRequest,
-    on: Points,
+    n: usize,
     mut destination: Destination,
     table: &Table,
+    run: impl FnOnce(usize, &mut dyn FnMut(usize, PointResult) -> Result<(), String>) -> Result<(), String>,
 ) -> Result<Finished, String> {
-    let n = plan.space.len;
     let m = table.m;
     // Only the metric values are kept, for the peaks and the plot.
     let (first, mut kept, mut failed) = match &mut destination {
@@ -521,8 +627,8 @@ fn execute(
     progress.inc(first as u64);
     let mut point = Vec::new();
     let mut row: Vec<String> = Vec::with_capacity(table.header.len());
-    let deliver = |i: usize, r: PointResult| -> Result<(), String> {
-        plan.space.point(i, &mut point);
+    let mut deliver = |i: usize, r: PointResult| -> Result<(), String> {
+        table.space.point(i, &mut point);
         row.clear();
         row.extend(point.iter().map(|x| format!("{x:?}")));
         match &r.metrics {
@@ -535,13 +641,13 @@ fn execute(
                 kept.extend(std::iter::repeat_n(f64::NAN, m));
             }
         }
-        failed += usize::from(r.status != "ok");
+        failed += usize::from(partial::failed(&r.status));
         row.push(r.status);
         destination.append(&row)?;
         progress.inc(1);
         Ok(())
     };
-    let outcome = exec::sweep(held, plan, request, on, first..n, &interrupt::requested, deliver);
+    let outcome = run(first, &mut deliver);
     drop(progress);
     Ok(Finished { destination, kept, failed, outcome })
 }
@@ -558,7 +664,7 @@ struct Written {
 
 /// Commits the destination, or on a failure or an interrupt keeps the finished rows and says
 /// how to continue.
-fn finish(finished: Finished, options: &Options, settings: &Settings, table: &Table) -> Result<Written, String> {
+fn finish(finished: Finished, options: &Options, out: Option<&Path>, table: &Table) -> Result<Written, String> {
     let Finished { destination, kept, failed, outcome } = finished;
     let n = table.space.len;
     let delivered = kept.len() / table.m.max(1);
@@ -600,7 +706,7 @@ fn finish(finished: Finished, options: &Options, settings: &Settings, table: &Ta
             Destination::Stdout(_) => format!("interrupted after {delivered} of {n} points"),
         });
     }
-    let (destination_name, csv_on_stdout) = match &settings.out {
+    let (destination_name, csv_on_stdout) = match out {
         Some(out) => (out.display().to_string(), false),
         None => ("standard output".to_owned(), true),
     };
@@ -612,12 +718,11 @@ fn finish(finished: Finished, options: &Options, settings: &Settings, table: &Ta
 }
 
 /// The summary line and each metric's peak.
-fn report(settings: &Settings, plan: &Plan, written: &Written, elapsed: f64) {
-    let (space, metrics) = (&plan.space, &plan.metrics);
+fn report(space: &Space, metrics: &Metrics, threads: usize, isolated: bool, written: &Written, elapsed: f64) {
     let n = space.len;
     let m = metrics.metrics.len();
-    let mode = if settings.isolation.is_some() { "worker process(es)" } else { "thread(s), in-process" };
-    eprintln!("{n} points in {elapsed:.2} s on {} {mode}; {} failed; wrote {}", settings.threads, written.failed, written.destination);
+    let mode = if isolated { "worker process(es)" } else { "thread(s), in-process" };
+    eprintln!("{n} points in {elapsed:.2} s on {threads} {mode}; {} failed; wrote {}", written.failed, written.destination);
     let metric_of = |i: usize, k: usize| written.kept[i * m + k];
     let mut point = Vec::new();
     for (k, (name, _)) in metrics.metrics.iter().enumerate() {
@@ -636,22 +741,23 @@ fn report(settings: &Settings, plan: &Plan, written: &Written, elapsed: f64) {
     }
 }
 
-/// Plots each metric against the first parameter into `path`, peaks marked: one line per
-/// combination of the other parameters.
+/// Plots each metric against the first parameter (whose unit is `x_unit`) into `path`, peaks
+/// marked: one line per combination of the other parameters; the title names `model`.
 fn plot_metrics(
     path: &Path,
-    plan: &Plan,
-    request: &SweepRequest,
-    description: &fmi_importer::Description,
+    space: &Space,
+    metrics: &Metrics,
+    x_unit: Option<&str>,
+    metric_texts: &[String],
+    model: &str,
     kept: &[f64],
 ) -> Result<(), String> {
-    let (space, metrics, swept) = (&plan.space, &plan.metrics, &plan.swept);
     let n = space.len;
     let m = metrics.metrics.len();
     let metric_of = |i: usize, k: usize| kept[i * m + k];
     let mut point = Vec::new();
     let x_name = &space.ranges[0].0;
-    let x_unit = swept[0].unit.as_deref().map_or(String::new(), |u| format!(" {u}"));
+    let x_unit_text = x_unit.map_or(String::new(), |u| format!(" {u}"));
     let mut series = Vec::new();
     let mut marks = Vec::new();
     for (k, (metric, _)) in metrics.metrics.iter().enumerate() {
@@ -668,21 +774,17 @@ fn plot_metrics(
         }
         for (label, points) in lines {
             if let Some(&(x, y)) = points.iter().filter(|p| p.1.is_finite()).max_by(|a, b| a.1.total_cmp(&b.1)) {
-                marks.push((label.clone(), Mark { at: (x, y), text: format!("peak {y:.4} at {x_name} = {x}{x_unit}") }));
+                marks.push((label.clone(), Mark { at: (x, y), text: format!("peak {y:.4} at {x_name} = {x}{x_unit_text}") }));
             }
             series.push(Series { label, points });
         }
     }
-    let x_label = match swept[0].unit.as_deref() {
+    let x_label = match x_unit {
         Some(u) => format!("{x_name} ({u})"),
         None => x_name.clone(),
     };
-    let y_label = if metrics.metrics.len() == 1 { request.metrics.texts()[0].replace('=', " = ") } else { "metric".to_owned() };
-    let title = format!(
-        "{}: {} against {x_name}",
-        description.model_name,
-        metrics.metrics.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
-    );
+    let y_label = if metrics.metrics.len() == 1 { metric_texts[0].replace('=', " = ") } else { "metric".to_owned() };
+    let title = format!("{model}: {} against {x_name}", metrics.metrics.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", "));
     // With several lines, each peak says whose it is.
     let several = series.len() > 1;
     let marks: Vec<Mark> =

@@ -319,6 +319,15 @@ fn flush_loop(shared: &(Mutex<Shared>, Condvar), path: &Path) {
     }
 }
 
+/// How the status of a system's sweep point that a component ended early starts: its metrics
+/// are over the samples up to there, and the point did not fail.
+pub const ENDED_EARLY: &str = "ended early: ";
+
+/// True when a sweep row's `status` counts as a failed point.
+pub fn failed(status: &str) -> bool {
+    status != "ok" && !status.starts_with(ENDED_EARLY)
+}
+
 /// The finished rows of a partial (or complete) CSV, read back for `--resume`.
 pub struct Finished {
     /// Number of point rows.
@@ -327,7 +336,7 @@ pub struct Finished {
     pub valid: u64,
     /// Each row's metric values (NaN where the point failed), `rows x metrics`.
     pub metrics: Vec<f64>,
-    /// Rows whose status is not `ok`.
+    /// Rows of failed points ([`failed`]).
     pub failed: usize,
 }
 
@@ -379,7 +388,7 @@ pub fn read_finished(
                 };
                 finished.metrics.push(value);
             }
-            finished.failed += usize::from(fields[params + metrics] != "ok");
+            finished.failed += usize::from(failed(fields[params + metrics]));
             finished.rows += 1;
         }
         start = end;
@@ -407,6 +416,17 @@ fn torn_or_refused(path: &Path, finished: Finished, start: usize, end: usize, le
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A point counts as failed unless it is `ok` or a system's point a component ended early
+    /// (its metrics are there), so a resumed sweep counts its rows as the first run did.
+    #[test]
+    fn ended_early_points_are_not_failures() {
+        assert!(!failed("ok"));
+        assert!(!failed("ended early: component 'car' at t = 1: the model terminated"));
+        assert!(failed("crashed: SIGSEGV in fmi2DoStep of component 'bad' at t = 0.31"));
+        assert!(failed("failed: component 'bad' at t = 0.5: fmi2DoStep returned fmi2Error"));
+        assert!(failed("metric m is NaN"));
+    }
 
     fn header() -> Vec<String> {
         ["k", "m", "status"].map(String::from).to_vec()

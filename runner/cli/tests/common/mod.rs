@@ -193,3 +193,25 @@ pub fn spawn_runner(dir: &Path, args: &[&str]) -> std::process::Child {
         .spawn()
         .expect("runner starts")
 }
+
+/// The start of a system structure, namespaces declared, up to its `<ssd:System>`.
+pub const SSD_HEAD: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    xmlns:ssm="http://ssp-standard.org/SSP1/SystemStructureParameterMapping" version="1.0" name="test">"#;
+
+/// A system folder `dir/name` holding `ssd` (between [`SSD_HEAD`] and the closing tag), the FMU
+/// files `fmus` as resources/<file>, and `extra` files.
+pub fn system(dir: &Path, name: &str, ssd: &str, fmus: &[(&str, &Path)], extra: &[(&str, &str)]) -> PathBuf {
+    let root = dir.join(name);
+    std::fs::create_dir_all(root.join("resources")).unwrap();
+    std::fs::write(root.join("SystemStructure.ssd"), format!("{SSD_HEAD}\n{ssd}\n</ssd:SystemStructureDescription>\n")).unwrap();
+    for (file, path) in fmus {
+        std::fs::copy(path, root.join("resources").join(file)).unwrap();
+    }
+    for (file, text) in extra {
+        std::fs::write(root.join(file), text).unwrap();
+    }
+    root
+}

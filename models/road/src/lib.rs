@@ -161,7 +161,9 @@ impl<T: Scalar> Road<T> {
             }
             1 => {
                 let u = x - self.bump_start;
-                if !(u >= T::zero() && u <= self.bump_length) {
+                // Half-open, as the edges' indicators fire on reaching zero: at an edge's event
+                // the profile (and its derivatives) are already those of the side ahead.
+                if !(u >= T::zero() && u < self.bump_length) {
                     return (T::zero(), T::zero());
                 }
                 let k = T::from(2.0 * PI) / self.bump_length;

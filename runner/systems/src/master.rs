@@ -1084,6 +1084,7 @@ enum Stepped {
 #[inline(always)]
 fn step(instance: &mut Instance, t: f64, t_next: f64, stop_early: bool) -> Result<Stepped, String> {
     let mut now = t;
+    let mut stalled = 0;
     loop {
         match instance.do_step(now, t_next - now)? {
             Step::Done => return Ok(Stepped::Reached),
@@ -1095,14 +1096,31 @@ fn step(instance: &mut Instance, t: f64, t_next: f64, stop_early: bool) -> Resul
                 if time >= t_next {
                     return Ok(Stepped::Reached);
                 }
-                if stop_early {
-                    return Ok(Stepped::Early(time));
+                if time < now || time.is_nan() {
+                    return Err(format!("fmi3DoStep from t = {now} stopped at an event at t = {time}, before its start"));
+                }
+                if time > now {
+                    if stop_early {
+                        return Ok(Stepped::Early(time));
+                    }
+                } else {
+                    // An event at the step's start (handled: step on), but not for ever.
+                    stalled += 1;
+                    if stalled > MAX_EVENTS_WITHOUT_PROGRESS {
+                        return Err(format!(
+                            "fmi3DoStep stopped at an event at t = {time} more than {MAX_EVENTS_WITHOUT_PROGRESS} times without advancing"
+                        ));
+                    }
                 }
                 now = time;
             }
         }
     }
 }
+
+/// How many events in a row a step may stop at without advancing before the FMU is taken to
+/// be stuck.
+const MAX_EVENTS_WITHOUT_PROGRESS: usize = 100;
 
 /// Whether `component` stops its steps at its events: an FMI 3.0 Co-Simulation FMU that may
 /// return early (`mightReturnEarlyFromDoStep`; the importer instantiates it with

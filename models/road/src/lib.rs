@@ -161,7 +161,9 @@ impl<T: Scalar> Road<T> {
             }
             1 => {
                 let u = x - self.bump_start;
-                if !(u >= T::zero() && u <= self.bump_length) {
+                // Half-open, as the edges' indicators fire on reaching zero: at an edge's event
+                // the profile (and its derivatives) are already those of the side ahead.
+                if !(u >= T::zero() && u < self.bump_length) {
                     return (T::zero(), T::zero());
                 }
                 let k = T::from(2.0 * PI) / self.bump_length;
@@ -242,6 +244,8 @@ impl<T: Scalar> Equations<T> for Road<T> {
 
 impl Model for Road {
     const N_STATES: usize = State::LEN;
+    /// The bump's two edges (profile 1).
+    const N_EVENT_INDICATORS: usize = 2;
 
     fn info() -> ModelInfo {
         ModelInfo {
@@ -251,6 +255,19 @@ impl Model for Road {
             tolerance: 1e-6,
             output_interval: 1e-3,
             documentation: include_str!("../derivation.md"),
+        }
+    }
+
+    /// The bump's edges, where z_r'' jumps, as state events: x - s and x - (s + l) change sign
+    /// there, so a solver restarts at them and an FMI 3.0 importer that allows early return
+    /// sees them. The other profiles have none (constants).
+    fn event_indicators(&self, _t: f64, x: &[f64], z: &mut [f64]) {
+        if self.profile == 1 {
+            let x = State::load(x).x;
+            z[0] = x - self.bump_start;
+            z[1] = x - (self.bump_start + self.bump_length);
+        } else {
+            z.fill(1.0);
         }
     }
 

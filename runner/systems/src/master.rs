@@ -264,6 +264,10 @@ impl<'a> Bound<'a> {
         }
         if master == Master::GaussSeidel {
             bound.order = bound.data_flow_order();
+        } else {
+            // The components that stop at their events step first, so that the others, not yet
+            // stepped, step only to such an event (the order is otherwise free under Jacobi).
+            bound.order.sort_by_key(|&c| !returns_early(&components[c]));
         }
         Ok(bound)
     }
@@ -465,7 +469,15 @@ impl<'a> Bound<'a> {
                     // polynomial extrapolates from the step's start.
                     let interpolate = self.master == Master::GaussSeidel && position(tr.source) < position(tr.to);
                     let passed = if interpolate { MAX_COUPLING_ORDER } else { order };
-                    to.rates.push(Rate { from, factor: tr.factor, order: passed, interpolate });
+                    to.rates.push(Rate {
+                        vr: tr.variable.value_reference,
+                        from,
+                        source: tr.source,
+                        factor: tr.factor,
+                        offset: tr.offset,
+                        order: passed,
+                        interpolate,
+                    });
                     if interpolate {
                         // Set with its derivatives (its value is its source's at the step's start).
                         to.interpolated.push((tr.variable.value_reference, from, tr.factor, tr.offset));
@@ -508,7 +520,8 @@ impl<'a> Bound<'a> {
         let interpolates = inputs.iter().any(|i| i.rates.iter().any(|r| r.interpolate));
         let coupled = inputs.iter().any(|i| !i.rates.is_empty());
         let recorded = recorded.map(|r| r.iter().map(|&c| slot_of[c]).collect());
-        Plan { reads, slots, inputs, rates, coupled, interpolates, recorded }
+        let returns_early = components.iter().map(returns_early).collect();
+        Plan { reads, slots, inputs, rates, coupled, interpolates, recorded, returns_early }
     }
 
     fn run_plan(
@@ -585,6 +598,7 @@ impl<'a> Bound<'a> {
                 start_rates.copy_from_slice(&rates);
             }
             let start = Start { values: &start_values, rates: &start_rates, h: t_next - t };
+            let mut early = None;
             if jacobi {
                 for c in 0..n_components {
                     transfer(plan, components, c, &mut instances[c], &mut buffers[c], &values, t)?;
@@ -601,9 +615,16 @@ impl<'a> Bound<'a> {
                     }
                 }
                 driving(c);
-                if let Some(ended) = step(&mut instances[c], t, t_next).map_err(fail(c, t))? {
-                    // The others may have stepped on: the last row is the one at t.
-                    return Ok(Outcome::Ended(Failure { component: Some(components[c].name.clone()), time: t, message: ended }));
+                match step(&mut instances[c], t, t_next, plan.returns_early[c]).map_err(fail(c, t))? {
+                    Stepped::Reached => {}
+                    Stepped::Ended(ended) => {
+                        // The others may have stepped on: the last row is the one at t.
+                        return Ok(Outcome::Ended(Failure { component: Some(components[c].name.clone()), time: t, message: ended }));
+                    }
+                    Stepped::Early(event) => {
+                        early = Some((c, event));
+                        break;
+                    }
                 }
                 if !jacobi {
                     read(plan, components, c, &mut instances[c], &mut readers[c], &mut values, t_next)?;
@@ -612,7 +633,19 @@ impl<'a> Bound<'a> {
                     }
                 }
             }
-            if jacobi {
+            if let Some((c, event)) = early {
+                let mut run = Running {
+                    instances: &mut instances,
+                    readers: &mut readers,
+                    values: &mut values,
+                    rates: &mut rates,
+                    scratch: &mut scratch,
+                    buffers: &mut buffers,
+                };
+                if let Some(ended) = self.synchronize(plan, &mut run, (&start_values, &start_rates), (t, t_next), c, event)? {
+                    return Ok(Outcome::Ended(ended));
+                }
+            } else if jacobi {
                 for c in 0..n_components {
                     read(plan, components, c, &mut instances[c], &mut readers[c], &mut values, t_next)?;
                     if plan.coupled {
@@ -627,6 +660,173 @@ impl<'a> Bound<'a> {
             drop(instance);
         }
         Ok(Outcome::Finished)
+    }
+}
+
+impl Bound<'_> {
+    /// The rest of the communication step from `t` to `t_next` after component `first` stopped
+    /// at an event at `event` (FMI 3.0 early return): every component is brought to that time
+    /// with a shorter step, the values are passed there, and the step goes on from there to
+    /// `t_next` (stopping again at any further event). Components that had stepped before
+    /// `first` in this step (Jacobi: only other early returners, which step first;
+    /// Gauss-Seidel: the ones before it in data-flow order) are at `t_next` already and wait
+    /// there; a component that cannot shorten its step (FMI 2.0 without
+    /// `canHandleVariableCommunicationStepSize`) takes the whole remaining step. A component's
+    /// values are read when the sub-steps reach the time it is at. A polynomial input follows
+    /// its source's Taylor polynomial from its last read, moved to the sub-step's start; under
+    /// Gauss-Seidel, from a source already past that start, the cubic between its last two
+    /// reads. `start` holds the values and derivatives at `t` (kept when Gauss-Seidel
+    /// interpolates). `Some`: a component ended the run.
+    #[cold]
+    #[inline(never)]
+    fn synchronize(
+        &self,
+        plan: &Plan,
+        run: &mut Running,
+        start: (&[f64], &[Rates]),
+        (t, t_next): (f64, f64),
+        first: usize,
+        event: f64,
+    ) -> Result<Option<Failure>, Failure> {
+        let components = &self.system.components;
+        let n = components.len();
+        let jacobi = self.master == Master::Jacobi;
+        let position = self.order.iter().position(|&c| c == first).expect("every component is in the order");
+        // Where each component is; the time its values (and derivatives) were read at, and the
+        // values it had at the read before (Gauss-Seidel's components before `first` were read
+        // at t_next, after their values at t).
+        let (mut at, mut reads) = (vec![t; n], Reads::new(n, t, start));
+        for &c in &self.order[..position] {
+            at[c] = t_next;
+            if !jacobi {
+                reads.at[c] = t_next;
+            }
+        }
+        at[first] = event;
+        loop {
+            let now = at.iter().copied().fold(f64::INFINITY, f64::min);
+            if now >= t_next {
+                break;
+            }
+            // Components that arrived here earlier (at an event) are read now.
+            for (c, &arrived) in at.iter().enumerate() {
+                if arrived == now && reads.at[c] != now {
+                    reads.read(run, plan, components, c, now)?;
+                }
+            }
+            let mut end = at.iter().copied().filter(|&a| a > now).fold(t_next, f64::min);
+            let stepping: Vec<usize> = self.order.iter().copied().filter(|&c| at[c] == now).collect();
+            if jacobi {
+                for &c in &stepping {
+                    run.set_inputs_at(plan, components, c, now, &reads)?;
+                }
+            }
+            for &c in &stepping {
+                if !jacobi {
+                    run.set_inputs_at(plan, components, c, now, &reads)?;
+                }
+                let to = if takes_any_step(&components[c]) { end } else { t_next };
+                driving(c);
+                match step(&mut run.instances[c], now, to, plan.returns_early[c]).map_err(|e| failure(components, c, now, e))? {
+                    Stepped::Reached => at[c] = to,
+                    Stepped::Ended(message) => {
+                        return Ok(Some(Failure { component: Some(components[c].name.clone()), time: now, message }));
+                    }
+                    Stepped::Early(time) => {
+                        at[c] = time;
+                        end = end.min(time);
+                    }
+                }
+                if !jacobi {
+                    reads.read(run, plan, components, c, at[c])?;
+                }
+            }
+        }
+        for c in 0..n {
+            if reads.at[c] != t_next {
+                reads.read(run, plan, components, c, t_next)?;
+            }
+        }
+        Ok(None)
+    }
+}
+
+/// When each component's values were read during [`Bound::synchronize`], and the values and
+/// derivatives of the read before, to interpolate between.
+struct Reads {
+    at: Vec<f64>,
+    before_at: Vec<f64>,
+    before_values: Vec<f64>,
+    before_rates: Vec<Rates>,
+}
+
+impl Reads {
+    /// Every component read at `t`, with `start`'s values (no read before).
+    fn new(n: usize, t: f64, (values, rates): (&[f64], &[Rates])) -> Reads {
+        Reads { at: vec![t; n], before_at: vec![t; n], before_values: values.to_vec(), before_rates: rates.to_vec() }
+    }
+
+    /// Reads component `c` at `time`, keeping what it had.
+    fn read(&mut self, run: &mut Running, plan: &Plan, components: &[Component], c: usize, time: f64) -> Result<(), Failure> {
+        let (vars, offset) = &plan.reads[c];
+        let slots = *offset..offset + vars.len();
+        self.before_values[slots.clone()].copy_from_slice(&run.values[slots.clone()]);
+        self.before_rates[slots.clone()].copy_from_slice(&run.rates[slots]);
+        self.before_at[c] = self.at[c];
+        self.at[c] = time;
+        run.read(plan, components, c, time)
+    }
+}
+
+/// A run's instances and the values passed between them, for [`Bound::synchronize`].
+struct Running<'r, 'i> {
+    instances: &'r mut [Instance<'i>],
+    readers: &'r mut [Reader],
+    values: &'r mut [f64],
+    rates: &'r mut [Rates],
+    scratch: &'r mut [Vec<f64>],
+    buffers: &'r mut [Vec<f64>],
+}
+
+impl Running<'_, '_> {
+    /// Reads component `c`'s values, and its output derivatives when polynomials are passed.
+    fn read(&mut self, plan: &Plan, components: &[Component], c: usize, t: f64) -> Result<(), Failure> {
+        read(plan, components, c, &mut self.instances[c], &mut self.readers[c], self.values, t)?;
+        if plan.coupled {
+            read_rates(plan, components, c, &mut self.instances[c], &mut self.scratch[c], self.rates, t)?;
+        }
+        Ok(())
+    }
+
+    /// Sets component `c`'s inputs for a sub-step from `now`: held ones as last read,
+    /// polynomial ones from their source's Taylor polynomial at its last read moved to `now`,
+    /// or, for Gauss-Seidel's interpolated ones from a source read past `now`, from the cubic
+    /// through its last two reads.
+    fn set_inputs_at(&mut self, plan: &Plan, components: &[Component], c: usize, now: f64, reads: &Reads) -> Result<(), Failure> {
+        let instance = &mut self.instances[c];
+        transfer(plan, components, c, instance, &mut self.buffers[c], self.values, now)?;
+        let inputs = &plan.inputs[c];
+        if inputs.rates.is_empty() {
+            return Ok(());
+        }
+        let (mut vrs, mut xs, mut derivatives) = (Vec::new(), Vec::new(), Vec::new());
+        for r in &inputs.rates {
+            let (read_at, before_at) = (reads.at[r.source], reads.before_at[r.source]);
+            let (value, d) = if r.interpolate && read_at > now && before_at <= now && before_at < read_at {
+                let u0 = reads.before_values[r.from];
+                let d = hermite(u0, reads.before_rates[r.from][0], self.values[r.from], self.rates[r.from][0], read_at - before_at);
+                shifted(u0, &d, now - before_at)
+            } else {
+                shifted(self.values[r.from], &self.rates[r.from], now - read_at)
+            };
+            vrs.push(r.vr);
+            xs.push(r.factor * value + r.offset);
+            derivatives.extend(d[..r.order].iter().map(|x| r.factor * x));
+        }
+        let fail =
+            |e: String| failure(components, c, now, format!("{e} (setting {} with their derivatives)", inputs.rate_names.join(", ")));
+        instance.set_reals(&vrs, &xs).map_err(fail)?;
+        instance.set_input_derivatives(&inputs.rate_vrs, &inputs.rate_orders, &derivatives).map_err(fail)
     }
 }
 
@@ -648,6 +848,9 @@ struct Plan<'a> {
     /// The slots of the recorded columns, in the caller's order (`None`: the values are the
     /// columns).
     recorded: Option<Vec<usize>>,
+    /// Per component: it stops its step at an event (FMI 3.0 early return), and the master
+    /// then brings the others to that time.
+    returns_early: Vec<bool>,
 }
 
 /// A component's inputs from connections: its Real ones set in one call, the others one by one.
@@ -675,10 +878,14 @@ struct Inputs<'a> {
 
 /// A Real input that follows a polynomial over each step.
 struct Rate {
-    /// The slot of its source's value (and derivatives).
+    /// The input's value reference.
+    vr: u32,
+    /// The slot of its source's value (and derivatives), and the source component.
     from: usize,
-    /// The unit conversion's factor (derivatives scale by it alone).
+    source: usize,
+    /// The unit conversion `factor * x + offset` (derivatives scale by the factor alone).
     factor: f64,
+    offset: f64,
     /// The derivatives passed: orders 1 to `order`.
     order: usize,
     /// Gauss-Seidel from a source already at the step's end: the cubic through both ends.
@@ -878,21 +1085,51 @@ fn emit(
     result.map_err(|message| Failure { component: None, time: t, message })
 }
 
-/// One component's step from `t` to `t_next`, going on from any event it stops at (FMI 3.0):
-/// `Some(reason)` when the FMU ended the simulation.
+/// How a component's step ended.
+enum Stepped {
+    /// At the step's end.
+    Reached,
+    /// The FMU ended the simulation, for this reason.
+    Ended(String),
+    /// At an event before the step's end, handled (Event Mode left): the component is at
+    /// this time.
+    Early(f64),
+}
+
+/// One component's step from `t` to `t_next`. An FMI 3.0 FMU that stops at an event gets it
+/// handled in Event Mode (`fmi3EnterEventMode`, `fmi3UpdateDiscreteStates` until settled,
+/// `fmi3EnterStepMode`); then, when `stop_early`, the step ends there ([`Stepped::Early`]),
+/// else it goes on to `t_next`.
 #[inline(always)]
-fn step(instance: &mut Instance, t: f64, t_next: f64) -> Result<Option<String>, String> {
+fn step(instance: &mut Instance, t: f64, t_next: f64, stop_early: bool) -> Result<Stepped, String> {
     let mut now = t;
+    let mut stalled = 0;
     loop {
         match instance.do_step(now, t_next - now)? {
-            Step::Done => return Ok(None),
-            Step::Ended { reason, .. } => return Ok(Some(reason)),
+            Step::Done => return Ok(Stepped::Reached),
+            Step::Ended { reason, .. } => return Ok(Stepped::Ended(reason)),
             Step::Event { time } => {
                 if let Some(reason) = instance.handle_event(time)? {
-                    return Ok(Some(reason));
+                    return Ok(Stepped::Ended(reason));
                 }
                 if time >= t_next {
-                    return Ok(None);
+                    return Ok(Stepped::Reached);
+                }
+                if time < now || time.is_nan() {
+                    return Err(format!("fmi3DoStep from t = {now} stopped at an event at t = {time}, before its start"));
+                }
+                if time > now {
+                    if stop_early {
+                        return Ok(Stepped::Early(time));
+                    }
+                } else {
+                    // An event at the step's start (handled: step on), but not for ever.
+                    stalled += 1;
+                    if stalled > MAX_EVENTS_WITHOUT_PROGRESS {
+                        return Err(format!(
+                            "fmi3DoStep stopped at an event at t = {time} more than {MAX_EVENTS_WITHOUT_PROGRESS} times without advancing"
+                        ));
+                    }
                 }
                 now = time;
             }
@@ -900,9 +1137,58 @@ fn step(instance: &mut Instance, t: f64, t_next: f64) -> Result<Option<String>, 
     }
 }
 
+/// How many events in a row a step may stop at without advancing before the FMU is taken to
+/// be stuck.
+const MAX_EVENTS_WITHOUT_PROGRESS: usize = 100;
+
+/// Whether `component` stops its steps at its events: an FMI 3.0 Co-Simulation FMU that may
+/// return early (`mightReturnEarlyFromDoStep`; the importer instantiates it with
+/// `earlyReturnAllowed` then).
+fn returns_early(component: &Component) -> bool {
+    let fmu = &component.fmu;
+    fmu.interface == Interface::CoSimulation
+        && fmu.description.fmi_version == FmiVersion::Fmi3
+        && fmu.description.co_simulation.as_ref().is_some_and(|c| c.might_return_early_from_do_step)
+}
+
+/// Whether `component` takes a step shorter than the communication step (FMI 2.0's
+/// `canHandleVariableCommunicationStepSize`; FMI 3.0 Co-Simulation and Model Exchange always
+/// do).
+fn takes_any_step(component: &Component) -> bool {
+    let d = &component.fmu.description;
+    component.fmu.interface == Interface::ModelExchange
+        || d.fmi_version == FmiVersion::Fmi3
+        || d.co_simulation.as_ref().is_some_and(|c| c.can_handle_variable_communication_step_size)
+}
+
+/// The Taylor coefficients (value, then derivatives of orders 1 to 3) of a cubic moved from
+/// its point to `delta` later (earlier when negative).
+#[inline]
+fn shifted(value: f64, d: &Rates, delta: f64) -> (f64, Rates) {
+    let [d1, d2, d3] = *d;
+    let value = value + delta * (d1 + delta * (d2 / 2.0 + delta * d3 / 6.0));
+    (value, [d1 + delta * (d2 + delta * d3 / 2.0), d2 + delta * d3, d3])
+}
+
 #[cfg(test)]
 mod tests {
-    use super::hermite;
+    use super::{hermite, shifted};
+
+    /// Moving a cubic's Taylor coefficients from 0 to `delta` gives its value and derivatives
+    /// at `delta` (p = 1 + 2 s + 3 s^2 + 4 s^3, whose derivatives at 0 are 2, 6, 24), forward
+    /// and back, to rounding (a few ulps of values of order 10).
+    #[test]
+    fn shifted_moves_a_cubic_along_itself() {
+        let p = |s: f64| 1.0 + 2.0 * s + 3.0 * s * s + 4.0 * s * s * s;
+        let dp = |s: f64| [2.0 + 6.0 * s + 12.0 * s * s, 6.0 + 24.0 * s, 24.0];
+        for delta in [0.3, -0.7] {
+            let (value, d) = shifted(p(0.0), &[2.0, 6.0, 24.0], delta);
+            assert!((value - p(delta)).abs() < 1e-12, "{delta}: {value}");
+            for (got, want) in d.iter().zip(dp(delta)) {
+                assert!((got - want).abs() < 1e-12, "{delta}: {d:?}");
+            }
+        }
+    }
 
     /// The interpolating cubic of a cubic is the cubic itself: from its values and slopes at 0
     /// and h, `hermite` gives its Taylor coefficients at 0 (p' = 2, p'' = 6, p''' = 24 for

@@ -26,6 +26,7 @@
 
 use nalgebra::SVector;
 use num_dual::{Derivative, Dual3_64, DualSVec64};
+use smallvec::{smallvec, SmallVec};
 
 use super::interpolation::MAX_ORDER;
 use super::{CallResult, Core, Failure};
@@ -377,7 +378,7 @@ impl<M: Model> Core<M> {
             )));
         };
         let rows = &self.table.rows;
-        let mut outputs = Vec::with_capacity(vrs.len());
+        let mut outputs: SmallVec<[Unknown; 8]> = SmallVec::with_capacity(vrs.len());
         for (&vr, &order) in vrs.iter().zip(orders) {
             let Some(row) = rows.get(vr as usize) else {
                 return Err(Failure::error(format!("{function}: value reference {vr} is not a variable of this FMU")));
@@ -403,7 +404,7 @@ impl<M: Model> Core<M> {
         }
         let inputs = self.input_derivatives();
         let pass = Trajectory { t: self.state.t, x: &self.state.x, inputs: &inputs, outputs: &outputs };
-        let mut out = vec![[0.0; MAX_ORDER]; outputs.len()];
+        let mut out: SmallVec<[Rates; 8]> = smallvec![[0.0; MAX_ORDER]; outputs.len()];
         (lifting.trajectory)(&self.state.model, &pass, &mut out).map_err(|e| Failure::error(format!("{function}: {e}")))?;
         for ((value, d), &order) in values.iter_mut().zip(&out).zip(orders) {
             *value = d[order as usize - 1];
@@ -452,18 +453,24 @@ pub fn trajectory<M: Model + Lift>(model: &M, pass: &Trajectory, out: &mut [[f64
     let t = Dual3_64::new(pass.t, 1.0, 0.0, 0.0);
     let n = pass.x.len();
     // Per state: its derivatives of orders 1 to MAX_ORDER, found one order per pass.
-    let mut rates = vec![[0.0; MAX_ORDER]; n];
-    let states = |rates: &[[f64; MAX_ORDER]]| -> Vec<Dual3_64> {
-        pass.x.iter().zip(rates).map(|(&v, &[d1, d2, d3])| Dual3_64::new(v, d1, d2, d3)).collect()
+    // On the stack for models of up to 16 states: this runs at every communication step of a
+    // polynomial coupling.
+    let mut rates: SmallVec<[Rates; 16]> = smallvec![[0.0; MAX_ORDER]; n];
+    let mut x: SmallVec<[Dual3_64; 16]> = smallvec![Dual3_64::from(0.0); n];
+    let states = |x: &mut [Dual3_64], rates: &[Rates]| {
+        for ((x, &v), &[d1, d2, d3]) in x.iter_mut().zip(pass.x).zip(rates) {
+            *x = Dual3_64::new(v, d1, d2, d3);
+        }
     };
-    let mut dx = vec![Dual3_64::from(0.0); n];
+    let mut dx: SmallVec<[Dual3_64; 16]> = smallvec![Dual3_64::from(0.0); n];
     for order in 0..MAX_ORDER {
-        lifted.derivatives(t, &states(&rates), &mut dx);
+        states(&mut x, &rates);
+        lifted.derivatives(t, &x, &mut dx);
         for (rate, d) in rates.iter_mut().zip(&dx) {
             rate[order] = [d.re, d.v1, d.v2][order];
         }
     }
-    let x = states(&rates);
+    states(&mut x, &rates);
     if pass.outputs.iter().any(|u| matches!(u, Unknown::Field(_))) {
         lifted.outputs(t, &x);
     }

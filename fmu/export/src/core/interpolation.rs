@@ -71,7 +71,8 @@ type Setter<M> = fn(&mut M, f64);
 /// the step (a `RefCell`: the solver's calls take `&self`).
 pub(crate) struct Driven<'a, M> {
     model: std::cell::RefCell<&'a mut M>,
-    inputs: Vec<(Setter<M>, &'a Drive)>,
+    /// On the stack for up to four inputs: a driven step builds this at every step.
+    inputs: smallvec::SmallVec<[(Setter<M>, &'a Drive); 4]>,
 }
 
 impl<'a, M: Model> Driven<'a, M> {
@@ -206,7 +207,7 @@ impl<M: Model> Core<M> {
 
     /// The driven inputs' fields with their derivatives at the current time, for the output
     /// derivatives.
-    pub(super) fn input_derivatives(&self) -> Vec<(usize, [f64; MAX_ORDER])> {
+    pub(super) fn input_derivatives(&self) -> smallvec::SmallVec<[(usize, [f64; MAX_ORDER]); 4]> {
         let t = self.state.t;
         self.state.drives.iter().filter_map(|d| self.table.rows[d.row].field.map(|f| (f, d.derivatives_at(t)))).collect()
     }

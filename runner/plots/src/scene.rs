@@ -292,6 +292,28 @@ pub struct Motion<'s> {
 /// A view: the x and y ranges drawn.
 pub type View = (Range<f64>, Range<f64>);
 
+/// A motion as plain data, for a drawing made elsewhere (`runner serve`'s page draws it on a
+/// canvas): the points at every sample, and per sample which links and trails are shown.
+#[derive(Debug, Clone)]
+pub struct Geometry {
+    /// Point names.
+    pub names: Vec<String>,
+    /// Per point: fixed (a pivot defined by parameters only).
+    pub fixed: Vec<bool>,
+    /// `positions[p][i]`: point `p` at sample `i` (m).
+    pub positions: Vec<Vec<(f64, f64)>>,
+    /// Each link's points, and whether it is shown at each sample.
+    pub links: Vec<(Vec<usize>, Vec<bool>)>,
+    /// Each trail's point, and whether it is drawn at each sample.
+    pub trails: Vec<(usize, Vec<bool>)>,
+    /// Heights of the ground lines (m).
+    pub levels: Vec<f64>,
+    /// The view of every sample (see [`Motion::views`]).
+    pub views: Vec<View>,
+    /// The time stamp of every sample (see [`Motion::stamp`]).
+    pub stamps: Vec<String>,
+}
+
 impl Motion<'_> {
     /// Number of samples.
     pub fn len(&self) -> usize {
@@ -401,6 +423,22 @@ impl Motion<'_> {
             }
         }
         shapes
+    }
+
+    /// The whole motion as plain data.
+    pub fn geometry(&self) -> Geometry {
+        let scene = self.scene;
+        let samples: Vec<usize> = (0..self.len()).collect();
+        Geometry {
+            names: scene.names.clone(),
+            fixed: scene.places.iter().map(|p| matches!(p, Place::Defined(_, _, true))).collect(),
+            positions: self.positions.clone(),
+            links: scene.links.iter().zip(&self.links).map(|((ids, _), shown)| (ids.clone(), shown.clone())).collect(),
+            trails: scene.trails.iter().zip(&self.trails).map(|((p, _), shown)| (*p, shown.clone())).collect(),
+            levels: self.levels.clone(),
+            views: self.views(&samples),
+            stamps: samples.iter().map(|&i| self.stamp(i)).collect(),
+        }
     }
 
     /// The time stamp of sample `i`: `t = 0.700 s`, with the values of `[animate] show`.

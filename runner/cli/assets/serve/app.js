@@ -203,6 +203,8 @@ function change(v, text, div) {
 
 let running = false;
 let pending = null;
+// True while a run is in flight or waiting to be sent.
+Object.defineProperty(lab, "busy", { get: () => running || pending !== null });
 
 async function simulate(changedAt) {
   if (running) {

@@ -214,13 +214,27 @@ pub struct SweepRun {
 }
 
 /// `set` as `--set NAME=VALUE` texts: a number in its shortest form that reads back the same.
-fn set_texts(set: &serde_json::Map<String, Json>) -> Result<Vec<String>, String> {
+/// Strings and Binaries are refused: a String parameter may name a file on the server (the
+/// road's `table`), and the client gives no paths.
+fn set_texts(md: &Description, set: &serde_json::Map<String, Json>) -> Result<Vec<String>, String> {
     set.iter()
-        .map(|(name, value)| match value {
-            Json::Number(n) => n.as_f64().map(|x| format!("{name}={x:?}")).ok_or_else(|| format!("set {name}: {n} is not a number")),
-            Json::String(s) => Ok(format!("{name}={s}")),
-            Json::Bool(b) => Ok(format!("{name}={b}")),
-            other => Err(format!("set {name}: give a number or a text such as \"120 deg\", not {other}")),
+        .map(|(name, value)| {
+            let variable = variables::find(md, name)?;
+            if matches!(variable.kind, Kind::String | Kind::Binary) {
+                return Err(format!(
+                    "'{name}' is a {}: only numbers and Booleans are set from the page (a String may name a file on the server)",
+                    variable.kind
+                ));
+            }
+            Ok((name, value))
+        })
+        .map(|named| {
+            named.and_then(|(name, value)| match value {
+                Json::Number(n) => n.as_f64().map(|x| format!("{name}={x:?}")).ok_or_else(|| format!("set {name}: {n} is not a number")),
+                Json::String(s) => Ok(format!("{name}={s}")),
+                Json::Bool(b) => Ok(format!("{name}={b}")),
+                other => Err(format!("set {name}: give a number or a text such as \"120 deg\", not {other}")),
+            })
         })
         .collect()
 }
@@ -292,7 +306,7 @@ impl<'a> Served<'a> {
         grid.solver = model.solver;
         check_samples(&grid)?;
         let mut sets = model.experiment.simulate.set.clone();
-        sets.extend(set_texts(&body.set)?);
+        sets.extend(set_texts(md, &body.set)?);
         let assignments = variables::parse_sets(md, &sets)?;
         let csv = match body.format.as_deref() {
             None | Some("json") => false,
@@ -361,7 +375,7 @@ impl<'a> Served<'a> {
         check_samples(&grid)?;
         let mut sets = model.experiment.simulate.set.clone();
         sets.extend(config.set.iter().cloned());
-        sets.extend(set_texts(&body.set)?);
+        sets.extend(set_texts(md, &body.set)?);
         let assignments = variables::parse_sets(md, &sets)?;
         let mut recorded: Vec<&Variable> = scene.variables(md);
         for v in md.outputs().filter(|v| v.kind.is_numeric()) {
@@ -506,7 +520,7 @@ pub fn prepare_sweep<'m>(model: &'m Model, body: &SweepBody, max_points: usize) 
     let mut grid = Grid::choose(md, &[grid_settings(run.stop_time, run.output_interval, run.tolerance), defaults.run().grid()])?;
     grid.solver = model.solver;
     let mut sets = defaults.set.clone();
-    sets.extend(set_texts(&run.set)?);
+    sets.extend(set_texts(md, &run.set)?);
     let fixed: Vec<(&Variable, Value)> = variables::parse_sets(md, &sets)?;
     let request = SweepRequest::new(grid, &fixed, ranges, metrics, None);
     let plan = request.plan(md, model.held.identifier(), model.held.interface())?;

@@ -129,7 +129,7 @@ pub fn run(options: &Options) -> Result<(), String> {
     };
     if options.host.is_some() {
         eprintln!(
-            "warning: listening on {host}, not 127.0.0.1 only: anyone who can reach this address can run the served FMUs on this machine"
+            "warning: listening on {shown_host}:{port} (--host): anyone who can reach this address can run the served FMUs on this machine"
         );
     }
     let app = App {

@@ -5,11 +5,12 @@ Origin and Host checks that keep other web pages from driving the server."""
 
 import json
 import math
-import time
+import subprocess
+import zipfile
 
 import pytest
 
-from serve_tools import MAX_POINTS, FMU_DIR, Server, description, lab_models, read_csv, runner, simulate_csv, wait_for
+from serve_tools import MAX_POINTS, FMU_DIR, ROOT, Server, description, lab_models, read_csv, runner, simulate_csv, wait_for
 
 # The solver controls every toolkit FMU has: parameters, but not the model's.
 CONTROLS = {"solver", "fixed_step", "abs_tol", "max_step", "n_steps", "n_rhs"}
@@ -244,3 +245,30 @@ def test_listening_beyond_this_machine_is_warned_about():
     finally:
         assert s.stop() == 0
     assert "warning: listening on" in s.stderr and "anyone who can reach this address" in s.stderr
+
+
+def faulty_fmu(directory):
+    """tests/c_fmu/faulty.c built into an FMU: it segfaults (fault=1) or hangs (fault=3) on
+    request, as a third-party FMU may."""
+    source = ROOT / "tests" / "c_fmu"
+    binary = directory / "faulty.so"
+    subprocess.run(["cc", "-shared", "-fPIC", "-O2", "-fvisibility=hidden", "-o", binary, source / "faulty.c", "-lm"], check=True)
+    fmu = directory / "faulty.fmu"
+    with zipfile.ZipFile(fmu, "w") as z:
+        z.write(source / "faulty.xml", "modelDescription.xml")
+        z.write(binary, "binaries/linux64/faulty.so")
+    return fmu
+
+
+def test_an_fmu_that_crashes_or_hangs_costs_its_request_not_the_server(tmp_path):
+    s = Server(faulty_fmu(tmp_path), "--point-timeout", "2")
+    try:
+        assert "SIGSEGV" in error(s, "/api/models/faulty/simulate", 400, {"set": {"fault": 1}})
+        assert "2 s" in error(s, "/api/models/faulty/simulate", 400, {"set": {"fault": 3}})
+        # The next run gets a fresh worker and the server answers as before.
+        assert s.json("/api/models/faulty/simulate", {})["time"]
+        started = s.json("/api/models/faulty/sweep", {"param": ["fault=0,1"], "metric": ["end=final(x)"]}, status=202)
+        report = wait_for(lambda: (r := s.json(f"/api/sweeps/{started['job']}"))["finished"] and r, 60, "the faulty sweep")
+        assert [r["status"] == "ok" for r in report["rows"]] == [True, False] and "SIGSEGV" in report["rows"][1]["status"]
+    finally:
+        assert s.stop() == 0

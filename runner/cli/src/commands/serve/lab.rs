@@ -230,7 +230,12 @@ fn set_texts(md: &Description, set: &serde_json::Map<String, Json>) -> Result<Ve
         })
         .map(|named| {
             named.and_then(|(name, value)| match value {
-                Json::Number(n) => n.as_f64().map(|x| format!("{name}={x:?}")).ok_or_else(|| format!("set {name}: {n} is not a number")),
+                Json::Number(n) => match (n.as_i64(), n.as_f64()) {
+                    // A whole number stays one (an Integer parameter refuses `1.0`).
+                    (Some(i), _) => Ok(format!("{name}={i}")),
+                    (None, Some(x)) => Ok(format!("{name}={x:?}")),
+                    (None, None) => Err(format!("set {name}: {n} is not a number")),
+                },
                 Json::String(s) => Ok(format!("{name}={s}")),
                 Json::Bool(b) => Ok(format!("{name}={b}")),
                 other => Err(format!("set {name}: give a number or a text such as \"120 deg\", not {other}")),

@@ -98,6 +98,16 @@ def test_a_run_equals_runner_simulate_to_the_bit(server, tmp_path, model):
     assert body.decode() == expected
 
 
+def test_a_run_answers_the_columns_asked_for(server):
+    """`variables` picks the columns answered (the page asks for what it draws); `recorded`
+    names them all, the outputs first."""
+    full = server.json("/api/models/pendulum/simulate", {})
+    some = server.json("/api/models/pendulum/simulate", {"variables": ["omega", "theta"]})
+    assert some["recorded"] == full["recorded"] == full["names"] and some["names"] == ["omega", "theta"]
+    assert some["columns"] == [full["columns"][full["names"].index(n)] for n in ["omega", "theta"]] and some["time"] == full["time"]
+    assert "'thta' is not recorded" in error(server, "/api/models/pendulum/simulate", 400, {"variables": ["thta"]})
+
+
 def test_events_are_the_changes_of_the_discrete_outputs(server):
     """The trebuchet's regimes (to 4, the flight) and its landing: an event wherever `regime`
     changes between samples, named by its new value."""

@@ -108,6 +108,9 @@ async function openModel(id) {
   await simulate(null);
 }
 
+// The toolkit's solver controls: parameters of the FMU's integrator, not of the model.
+const CONTROLS = ["solver", "fixed_step", "abs_tol", "max_step", "n_steps", "n_rhs"];
+
 // Parameters and inputs a value can be given to: scalar numbers that may be set.
 function settable() {
   return lab.model.variables.filter((v) => v.settable && (v.causality === "parameter" || v.causality === "input"));
@@ -132,7 +135,16 @@ function fieldText(x) {
 function buildParameters() {
   const form = $("parameters");
   form.textContent = "";
-  for (const v of settable()) {
+  // The model's own parameters first, then the solver controls of the FMU's integrator.
+  const ordered = settable().sort((a, b) => CONTROLS.includes(a.name) - CONTROLS.includes(b.name));
+  let controlsHeading = false;
+  for (const v of ordered) {
+    if (CONTROLS.includes(v.name) && !controlsHeading) {
+      const h = document.createElement("h4");
+      h.textContent = "Solver controls";
+      form.appendChild(h);
+      controlsHeading = true;
+    }
     const div = document.createElement("div");
     div.className = "param";
     div.dataset.name = v.name;
@@ -213,13 +225,17 @@ async function simulate(changedAt) {
   }
   running = true;
   try {
-    const body = { set: { ...lab.changed } };
+    // Only the columns drawn: the plotted outputs and the phase plot's two.
+    const wanted = new Set(lab.model.plotted);
+    for (const id of ["phase-x", "phase-y"]) if ($(id).dataset.model === lab.model.id && $(id).value) wanted.add($(id).value);
+    const body = { set: { ...lab.changed }, variables: [...wanted] };
     const result = await api(`/api/models/${encodeURIComponent(lab.model.id)}/simulate`, body);
     if (result.model !== lab.model.id) return;
     lab.result = result;
     draw(result, changedAt);
     status(result.ended_early ? `The run ended at t = ${result.time[result.time.length - 1]} s: ${result.ended_early}` : `${result.time.length} samples; run ${result.run_ms.toFixed(1)} ms`);
-    if (lab.model.animation) loadScene();
+    // The scene follows once the values settle (not for every step of a slider drag).
+    if (lab.model.animation && pending === null) loadScene();
   } catch (e) {
     status(e.message, true);
   } finally {
@@ -306,7 +322,7 @@ function draw(result, changedAt) {
 // ---- phase plot ----------------------------------------------------------------------------
 
 function fillPhaseSelects() {
-  const names = lab.result.names;
+  const names = lab.result.recorded;
   for (const [id, fallback] of [["phase-x", 0], ["phase-y", 1]]) {
     const select = $(id);
     const keep = select.value;
@@ -316,7 +332,8 @@ function fillPhaseSelects() {
     select.dataset.model = lab.model.id;
     const plotted = lab.model.plotted.filter((n) => names.includes(n));
     select.value = names.includes(keep) ? keep : plotted[fallback] ?? names[Math.min(fallback, names.length - 1)];
-    select.onchange = drawPhase;
+    // A column not fetched yet comes with the next run.
+    select.onchange = () => (column(lab.result, select.value) ? drawPhase() : simulate(null));
   }
 }
 
@@ -335,15 +352,20 @@ function drawPhase() {
   if (!lab.result) return;
   fillPhaseSelects();
   const xn = $("phase-x").value, yn = $("phase-y").value;
+  if (!column(lab.result, xn) || !column(lab.result, yn)) return;
   const xs = column(lab.result, xn).map((s) => toShown(variable(xn), s));
   const ys = column(lab.result, yn).map((s) => toShown(variable(yn), s));
   const canvas = $("phase");
   const ctx = canvas.getContext("2d");
   const W = canvas.width, H = canvas.height, L = 70, B = 40, T = 10, R = 15;
   ctx.clearRect(0, 0, W, H);
-  const finite = (a) => a.filter((x) => x !== null && isFinite(x));
-  let [x0, x1] = [Math.min(...finite(xs)), Math.max(...finite(xs))];
-  let [y0, y1] = [Math.min(...finite(ys)), Math.max(...finite(ys))];
+  let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity;
+  for (let i = 0; i < xs.length; i++) {
+    if (xs[i] !== null && isFinite(xs[i])) { x0 = Math.min(x0, xs[i]); x1 = Math.max(x1, xs[i]); }
+    if (ys[i] !== null && isFinite(ys[i])) { y0 = Math.min(y0, ys[i]); y1 = Math.max(y1, ys[i]); }
+  }
+  if (!isFinite(x0)) { x0 = 0; x1 = 0; }
+  if (!isFinite(y0)) { y0 = 0; y1 = 0; }
   if (!(x1 > x0)) { x0 -= 1; x1 += 1; }
   if (!(y1 > y0)) { y0 -= 1; y1 += 1; }
   const px = (x) => L + (x - x0) / (x1 - x0) * (W - L - R);

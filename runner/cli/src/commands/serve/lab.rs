@@ -189,6 +189,8 @@ pub struct RunBody {
     pub set: serde_json::Map<String, Json>,
     /// `"json"` (default) or `"csv"` (the CSV `runner simulate --out` writes).
     pub format: Option<String>,
+    /// The recorded columns to answer with (default: all), so the page gets what it draws.
+    pub variables: Option<Vec<String>>,
 }
 
 /// What a sweep request may say.

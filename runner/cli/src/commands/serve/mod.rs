@@ -324,12 +324,27 @@ impl<'a> App<'a> {
         let grid = &recorded.grid;
         // Written straight from the trace's columns (no JSON tree of a million numbers): a run
         // of the quarter car has 10,001 samples of a dozen variables.
+        let chosen: Vec<usize> =
+            match &body.variables {
+                None => (0..trace.names.len()).collect(),
+                Some(names) => names
+                    .iter()
+                    .map(|n| {
+                        trace.names.iter().position(|r| r == n).ok_or_else(|| {
+                            bad(format!("variables: '{n}' is not recorded (the recorded columns: {})", trace.names.join(", ")))
+                        })
+                    })
+                    .collect::<Result<_, _>>()?,
+            };
+        let names: Vec<&String> = chosen.iter().map(|&k| &trace.names[k]).collect();
+        let columns: Vec<&Vec<f64>> = chosen.iter().map(|&k| &trace.columns[k]).collect();
         let answer = RunAnswer {
             model: &served.model.id,
-            names: &trace.names,
+            recorded: &trace.names,
             outputs: recorded.outputs,
+            names,
             time: &trace.time,
-            columns: &trace.columns,
+            columns,
             events: recorded.events.iter().map(|e| json!({ "time": e.time, "index": e.index, "text": e.text })).collect(),
             ended_early: trace.ended_early.as_deref(),
             grid: json!({ "start": grid.start, "stop": grid.stop, "interval": grid.interval, "tolerance": grid.tolerance }),
@@ -368,11 +383,13 @@ impl<'a> App<'a> {
 #[derive(serde::Serialize)]
 struct RunAnswer<'r> {
     model: &'r str,
-    names: &'r [String],
-    /// The first `outputs` columns are the CSV's.
+    /// Every recorded column's name; the first `outputs` are the CSV's.
+    recorded: &'r [String],
     outputs: usize,
+    /// The columns answered (the request's `variables`, else all).
+    names: Vec<&'r String>,
     time: &'r [f64],
-    columns: &'r [Vec<f64>],
+    columns: Vec<&'r Vec<f64>>,
     events: Vec<Json>,
     ended_early: Option<&'r str>,
     grid: Json,

@@ -551,6 +551,40 @@ mod tests {
         assert!(x.start < -0.1 && x.end > 0.1 && y.start < -0.1 && y.end > 0.1, "{x:?} {y:?}");
     }
 
+    /// The geometry `runner serve`'s page draws from is the motion the GIF is drawn from: the
+    /// same positions, links, trails, views and stamps, sample by sample.
+    #[test]
+    fn the_geometry_is_the_motion_as_data() {
+        let d = crank();
+        let scene = Scene::new(
+            &d,
+            &config(
+                "[animate]\npoints = { O = [0, \"0*l\"] }\nlinks = [[\"O\", \"A\"]]\ntrails = [{ point = \"A\", when = \"t >= 2\" }]\n",
+            ),
+        )
+        .unwrap();
+        let n = 5;
+        let trace = Trace {
+            names: vec!["l".into(), "A_x".into(), "A_y".into()],
+            time: (0..n).map(|i| i as f64).collect(),
+            columns: vec![vec![0.1; n], (0..n).map(|i| 0.1 * i as f64).collect(), vec![0.05; n]],
+            ended_early: None,
+        };
+        let motion = scene.motion(&trace).unwrap();
+        let g = motion.geometry();
+        assert_eq!(g.names, ["O", "A"]);
+        assert_eq!(g.fixed, [true, false], "O reads a parameter only");
+        for i in 0..n {
+            assert_eq!(g.positions[0][i], motion.position("O", i).unwrap());
+            assert_eq!(g.positions[1][i], motion.position("A", i).unwrap());
+            assert_eq!(g.stamps[i], motion.stamp(i));
+        }
+        assert_eq!(g.links, [(vec![0, 1], vec![true; n])]);
+        assert_eq!(g.trails, [(1, vec![false, false, true, true, true])]);
+        assert_eq!(g.views, motion.views(&[0, 1, 2, 3, 4]));
+        assert!(g.levels.is_empty());
+    }
+
     #[test]
     fn an_unknown_point_or_name_is_refused_with_what_there_is() {
         let d = crank();

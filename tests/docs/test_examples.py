@@ -44,6 +44,7 @@ NOT_RUN = {
     "--param speed=1:50:0.01": "4,901 points and an interruption by Ctrl-C: the resume tests (runner/cli/tests/resume.rs) run it smaller",
     "UPDATE_CATALOGUE=1": "rewrites MODELS.md; tests/run's cargo test runs the same tests without it",
     "$ tests/bench/run": "the benchmarks take minutes and are not part of CI",
+    "(Ctrl-C to stop)": "runner serve runs until Ctrl-C: tests/serve starts it on a free port and checks its API and page",
 }
 
 FENCE = re.compile(r"^```(\S*)\s*$")

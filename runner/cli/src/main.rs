@@ -8,7 +8,7 @@ use clap::{Args, Parser, Subcommand};
 use fmi_importer::call_log::CallLogTarget;
 
 use plots::Format;
-use runner::commands::{animate, build, compare, handbook, info, linearize, new, simulate, sweep, validate};
+use runner::commands::{animate, build, compare, handbook, info, linearize, new, serve, simulate, sweep, validate};
 use runner::experiment::{self, RunDefaults};
 use runner::integration::{self, Integration};
 use runner::interrupt;
@@ -390,6 +390,37 @@ enum Cmd {
         #[arg(long, value_name = "N")]
         threads: Option<usize>,
     },
+    /// Serve the lab in the browser: a page per model with sliders for its parameters, plots of
+    /// its outputs updated as a value changes, a phase plot, the animation of a mechanism, a
+    /// sweep panel and downloads, over a JSON API of the same engine (runs in worker processes).
+    ///
+    /// Listens on 127.0.0.1 only unless --host is given; serves only the FMUs named here (no
+    /// name: every model of the workspace, built if missing); refuses requests from other web
+    /// pages.
+    ///
+    /// Example: `runner serve` (then open the URL it prints)
+    ///
+    /// Example: `runner serve quarter_car trebuchet --port 0` (any free port)
+    Serve {
+        /// Model names or paths to .fmu files (default: every model of the workspace).
+        fmus: Vec<String>,
+        /// The port to listen on; 0 picks a free one (the URL printed names it).
+        #[arg(long, default_value_t = 8000)]
+        port: u16,
+        /// Listen on this address instead of 127.0.0.1 (e.g. 0.0.0.0: every interface), which
+        /// lets other machines run the served FMUs here; a warning says so.
+        #[arg(long, value_name = "ADDRESS")]
+        host: Option<String>,
+        /// A run or sweep point that takes longer fails and its worker is replaced (default 60).
+        #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+        point_timeout: Option<f64>,
+        /// Most points a sweep from the page may have.
+        #[arg(long, value_name = "N", default_value_t = 2000)]
+        max_points: usize,
+        /// Worker processes of a sweep (default: one per core).
+        #[arg(long, value_name = "N")]
+        threads: Option<usize>,
+    },
     /// A worker process of sweep, simulate, compare and linearize (started by the runner itself).
     #[command(hide = true)]
     Worker,
@@ -704,6 +735,9 @@ fn main() {
         Cmd::Handbook { out, format, threads } => Format::named(&format)
             .map_err(|e| format!("--format: {e}"))
             .and_then(|format| handbook::run(&handbook::Options { out, format, threads }).map(|_| ())),
+        Cmd::Serve { fmus, port, host, point_timeout, max_points, threads } => {
+            serve::run(&serve::Options { fmus, host, port, point_timeout, max_points, threads })
+        }
         Cmd::Worker | Cmd::SystemWorker => unreachable!("served above"),
     };
     if let Err(e) = result {

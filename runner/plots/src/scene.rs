@@ -292,6 +292,28 @@ pub struct Motion<'s> {
 /// A view: the x and y ranges drawn.
 pub type View = (Range<f64>, Range<f64>);
 
+/// A motion as plain data, for a drawing made elsewhere (`runner serve`'s page draws it on a
+/// canvas): the points at every sample, and per sample which links and trails are shown.
+#[derive(Debug, Clone)]
+pub struct Geometry {
+    /// Point names.
+    pub names: Vec<String>,
+    /// Per point: fixed (a pivot defined by parameters only).
+    pub fixed: Vec<bool>,
+    /// `positions[p][i]`: point `p` at sample `i` (m).
+    pub positions: Vec<Vec<(f64, f64)>>,
+    /// Each link's points, and whether it is shown at each sample.
+    pub links: Vec<(Vec<usize>, Vec<bool>)>,
+    /// Each trail's point, and whether it is drawn at each sample.
+    pub trails: Vec<(usize, Vec<bool>)>,
+    /// Heights of the ground lines (m).
+    pub levels: Vec<f64>,
+    /// The view of every sample (see [`Motion::views`]).
+    pub views: Vec<View>,
+    /// The time stamp of every sample (see [`Motion::stamp`]).
+    pub stamps: Vec<String>,
+}
+
 impl Motion<'_> {
     /// Number of samples.
     pub fn len(&self) -> usize {
@@ -403,6 +425,22 @@ impl Motion<'_> {
         shapes
     }
 
+    /// The whole motion as plain data.
+    pub fn geometry(&self) -> Geometry {
+        let scene = self.scene;
+        let samples: Vec<usize> = (0..self.len()).collect();
+        Geometry {
+            names: scene.names.clone(),
+            fixed: scene.places.iter().map(|p| matches!(p, Place::Defined(_, _, true))).collect(),
+            positions: self.positions.clone(),
+            links: scene.links.iter().zip(&self.links).map(|((ids, _), shown)| (ids.clone(), shown.clone())).collect(),
+            trails: scene.trails.iter().zip(&self.trails).map(|((p, _), shown)| (*p, shown.clone())).collect(),
+            levels: self.levels.clone(),
+            views: self.views(&samples),
+            stamps: samples.iter().map(|&i| self.stamp(i)).collect(),
+        }
+    }
+
     /// The time stamp of sample `i`: `t = 0.700 s`, with the values of `[animate] show`.
     pub fn stamp(&self, i: usize) -> String {
         let mut text = format!("t = {:.3} s", self.trace.time[i]);
@@ -511,6 +549,40 @@ mod tests {
         assert!(shapes.iter().any(|s| matches!(s, Shape::Polyline { width: 2, points, .. } if points.len() == n)), "the whole trail");
         let (x, y) = &motion.views(&[0, n - 1])[1];
         assert!(x.start < -0.1 && x.end > 0.1 && y.start < -0.1 && y.end > 0.1, "{x:?} {y:?}");
+    }
+
+    /// The geometry `runner serve`'s page draws from is the motion the GIF is drawn from: the
+    /// same positions, links, trails, views and stamps, sample by sample.
+    #[test]
+    fn the_geometry_is_the_motion_as_data() {
+        let d = crank();
+        let scene = Scene::new(
+            &d,
+            &config(
+                "[animate]\npoints = { O = [0, \"0*l\"] }\nlinks = [[\"O\", \"A\"]]\ntrails = [{ point = \"A\", when = \"t >= 2\" }]\n",
+            ),
+        )
+        .unwrap();
+        let n = 5;
+        let trace = Trace {
+            names: vec!["l".into(), "A_x".into(), "A_y".into()],
+            time: (0..n).map(|i| i as f64).collect(),
+            columns: vec![vec![0.1; n], (0..n).map(|i| 0.1 * i as f64).collect(), vec![0.05; n]],
+            ended_early: None,
+        };
+        let motion = scene.motion(&trace).unwrap();
+        let g = motion.geometry();
+        assert_eq!(g.names, ["O", "A"]);
+        assert_eq!(g.fixed, [true, false], "O reads a parameter only");
+        for i in 0..n {
+            assert_eq!(g.positions[0][i], motion.position("O", i).unwrap());
+            assert_eq!(g.positions[1][i], motion.position("A", i).unwrap());
+            assert_eq!(g.stamps[i], motion.stamp(i));
+        }
+        assert_eq!(g.links, [(vec![0, 1], vec![true; n])]);
+        assert_eq!(g.trails, [(1, vec![false, false, true, true, true])]);
+        assert_eq!(g.views, motion.views(&[0, 1, 2, 3, 4]));
+        assert!(g.levels.is_empty());
     }
 
     #[test]

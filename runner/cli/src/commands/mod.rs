@@ -7,6 +7,7 @@ pub mod handbook;
 pub mod info;
 pub mod linearize;
 pub mod new;
+pub mod serve;
 pub mod simulate;
 pub mod sweep;
 pub mod system;

@@ -250,14 +250,26 @@ impl<M: Model> Core<M> {
         let j = &self.jacobians;
         let width = j.knowns.len();
         let mut finite = true;
-        for (out, &u) in sensitivity.iter_mut().zip(unknowns) {
-            let row = &j.values[j.unknown_at[u as usize] as usize * width..][..width];
-            let mut sum = 0.0;
-            for (&k, &s) in knowns.iter().zip(seed) {
-                sum += row[j.known_at[k as usize] as usize] * s;
+        if let ([k], [s]) = (knowns, seed) {
+            // One known seeded, as an importer asks for a column: the column times the seed.
+            let column = j.known_at[*k as usize] as usize;
+            for (out, &u) in sensitivity.iter_mut().zip(unknowns) {
+                // Adding to 0.0 as the general sum does keeps its results to the bit (-0.0 too).
+                let mut v = 0.0;
+                v += j.values[j.unknown_at[u as usize] as usize * width + column] * s;
+                finite &= v.is_finite();
+                *out = v;
             }
-            finite &= sum.is_finite();
-            *out = sum;
+        } else {
+            for (out, &u) in sensitivity.iter_mut().zip(unknowns) {
+                let row = &j.values[j.unknown_at[u as usize] as usize * width..][..width];
+                let mut sum = 0.0;
+                for (&k, &s) in knowns.iter().zip(seed) {
+                    sum += row[j.known_at[k as usize] as usize] * s;
+                }
+                finite &= sum.is_finite();
+                *out = sum;
+            }
         }
         if finite {
             Ok(())
@@ -523,10 +535,10 @@ pub struct Pass<'a> {
 /// The number with value `value` and derivative part 1 in lane `lane` (0 elsewhere; no
 /// derivative part at all for `None`).
 #[inline]
-fn seeded(value: f64, lane: Option<usize>) -> DualSVec64<LANES> {
+fn seeded<const N: usize>(value: f64, lane: Option<usize>) -> DualSVec64<N> {
     match lane {
         Some(l) => {
-            let mut e = SVector::<f64, LANES>::zeros();
+            let mut e = SVector::<f64, N>::zeros();
             e[l] = 1.0;
             DualSVec64::new(value, Derivative::some(e))
         }
@@ -536,18 +548,29 @@ fn seeded(value: f64, lane: Option<usize>) -> DualSVec64<LANES> {
 
 /// The Jacobian of `model`'s equations at the pass's point: `out` (row-major, unknowns x
 /// knowns) gets the derivative of each unknown with respect to each known, by forward passes
-/// in vector dual numbers of [`LANES`] knowns each. The model is lifted, its seeded
+/// in vector dual numbers of up to [`LANES`] knowns each. The model is lifted, its seeded
 /// parameters' derived fields computed again, and only what the unknowns need is evaluated.
 /// `#[derive(Variables)]` points [`crate::model::Lifting`] here.
 pub fn forward<M: Model + Lift>(model: &M, pass: &Pass, out: &mut [f64]) -> Result<(), ModelError> {
+    // Fewer knowns than LANES (a model with a few states: time and the states) take narrower
+    // numbers: each lane costs its share of every operation whether seeded or not.
+    match pass.knowns.len() {
+        0..=2 => forward_in::<M, 2>(model, pass, out),
+        3..=4 => forward_in::<M, 4>(model, pass, out),
+        _ => forward_in::<M, LANES>(model, pass, out),
+    }
+}
+
+/// [`forward`] in passes of `N` knowns each.
+fn forward_in<M: Model + Lift, const N: usize>(model: &M, pass: &Pass, out: &mut [f64]) -> Result<(), ModelError> {
     let width = pass.knowns.len();
     let wants = |f: fn(&Unknown) -> bool| pass.unknowns.iter().any(f);
     let (derivatives, outputs) = (wants(|u| matches!(u, Unknown::Derivative(_))), wants(|u| matches!(u, Unknown::Field(_))));
     let mut x = Vec::with_capacity(pass.x.len());
     let mut dx = vec![DualSVec64::from(0.0); pass.x.len()];
-    for (chunk, knowns) in pass.knowns.chunks(LANES).enumerate() {
+    for (chunk, knowns) in pass.knowns.chunks(N).enumerate() {
         let lane_of = |known: Known| knowns.iter().position(|k| *k == known);
-        let mut lifted: M::Over<DualSVec64<LANES>> = model.lift();
+        let mut lifted: M::Over<DualSVec64<N>> = model.lift();
         let mut fields = false;
         for (l, known) in knowns.iter().enumerate() {
             if let Known::Field(f) = *known {
@@ -579,7 +602,7 @@ pub fn forward<M: Model + Lift>(model: &M, pass: &Pass, out: &mut [f64]) -> Resu
                 Unknown::Zero => None,
                 Unknown::Skip => continue,
             };
-            let row = &mut out[i * width + chunk * LANES..][..knowns.len()];
+            let row = &mut out[i * width + chunk * N..][..knowns.len()];
             match eps {
                 Some(e) => row.copy_from_slice(&e.as_slice()[..knowns.len()]),
                 None => row.fill(0.0),

@@ -138,6 +138,20 @@ pub(crate) struct Jacobians {
     values: Vec<f64>,
     derivatives_done: bool,
     others_done: bool,
+    /// The unknowns of the last call checked against this layout, their places and blocks: an
+    /// importer asks for every column with the same unknowns, which are checked once.
+    asked: Vec<u32>,
+    asked_at: Vec<u32>,
+    asked_blocks: Blocks,
+}
+
+/// The blocks of [`Jacobians`] a call's unknowns are in.
+#[derive(Clone, Copy, Default)]
+struct Blocks {
+    /// Some are state derivatives.
+    derivatives: bool,
+    /// Some are not.
+    others: bool,
 }
 
 /// Not a known or unknown of the mode.
@@ -162,6 +176,9 @@ impl<M: Model> Core<M> {
         let rows = &self.table.rows;
         j.mode = Some(mode);
         j.point = None;
+        j.asked.clear();
+        j.asked_at.clear();
+        j.asked_blocks = Blocks::default();
         j.knowns = (0..rows.len()).filter(|&i| is_known(&rows[i], mode)).collect();
         j.unknowns = (0..rows.len()).filter(|&i| is_unknown(&rows[i], mode)).collect();
         j.seeds = j
@@ -197,16 +214,32 @@ impl<M: Model> Core<M> {
     }
 
     /// Checks the call's value references against `mode`'s layout: the refusal names the first
-    /// that is not an unknown, or a known, of the mode.
-    fn check_derivative_call(&mut self, unknowns: &[u32], knowns: &[u32], mode: Mode, function: &str) -> CallResult {
+    /// that is not an unknown, or a known, of the mode. Says which blocks the unknowns are in;
+    /// the unknowns are checked once while the calls ask for the same ones (their places then
+    /// in `asked_at`).
+    fn check_derivative_call(&mut self, unknowns: &[u32], knowns: &[u32], mode: Mode, function: &str) -> Result<Blocks, Failure> {
         self.jacobian_layout(mode);
+        if self.jacobians.asked.as_slice() != unknowns {
+            let j = &self.jacobians;
+            let mut blocks = Blocks::default();
+            for &vr in unknowns {
+                match j.place(vr, true) {
+                    Some(p) if j.is_derivative[p] => blocks.derivatives = true,
+                    Some(_) => blocks.others = true,
+                    None => return Err(self.not_in_mode(vr, "an unknown", mode, function)),
+                }
+            }
+            let j = &mut self.jacobians;
+            j.asked.clear();
+            j.asked.extend_from_slice(unknowns);
+            j.asked_at.clear();
+            j.asked_at.extend(unknowns.iter().map(|&vr| j.unknown_at[vr as usize]));
+            j.asked_blocks = blocks;
+        }
         let j = &self.jacobians;
-        let bad_unknown = unknowns.iter().find(|&&vr| j.place(vr, true).is_none());
-        let bad_known = knowns.iter().find(|&&vr| j.place(vr, false).is_none());
-        match (bad_unknown, bad_known) {
-            (None, None) => Ok(()),
-            (Some(&vr), _) => Err(self.not_in_mode(vr, "an unknown", mode, function)),
-            (None, Some(&vr)) => Err(self.not_in_mode(vr, "a known", mode, function)),
+        match knowns.iter().find(|&&vr| j.place(vr, false).is_none()) {
+            None => Ok(j.asked_blocks),
+            Some(&vr) => Err(self.not_in_mode(vr, "a known", mode, function)),
         }
     }
 
@@ -245,24 +278,24 @@ impl<M: Model> Core<M> {
                 unknowns.len()
             )));
         }
-        self.check_derivative_call(unknowns, knowns, mode, function)?;
-        self.jacobian_blocks(unknowns, mode)?;
+        let blocks = self.check_derivative_call(unknowns, knowns, mode, function)?;
+        self.jacobian_blocks(blocks, mode)?;
         let j = &self.jacobians;
         let width = j.knowns.len();
         let mut finite = true;
         if let ([k], [s]) = (knowns, seed) {
             // One known seeded, as an importer asks for a column: the column times the seed.
             let column = j.known_at[*k as usize] as usize;
-            for (out, &u) in sensitivity.iter_mut().zip(unknowns) {
+            for (out, &place) in sensitivity.iter_mut().zip(&j.asked_at) {
                 // Adding to 0.0 as the general sum does keeps its results to the bit (-0.0 too).
                 let mut v = 0.0;
-                v += j.values[j.unknown_at[u as usize] as usize * width + column] * s;
+                v += j.values[place as usize * width + column] * s;
                 finite &= v.is_finite();
                 *out = v;
             }
         } else {
-            for (out, &u) in sensitivity.iter_mut().zip(unknowns) {
-                let row = &j.values[j.unknown_at[u as usize] as usize * width..][..width];
+            for (out, &place) in sensitivity.iter_mut().zip(&j.asked_at) {
+                let row = &j.values[place as usize * width..][..width];
                 let mut sum = 0.0;
                 for (&k, &s) in knowns.iter().zip(seed) {
                     sum += row[j.known_at[k as usize] as usize] * s;
@@ -298,16 +331,16 @@ impl<M: Model> Core<M> {
                 knowns.len()
             )));
         }
-        self.check_derivative_call(unknowns, knowns, mode, function)?;
-        self.jacobian_blocks(unknowns, mode)?;
+        let blocks = self.check_derivative_call(unknowns, knowns, mode, function)?;
+        self.jacobian_blocks(blocks, mode)?;
         let j = &self.jacobians;
         let width = j.knowns.len();
         let mut finite = true;
         for (out, &k) in sensitivity.iter_mut().zip(knowns) {
             let column = j.known_at[k as usize] as usize;
             let mut sum = 0.0;
-            for (&u, &s) in unknowns.iter().zip(seed) {
-                sum += j.values[j.unknown_at[u as usize] as usize * width + column] * s;
+            for (&place, &s) in j.asked_at.iter().zip(seed) {
+                sum += j.values[place as usize * width + column] * s;
             }
             finite &= sum.is_finite();
             *out = sum;
@@ -334,9 +367,9 @@ impl<M: Model> Core<M> {
         ))
     }
 
-    /// Makes the Jacobian blocks the unknowns `unknowns` (checked) need current: at a new
-    /// point they are computed afresh, a block at a time as first needed.
-    fn jacobian_blocks(&mut self, unknowns: &[u32], mode: Mode) -> CallResult {
+    /// Makes the Jacobian blocks a call needs (`blocks`) current: at a new point they are
+    /// computed afresh, a block at a time as first needed.
+    fn jacobian_blocks(&mut self, blocks: Blocks, mode: Mode) -> CallResult {
         let Some(lifting) = M::lifting() else {
             return Err(Failure::error("this FMU's model is written on f64 alone: it provides no exact derivatives"));
         };
@@ -356,9 +389,8 @@ impl<M: Model> Core<M> {
             j.derivatives_done = false;
             j.others_done = false;
         }
-        let is_derivative = |vr: &u32| j.is_derivative[j.unknown_at[*vr as usize] as usize];
-        let needs_derivatives = !j.derivatives_done && unknowns.iter().any(is_derivative);
-        let needs_others = !j.others_done && unknowns.iter().any(|vr| !is_derivative(vr));
+        let needs_derivatives = !j.derivatives_done && blocks.derivatives;
+        let needs_others = !j.others_done && blocks.others;
         for (needed, derivatives) in [(needs_derivatives, true), (needs_others, false)] {
             if !needed {
                 continue;
@@ -737,6 +769,23 @@ mod tests {
         core.set_real(&[x0], &[4.0], Phase::Initializing, "InitializationMode").unwrap();
         core.directional_derivative(&[der], &[k], &[1.0], &mut out[..1], Mode::Initialization, "test").unwrap();
         assert_eq!(out[0], -4.0);
+    }
+
+    /// The unknowns are checked once while the calls repeat them: other unknowns (in another
+    /// order, or one outside the mode) are checked and placed again. Values by hand as above.
+    #[test]
+    fn changed_unknowns_are_checked_and_placed_again() {
+        let mut core = continuous();
+        let (der, y, x, k) = (vr(&core, "der(x)"), vr(&core, "y"), vr(&core, "x"), vr(&core, "k"));
+        let mut out = [0.0; 2];
+        core.directional_derivative(&[der, y], &[x], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [-2.0, 3.0]);
+        core.directional_derivative(&[y, der], &[x], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [3.0, -2.0]);
+        let err = core.directional_derivative(&[y, k], &[x], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap_err();
+        assert!(err.message.contains("'k'") && err.message.contains("is not an unknown"), "{}", err.message);
+        core.directional_derivative(&[y, der], &[x], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [3.0, -2.0]);
     }
 
     /// Outside what the mode allows, the call is refused naming the variable and the rule.

@@ -67,6 +67,20 @@ impl Matrix {
         self.columns
     }
 
+    /// Sets column `column` to `values`, one per row.
+    pub fn set_column(&mut self, column: usize, values: &[f64]) {
+        assert!(
+            column < self.columns && values.len() == self.rows,
+            "a column of {} values in a {}x{} matrix",
+            values.len(),
+            self.rows,
+            self.columns
+        );
+        for (row, v) in self.values.chunks_exact_mut(self.columns).zip(values) {
+            row[column] = *v;
+        }
+    }
+
     /// The rows as vectors.
     pub fn to_rows(&self) -> Vec<Vec<f64>> {
         (0..self.rows()).map(|i| self[i].to_vec()).collect()
@@ -217,9 +231,7 @@ impl<C: Exchange> ModelExchange<C> {
             let (derivative_rows, output_rows) = out.split_at(nx);
             let (m_state, m_output) = if column < nx { (&mut j.a, &mut j.c) } else { (&mut j.b, &mut j.d) };
             let col = if column < nx { column } else { column - nx };
-            for (i, v) in derivative_rows.iter().enumerate() {
-                m_state[i][col] = *v;
-            }
+            m_state.set_column(col, derivative_rows);
             for (&row, v) in computed.iter().zip(output_rows) {
                 m_output[row][col] = *v;
             }

@@ -104,10 +104,10 @@ pub fn linearize(fmu: &Fmu, request: &Request) -> Result<Linear, String> {
         x: j.x,
         inputs: inputs.iter().map(|v| v.name.clone()).collect(),
         outputs: outputs.iter().map(|v| v.name.clone()).collect(),
-        a: j.a,
-        b: j.b,
-        c: j.c,
-        d: j.d,
+        a: j.a.to_rows(),
+        b: j.b.to_rows(),
+        c: j.c.to_rows(),
+        d: j.d.to_rows(),
         source: j.source,
     })
 }

@@ -15,7 +15,7 @@
 
 mod linear;
 
-pub use linear::{JacobianSource, Jacobians, Ports};
+pub use linear::{JacobianSource, Jacobians, Matrix, Ports};
 
 use std::cell::{Cell, RefCell};
 use std::ffi::c_int;

@@ -139,6 +139,20 @@ pub(crate) struct Jacobians {
     values: Vec<f64>,
     derivatives_done: bool,
     others_done: bool,
+    /// The unknowns of the last call checked against this layout, their places and blocks: an
+    /// importer asks for every column with the same unknowns, which are checked once.
+    asked: Vec<u32>,
+    asked_at: Vec<u32>,
+    asked_blocks: Blocks,
+}
+
+/// The blocks of [`Jacobians`] a call's unknowns are in.
+#[derive(Clone, Copy, Default)]
+struct Blocks {
+    /// Some are state derivatives.
+    derivatives: bool,
+    /// Some are not.
+    others: bool,
 }
 
 /// Not a known or unknown of the mode.
@@ -163,6 +177,9 @@ impl<M: Model> Core<M> {
         let rows = &self.table.rows;
         j.mode = Some(mode);
         j.point = None;
+        j.asked.clear();
+        j.asked_at.clear();
+        j.asked_blocks = Blocks::default();
         j.knowns = (0..rows.len()).filter(|&i| is_known(&rows[i], mode)).collect();
         j.unknowns = (0..rows.len()).filter(|&i| is_unknown(&rows[i], mode)).collect();
         j.seeds = j
@@ -198,16 +215,32 @@ impl<M: Model> Core<M> {
     }
 
     /// Checks the call's value references against `mode`'s layout: the refusal names the first
-    /// that is not an unknown, or a known, of the mode.
-    fn check_derivative_call(&mut self, unknowns: &[u32], knowns: &[u32], mode: Mode, function: &str) -> CallResult {
+    /// that is not an unknown, or a known, of the mode. Says which blocks the unknowns are in;
+    /// the unknowns are checked once while the calls ask for the same ones (their places then
+    /// in `asked_at`).
+    fn check_derivative_call(&mut self, unknowns: &[u32], knowns: &[u32], mode: Mode, function: &str) -> Result<Blocks, Failure> {
         self.jacobian_layout(mode);
+        if self.jacobians.asked.as_slice() != unknowns {
+            let j = &self.jacobians;
+            let mut blocks = Blocks::default();
+            for &vr in unknowns {
+                match j.place(vr, true) {
+                    Some(p) if j.is_derivative[p] => blocks.derivatives = true,
+                    Some(_) => blocks.others = true,
+                    None => return Err(self.not_in_mode(vr, "an unknown", mode, function)),
+                }
+            }
+            let j = &mut self.jacobians;
+            j.asked.clear();
+            j.asked.extend_from_slice(unknowns);
+            j.asked_at.clear();
+            j.asked_at.extend(unknowns.iter().map(|&vr| j.unknown_at[vr as usize]));
+            j.asked_blocks = blocks;
+        }
         let j = &self.jacobians;
-        let bad_unknown = unknowns.iter().find(|&&vr| j.place(vr, true).is_none());
-        let bad_known = knowns.iter().find(|&&vr| j.place(vr, false).is_none());
-        match (bad_unknown, bad_known) {
-            (None, None) => Ok(()),
-            (Some(&vr), _) => Err(self.not_in_mode(vr, "an unknown", mode, function)),
-            (None, Some(&vr)) => Err(self.not_in_mode(vr, "a known", mode, function)),
+        match knowns.iter().find(|&&vr| j.place(vr, false).is_none()) {
+            None => Ok(j.asked_blocks),
+            Some(&vr) => Err(self.not_in_mode(vr, "a known", mode, function)),
         }
     }
 
@@ -246,19 +279,31 @@ impl<M: Model> Core<M> {
                 unknowns.len()
             )));
         }
-        self.check_derivative_call(unknowns, knowns, mode, function)?;
-        self.jacobian_blocks(unknowns, mode)?;
+        let blocks = self.check_derivative_call(unknowns, knowns, mode, function)?;
+        self.jacobian_blocks(blocks, mode)?;
         let j = &self.jacobians;
         let width = j.knowns.len();
         let mut finite = true;
-        for (out, &u) in sensitivity.iter_mut().zip(unknowns) {
-            let row = &j.values[j.unknown_at[u as usize] as usize * width..][..width];
-            let mut sum = 0.0;
-            for (&k, &s) in knowns.iter().zip(seed) {
-                sum += row[j.known_at[k as usize] as usize] * s;
+        if let ([k], [s]) = (knowns, seed) {
+            // One known seeded, as an importer asks for a column: the column times the seed.
+            let column = j.known_at[*k as usize] as usize;
+            for (out, &place) in sensitivity.iter_mut().zip(&j.asked_at) {
+                // Adding to 0.0 as the general sum does keeps its results to the bit (-0.0 too).
+                let mut v = 0.0;
+                v += j.values[place as usize * width + column] * s;
+                finite &= v.is_finite();
+                *out = v;
             }
-            finite &= sum.is_finite();
-            *out = sum;
+        } else {
+            for (out, &place) in sensitivity.iter_mut().zip(&j.asked_at) {
+                let row = &j.values[place as usize * width..][..width];
+                let mut sum = 0.0;
+                for (&k, &s) in knowns.iter().zip(seed) {
+                    sum += row[j.known_at[k as usize] as usize] * s;
+                }
+                finite &= sum.is_finite();
+                *out = sum;
+            }
         }
         if finite {
             Ok(())
@@ -287,16 +332,16 @@ impl<M: Model> Core<M> {
                 knowns.len()
             )));
         }
-        self.check_derivative_call(unknowns, knowns, mode, function)?;
-        self.jacobian_blocks(unknowns, mode)?;
+        let blocks = self.check_derivative_call(unknowns, knowns, mode, function)?;
+        self.jacobian_blocks(blocks, mode)?;
         let j = &self.jacobians;
         let width = j.knowns.len();
         let mut finite = true;
         for (out, &k) in sensitivity.iter_mut().zip(knowns) {
             let column = j.known_at[k as usize] as usize;
             let mut sum = 0.0;
-            for (&u, &s) in unknowns.iter().zip(seed) {
-                sum += j.values[j.unknown_at[u as usize] as usize * width + column] * s;
+            for (&place, &s) in j.asked_at.iter().zip(seed) {
+                sum += j.values[place as usize * width + column] * s;
             }
             finite &= sum.is_finite();
             *out = sum;
@@ -323,9 +368,9 @@ impl<M: Model> Core<M> {
         ))
     }
 
-    /// Makes the Jacobian blocks the unknowns `unknowns` (checked) need current: at a new
-    /// point they are computed afresh, a block at a time as first needed.
-    fn jacobian_blocks(&mut self, unknowns: &[u32], mode: Mode) -> CallResult {
+    /// Makes the Jacobian blocks a call needs (`blocks`) current: at a new point they are
+    /// computed afresh, a block at a time as first needed.
+    fn jacobian_blocks(&mut self, blocks: Blocks, mode: Mode) -> CallResult {
         let Some(lifting) = M::lifting() else {
             return Err(Failure::error("this FMU's model is written on f64 alone: it provides no exact derivatives"));
         };
@@ -345,9 +390,8 @@ impl<M: Model> Core<M> {
             j.derivatives_done = false;
             j.others_done = false;
         }
-        let is_derivative = |vr: &u32| j.is_derivative[j.unknown_at[*vr as usize] as usize];
-        let needs_derivatives = !j.derivatives_done && unknowns.iter().any(is_derivative);
-        let needs_others = !j.others_done && unknowns.iter().any(|vr| !is_derivative(vr));
+        let needs_derivatives = !j.derivatives_done && blocks.derivatives;
+        let needs_others = !j.others_done && blocks.others;
         for (needed, derivatives) in [(needs_derivatives, true), (needs_others, false)] {
             if !needed {
                 continue;
@@ -530,10 +574,10 @@ pub struct Pass<'a> {
 /// The number with value `value` and derivative part 1 in lane `lane` (0 elsewhere; no
 /// derivative part at all for `None`).
 #[inline]
-fn seeded(value: f64, lane: Option<usize>) -> DualSVec64<LANES> {
+fn seeded<const N: usize>(value: f64, lane: Option<usize>) -> DualSVec64<N> {
     match lane {
         Some(l) => {
-            let mut e = SVector::<f64, LANES>::zeros();
+            let mut e = SVector::<f64, N>::zeros();
             e[l] = 1.0;
             DualSVec64::new(value, Derivative::some(e))
         }
@@ -543,18 +587,29 @@ fn seeded(value: f64, lane: Option<usize>) -> DualSVec64<LANES> {
 
 /// The Jacobian of `model`'s equations at the pass's point: `out` (row-major, unknowns x
 /// knowns) gets the derivative of each unknown with respect to each known, by forward passes
-/// in vector dual numbers of [`LANES`] knowns each. The model is lifted, its seeded
+/// in vector dual numbers of up to [`LANES`] knowns each. The model is lifted, its seeded
 /// parameters' derived fields computed again, and only what the unknowns need is evaluated.
 /// `#[derive(Variables)]` points [`crate::model::Lifting`] here.
 pub fn forward<M: Model + Lift>(model: &M, pass: &Pass, out: &mut [f64]) -> Result<(), ModelError> {
+    // Fewer knowns than LANES (a model with a few states: time and the states) take narrower
+    // numbers: each lane costs its share of every operation whether seeded or not.
+    match pass.knowns.len() {
+        0..=2 => forward_in::<M, 2>(model, pass, out),
+        3..=4 => forward_in::<M, 4>(model, pass, out),
+        _ => forward_in::<M, LANES>(model, pass, out),
+    }
+}
+
+/// [`forward`] in passes of `N` knowns each.
+fn forward_in<M: Model + Lift, const N: usize>(model: &M, pass: &Pass, out: &mut [f64]) -> Result<(), ModelError> {
     let width = pass.knowns.len();
     let wants = |f: fn(&Unknown) -> bool| pass.unknowns.iter().any(f);
     let (derivatives, outputs) = (wants(|u| matches!(u, Unknown::Derivative(_))), wants(|u| matches!(u, Unknown::Field(_))));
     let mut x = Vec::with_capacity(pass.x.len());
     let mut dx = vec![DualSVec64::from(0.0); pass.x.len()];
-    for (chunk, knowns) in pass.knowns.chunks(LANES).enumerate() {
+    for (chunk, knowns) in pass.knowns.chunks(N).enumerate() {
         let lane_of = |known: Known| knowns.iter().position(|k| *k == known);
-        let mut lifted: M::Over<DualSVec64<LANES>> = model.lift();
+        let mut lifted: M::Over<DualSVec64<N>> = model.lift();
         let mut fields = false;
         for (l, known) in knowns.iter().enumerate() {
             if let Known::Field(f) = *known {
@@ -586,7 +641,7 @@ pub fn forward<M: Model + Lift>(model: &M, pass: &Pass, out: &mut [f64]) -> Resu
                 Unknown::Zero => None,
                 Unknown::Skip => continue,
             };
-            let row = &mut out[i * width + chunk * LANES..][..knowns.len()];
+            let row = &mut out[i * width + chunk * N..][..knowns.len()];
             match eps {
                 Some(e) => row.copy_from_slice(&e.as_slice()[..knowns.len()]),
                 None => row.fill(0.0),
@@ -721,6 +776,23 @@ mod tests {
         core.set_real(&[x0], &[4.0], Phase::Initializing, "InitializationMode").unwrap();
         core.directional_derivative(&[der], &[k], &[1.0], &mut out[..1], Mode::Initialization, "test").unwrap();
         assert_eq!(out[0], -4.0);
+    }
+
+    /// The unknowns are checked once while the calls repeat them: other unknowns (in another
+    /// order, or one outside the mode) are checked and placed again. Values by hand as above.
+    #[test]
+    fn changed_unknowns_are_checked_and_placed_again() {
+        let mut core = continuous();
+        let (der, y, x, k) = (vr(&core, "der(x)"), vr(&core, "y"), vr(&core, "x"), vr(&core, "k"));
+        let mut out = [0.0; 2];
+        core.directional_derivative(&[der, y], &[x], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [-2.0, 3.0]);
+        core.directional_derivative(&[y, der], &[x], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [3.0, -2.0]);
+        let err = core.directional_derivative(&[y, k], &[x], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap_err();
+        assert!(err.message.contains("'k'") && err.message.contains("is not an unknown"), "{}", err.message);
+        core.directional_derivative(&[y, der], &[x], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [3.0, -2.0]);
     }
 
     /// Outside what the mode allows, the call is refused naming the variable and the rule.

@@ -41,6 +41,65 @@ pub struct Ports<'r> {
     pub reader: &'r mut Reader,
 }
 
+/// A dense matrix, row-major in one allocation: `m[i]` is row `i`, `m[i][j]` an entry. One
+/// allocation rather than one per row: for a small model, a Jacobian's rows cost as much to
+/// allocate and free as the FMU's directional derivatives (tests/bench/jacobian).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Matrix {
+    rows: usize,
+    columns: usize,
+    values: Vec<f64>,
+}
+
+impl Matrix {
+    /// `rows` x `columns` zeros.
+    pub fn zeros(rows: usize, columns: usize) -> Matrix {
+        Matrix { rows, columns, values: vec![0.0; rows * columns] }
+    }
+
+    /// The number of rows.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// The number of columns.
+    pub fn columns(&self) -> usize {
+        self.columns
+    }
+
+    /// Sets column `column` to `values`, one per row.
+    pub fn set_column(&mut self, column: usize, values: &[f64]) {
+        assert!(
+            column < self.columns && values.len() == self.rows,
+            "a column of {} values in a {}x{} matrix",
+            values.len(),
+            self.rows,
+            self.columns
+        );
+        for (row, v) in self.values.chunks_exact_mut(self.columns).zip(values) {
+            row[column] = *v;
+        }
+    }
+
+    /// The rows as vectors.
+    pub fn to_rows(&self) -> Vec<Vec<f64>> {
+        (0..self.rows()).map(|i| self[i].to_vec()).collect()
+    }
+}
+
+impl std::ops::Index<usize> for Matrix {
+    type Output = [f64];
+    fn index(&self, row: usize) -> &[f64] {
+        &self.values[row * self.columns..][..self.columns]
+    }
+}
+
+impl std::ops::IndexMut<usize> for Matrix {
+    fn index_mut(&mut self, row: usize) -> &mut [f64] {
+        &mut self.values[row * self.columns..][..self.columns]
+    }
+}
+
 /// The linearization: rows are the derivatives (of the states, in ModelStructure order) or the
 /// outputs, columns the states or the inputs.
 #[derive(Debug, Clone, PartialEq)]
@@ -51,10 +110,10 @@ pub struct Jacobians {
     pub states: Vec<u32>,
     /// The states' values.
     pub x: Vec<f64>,
-    pub a: Vec<Vec<f64>>,
-    pub b: Vec<Vec<f64>>,
-    pub c: Vec<Vec<f64>>,
-    pub d: Vec<Vec<f64>>,
+    pub a: Matrix,
+    pub b: Matrix,
+    pub c: Matrix,
+    pub d: Matrix,
     /// How they were computed.
     pub source: JacobianSource,
 }
@@ -112,10 +171,10 @@ impl<C: Exchange> ModelExchange<C> {
             time: self.t,
             states: structure.states.clone(),
             x: self.x.clone(),
-            a: vec![vec![0.0; nx]; nx],
-            b: vec![vec![0.0; nu]; nx],
-            c: vec![vec![0.0; nx]; ny],
-            d: vec![vec![0.0; nu]; ny],
+            a: Matrix::zeros(nx, nx),
+            b: Matrix::zeros(nx, nu),
+            c: Matrix::zeros(ny, nx),
+            d: Matrix::zeros(ny, nu),
             source: JacobianSource::FiniteDifferences,
         };
         // An output that is a state: its row of C is the unit row, of D zero.
@@ -172,9 +231,7 @@ impl<C: Exchange> ModelExchange<C> {
             let (derivative_rows, output_rows) = out.split_at(nx);
             let (m_state, m_output) = if column < nx { (&mut j.a, &mut j.c) } else { (&mut j.b, &mut j.d) };
             let col = if column < nx { column } else { column - nx };
-            for (i, v) in derivative_rows.iter().enumerate() {
-                m_state[i][col] = *v;
-            }
+            m_state.set_column(col, derivative_rows);
             for (&row, v) in computed.iter().zip(output_rows) {
                 m_output[row][col] = *v;
             }

@@ -321,7 +321,7 @@ pub(crate) fn enter(call: Call, time: f64) {
 /// Notes that the calls from now on are made for part `context` of a larger run, which only
 /// its caller can name: a system's master sets its component's index plus one before it drives
 /// that component, so a worker that dies in an FMI call is reported with the component (0: no
-/// part). Without a slot it costs what [`enter`] does, a load and a test: on quarter_car_road
+/// part). Without a slot it costs what `enter` does, a load and a test: on quarter_car_road
 /// (two components, six calls a step) 45 instructions a step, 1.3 % of the FMUs' own step.
 #[inline]
 pub fn set_context(context: u32) {

@@ -15,7 +15,7 @@
 //! fmi2GetReal, fmi2GetRealOutputDerivatives of orders 1 to 3 (the runner's
 //! `--coupling polynomial` under Jacobi).
 //!
-//! Usage: bare_master CAR.fmu ROAD.fmu SPEEDS(comma list) STOP INTERVAL [polynomial]
+//! Usage: bare_master CAR.fmu ROAD.fmu SPEEDS(comma list) STOP INTERVAL \[polynomial\]
 
 use std::path::Path;
 

@@ -49,7 +49,8 @@ struct RunArgs {
 struct InputArgs {
     /// Drive inputs from a CSV file in fmpy's convention: `time` first, then input names; Reals
     /// interpolated linearly, Integers, Booleans and discrete values held, a repeated time a
-    /// discontinuity (steps are shortened to land on it).
+    /// discontinuity (steps are shortened to land on it). For a system, the columns name
+    /// unconnected inputs as COMPONENT.INPUT, set at every communication point.
     #[arg(long, value_name = "FILE.csv")]
     input_file: Option<PathBuf>,
     /// For a system (.ssp, .ssd or a folder holding SystemStructure.ssd): the co-simulation

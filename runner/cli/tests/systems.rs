@@ -313,3 +313,73 @@ fn a_sweep_reads_only_what_it_needs_and_agrees_with_simulate() {
     assert_eq!(column(&header, &rows, "i"), [3.0, 3.0]);
     assert_eq!(column(&header, &rows, "b"), [1.0, 1.0]);
 }
+
+/// `--input-file` drives a system's unconnected inputs, its columns named COMPONENT.INPUT: a's
+/// columns equal a run of the FMU alone with the same table (whose input handling tests/fmpy
+/// checks against fmpy's) to the bit, b follows a through the connection, and a sweep sees the
+/// table too. The table's step is on a communication point: between points it would take effect
+/// at the next one in the system, where a single FMU shortens its step onto it. A connected input
+/// or an unknown component in the table is refused by name.
+#[test]
+fn input_files_drive_unconnected_inputs() {
+    let Some(ft) = feedthrough() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (component("a", &format!("{REAL_IN}{REAL_OUT}"), ""), component("b", &format!("{REAL_IN}{REAL_OUT}"), ""));
+    let ssd = format!(
+        r#"<ssd:System name="s"><ssd:Elements>{a}{b}</ssd:Elements><ssd:Connections>{}</ssd:Connections></ssd:System>"#,
+        connection("a", "b")
+    );
+    let root = system(dir.path(), "inputs", &ssd, &[("ft.fmu", &ft)], &[]);
+    let root = root.to_str().unwrap();
+    // A ramp, a step at 0.5 (a time given twice) and an Integer held between rows.
+    let rows = "0,0,1\n0.5,1,1\n0.5,3,4\n1,2,4\n";
+    let (table, alone) = (dir.path().join("system_inputs.csv"), dir.path().join("inputs.csv"));
+    std::fs::write(&table, format!("time,a.Float64_continuous_input,a.Int32_input\n{rows}")).unwrap();
+    std::fs::write(&alone, format!("time,Float64_continuous_input,Int32_input\n{rows}")).unwrap();
+    let grid = ["--stop-time", "1", "--output-interval", "0.1"];
+    let (sys_csv, one_csv) = (dir.path().join("system.csv"), dir.path().join("one.csv"));
+    let input = ["--input-file", table.to_str().unwrap()];
+    ok(runner(dir.path(), &[&["simulate", root][..], &grid, &input, &["--out", sys_csv.to_str().unwrap()]].concat()));
+    let ft = ft.to_str().unwrap();
+    ok(runner(
+        dir.path(),
+        &[&["simulate", ft, "--input-file", alone.to_str().unwrap()][..], &grid, &["--out", one_csv.to_str().unwrap()]].concat(),
+    ));
+    let (sys_header, sys_rows) = read_csv(&sys_csv);
+    let (one_header, one_rows) = read_csv(&one_csv);
+    for name in ["Float64_continuous_output", "Int32_output"] {
+        let system = column(&sys_header, &sys_rows, &format!("a.{name}"));
+        assert_eq!(system, column(&one_header, &one_rows, name), "a.{name}");
+    }
+    let ramp = column(&sys_header, &sys_rows, "a.Float64_continuous_output");
+    assert!(ramp.iter().any(|&x| x != 0.0) && ramp.contains(&3.0), "the table did not reach a: {ramp:?}");
+    // b's input is a's output at each point (Jacobi), so b's output is a's, one point later.
+    let b_out = column(&sys_header, &sys_rows, "b.Float64_continuous_output");
+    assert_eq!(&b_out[2..], &ramp[1..ramp.len() - 1]);
+    // A sweep sees the table: the final value after the step is the table's last, 2.
+    let sweep = dir.path().join("sweep.csv");
+    ok(runner(
+        dir.path(),
+        &[
+            &["sweep", root, "--param", "b.Int32_input=1,2", "--metric", "v=final(a.Float64_continuous_output)"][..],
+            &grid,
+            &input,
+            &["--out", sweep.to_str().unwrap()],
+        ]
+        .concat(),
+    ));
+    let (header, rows) = read_csv(&sweep);
+    assert_eq!(column(&header, &rows, "v"), vec![*ramp.last().unwrap(); 2]);
+    for (columns, expected) in [
+        (
+            "time,b.Float64_continuous_input\n0,1\n",
+            "input file column 'b.Float64_continuous_input': the system connects that input to a.Float64_continuous_output",
+        ),
+        ("time,zz.u\n0,1\n", "input file column 'zz.u': 'zz.u' names no component of the system"),
+        ("time,a.Float64_continuous_output\n0,1\n", "not an input"),
+    ] {
+        std::fs::write(&table, columns).unwrap();
+        let err = fails(runner(dir.path(), &[&["simulate", root][..], &grid, &input].concat()));
+        assert!(err.contains(expected), "{err}");
+    }
+}

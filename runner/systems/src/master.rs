@@ -12,6 +12,7 @@
 //! values settle along any chain; then every component leaves initialization mode.
 
 use fmi_importer::{Causality, FmiVersion, Instance, Interface, Kind, Reader, Step, Value, Variability, Variable};
+use runner_engine::input::{self, InputTable};
 use runner_engine::run::Grid;
 use runner_engine::variables;
 
@@ -129,6 +130,8 @@ pub struct Bound<'a> {
     coupling: Option<Coupling>,
     /// An algebraic loop Jacobi breaks by its one-step delay (a warning for the user).
     pub warning: Option<String>,
+    /// Per component: the unconnected inputs an input table drives (`--input-file`).
+    tables: Vec<Option<input::Inputs<'a>>>,
 }
 
 /// A `COMPONENT.VARIABLE=VALUE` assignment resolved: component index, variable, value.
@@ -251,6 +254,7 @@ impl<'a> Bound<'a> {
             master,
             coupling: None,
             warning: None,
+            tables: (0..components.len()).map(|_| None).collect(),
         };
         let algebraic = bound.algebraic_loop();
         match (master, algebraic) {
@@ -398,6 +402,47 @@ impl<'a> Bound<'a> {
         let d = &system.components[c].fmu.description;
         let v = variables::find(d, variable).map_err(|e| format!("{name}: component '{}': {e}", system.components[c].name))?;
         Ok((c, v))
+    }
+
+    /// Drives unconnected inputs from `table` (`--input-file`, fmpy's CSV convention), whose
+    /// columns name them `COMPONENT.INPUT`. Each component's are set at every communication
+    /// point and sub-step, before it steps (a continuous Real with its slope where the FMU
+    /// interpolates inputs, as for a single FMU): a discontinuity between points takes effect
+    /// at the next one, as every value the master passes does.
+    pub fn set_inputs(&mut self, table: &InputTable) -> Result<(), String> {
+        let components = &self.system.components;
+        let mut columns: Vec<(Vec<String>, Vec<Vec<f64>>)> = vec![(Vec::new(), Vec::new()); components.len()];
+        for (k, name) in table.names.iter().enumerate() {
+            let (c, variable) = self.resolve(name).map_err(|e| format!("input file column '{name}': {e}"))?;
+            let connected = self.transfers.iter().find(|tr| tr.to == c && tr.variable.value_reference == variable.value_reference);
+            if let Some(tr) = connected {
+                return Err(format!(
+                    "input file column '{name}': the system connects that input to {}: an input file drives unconnected inputs",
+                    self.columns[tr.from]
+                ));
+            }
+            columns[c].0.push(variable.name.clone());
+            columns[c].1.push(table.values[k].clone());
+        }
+        for (c, (names, values)) in columns.into_iter().enumerate() {
+            if names.is_empty() {
+                continue;
+            }
+            let component = &components[c];
+            let own = InputTable::from_columns(names, table.time.clone(), values)?;
+            let bound =
+                own.bind(&component.fmu.description, component.interface).map_err(|e| format!("component '{}': {e}", component.name))?;
+            self.tables[c] = Some(bound);
+        }
+        Ok(())
+    }
+
+    /// Sets component `c`'s inputs from the input table at `time`, if it has any.
+    fn apply_table(&self, c: usize, instance: &mut Instance, time: f64) -> Result<(), Failure> {
+        match &self.tables[c] {
+            Some(table) => table.apply(instance, time).map_err(|e| failure(&self.system.components, c, time, e)),
+            None => Ok(()),
+        }
     }
 
     /// The column of `COMPONENT.VARIABLE`, if recorded.
@@ -562,6 +607,7 @@ impl<'a> Bound<'a> {
                 instance.set(variable, value).map_err(fail(c, grid.start))?;
             }
             instance.enter_initialization_mode().map_err(fail(c, grid.start))?;
+            self.apply_table(c, &mut instance, grid.start)?;
             instances.push(instance);
         }
         let n_components = components.len();
@@ -615,6 +661,7 @@ impl<'a> Bound<'a> {
                     }
                 }
                 driving(c);
+                self.apply_table(c, &mut instances[c], t)?;
                 match step(&mut instances[c], t, t_next, plan.returns_early[c]).map_err(fail(c, t))? {
                     Stepped::Reached => {}
                     Stepped::Ended(ended) => {
@@ -727,6 +774,7 @@ impl Bound<'_> {
                 }
                 let to = if takes_any_step(&components[c]) { end } else { t_next };
                 driving(c);
+                self.apply_table(c, &mut run.instances[c], now)?;
                 match step(&mut run.instances[c], now, to, plan.returns_early[c]).map_err(|e| failure(components, c, now, e))? {
                     Stepped::Reached => at[c] = to,
                     Stepped::Ended(message) => {

@@ -19,7 +19,7 @@ pub struct Component {
     pub feedthrough: HashMap<String, Vec<String>>,
     /// Where its FMU is unpacked, and through which interface it runs.
     dir: PathBuf,
-    interface: Interface,
+    pub interface: Interface,
     // After `fmu`: the binary closes before its files go (`None`: another process's copy).
     _dir: Option<tempfile::TempDir>,
 }

@@ -81,7 +81,6 @@ pub struct Options {
 fn run_system(options: &Options) -> Result<(), String> {
     let single = [
         ("--overlay", options.overlay.is_some()),
-        ("--input-file", options.input_file.is_some()),
         ("--record-events", options.record_events),
         ("--log", options.log),
         ("--start-time", options.start_time.is_some()),
@@ -93,7 +92,7 @@ fn run_system(options: &Options) -> Result<(), String> {
         ("--log-fmi-calls", options.log_fmi_calls.is_some()),
     ];
     if let Some((flag, _)) = single.iter().find(|(_, given)| *given) {
-        return Err(format!("{flag} is for single FMUs; a system takes --stop-time, --output-interval, --tolerance, --set COMPONENT.VARIABLE=VALUE, --master, --coupling, --timeout, --in-process, --out, --plot, --plot-vars and --plot-x"));
+        return Err(format!("{flag} is for single FMUs; a system takes --stop-time, --output-interval, --tolerance, --set COMPONENT.VARIABLE=VALUE, --input-file, --master, --coupling, --timeout, --in-process, --out, --plot, --plot-vars and --plot-x"));
     }
     let timeout = runner_sandbox::timeout("--timeout", options.timeout)?;
     let isolation = match options.in_process {
@@ -106,7 +105,7 @@ fn run_system(options: &Options) -> Result<(), String> {
     crate::commands::system::simulate(
         Path::new(&options.fmu),
         &options.run,
-        &crate::commands::system::Algorithm { master: options.master.clone(), coupling: options.coupling.clone() },
+        &crate::commands::system::Algorithm::new(options.master.clone(), options.coupling.clone(), options.input_file.as_deref())?,
         options.out.as_deref(),
         isolation,
         options.plot.as_deref().map(|path| crate::commands::system::Plot { path, vars: &options.plot_vars, x: options.plot_x.as_deref() }),

@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 use fmi_importer::Value;
 use fmi_systems::System;
 use runner_engine::exec::{self, Held, Points};
+use runner_engine::input::InputTable;
 use runner_engine::isolated::Engine;
 use runner_engine::metrics::Metrics;
 use runner_engine::request::{MetricSet, SweepRequest};
@@ -74,13 +75,10 @@ pub struct Options {
 /// `runner sweep SYSTEM`: as a sweep of an FMU (worker processes or threads, rows streamed to
 /// `<out>.partial`, `--resume`, the plot), each point an instance of the whole system.
 fn run_system(options: &Options) -> Result<Summary, String> {
-    if options.input_file.is_some() {
-        return Err("--input-file drives the inputs of one FMU: a system's inputs come from its connections (and --set); it is not supported for systems".to_owned());
-    }
     let threads = thread_count(options)?;
     let sandbox = sandbox_limits(options, threads)?;
     let system = System::open(Path::new(&options.fmu))?;
-    let algorithm = system::Algorithm { master: options.master.clone(), coupling: options.coupling.clone() };
+    let algorithm = system::Algorithm::new(options.master.clone(), options.coupling.clone(), options.input_file.as_deref())?;
     let sweep = system::Sweep::new(&system, &options.run, &algorithm, &options.params, &options.metrics)?;
     let plan = sweep.plan();
     let n = plan.space.len;
@@ -149,6 +147,9 @@ fn system_record(sweep: &system::Sweep, timeout: Option<f64>) -> Result<Record, 
     let algorithm = sweep.algorithm();
     put("master", algorithm.master.clone().unwrap_or_else(|| "jacobi".to_owned()));
     put("coupling", algorithm.coupling.clone().unwrap_or_else(|| "the best both ends allow".to_owned()));
+    if let Some(inputs) = &algorithm.inputs {
+        put("input_file", table_text(inputs));
+    }
     put("point_timeout", timeout.map_or("none".to_owned(), |t| format!("{t:?} s")));
     Ok(Record { entries })
 }
@@ -251,18 +252,23 @@ fn record(
     }
     put("point_timeout", timeout.map_or("none".to_owned(), |t| format!("{t:?} s")));
     if let Some(inputs) = &request.inputs {
-        // The table itself, not the file's name: the same name may hold other inputs later.
-        let mut hash = Sha256::new();
-        for name in &inputs.names {
-            hash.update(name.as_bytes());
-            hash.update([0]);
-        }
-        for x in inputs.time.iter().chain(inputs.values.iter().flatten()) {
-            hash.update(x.to_bits().to_le_bytes());
-        }
-        put("input_file", format!("{} columns, {} rows (sha256 {:x})", inputs.names.len(), inputs.time.len(), hash.finalize()));
+        put("input_file", table_text(inputs));
     }
     Record { entries }
+}
+
+/// An input table as a record names it: the table itself, not the file's name (the same name
+/// may hold other inputs later).
+fn table_text(inputs: &InputTable) -> String {
+    let mut hash = Sha256::new();
+    for name in &inputs.names {
+        hash.update(name.as_bytes());
+        hash.update([0]);
+    }
+    for x in inputs.time.iter().chain(inputs.values.iter().flatten()) {
+        hash.update(x.to_bits().to_le_bytes());
+    }
+    format!("{} columns, {} rows (sha256 {:x})", inputs.names.len(), inputs.time.len(), hash.finalize())
 }
 
 /// A swept parameter's values as a record names them: their count, ends and digest.

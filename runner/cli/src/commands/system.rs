@@ -21,6 +21,7 @@ use fmi_importer::trace::{self, Call, CallSlot};
 use fmi_importer::Variable;
 use fmi_systems::master::Assignment;
 use fmi_systems::{Bound, Coupling, Master, Outcome as RunOutcome, System, SystemFiles};
+use runner_engine::input::InputTable;
 use runner_engine::isolated;
 use runner_engine::metrics::Metrics;
 use runner_engine::request::MetricSet;
@@ -48,12 +49,29 @@ pub fn master(name: Option<&str>) -> Result<Master, String> {
     }
 }
 
-/// The master and the coupling named on the command line (`--master`, `--coupling`), as they
-/// travel to the workers.
+/// How the command line runs the system (`--master`, `--coupling`, `--input-file`), as it
+/// travels to the workers.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 pub struct Algorithm {
     pub master: Option<String>,
     pub coupling: Option<String>,
+    /// The unconnected inputs over time, columns `COMPONENT.INPUT`.
+    pub inputs: Option<InputTable>,
+}
+
+impl Algorithm {
+    /// The algorithm the options name; `input_file` read as a table (checked against the
+    /// system when it is bound).
+    pub fn new(master: Option<String>, coupling: Option<String>, input_file: Option<&Path>) -> Result<Algorithm, String> {
+        let inputs = match input_file {
+            None => None,
+            Some(path) => {
+                let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read the input file {}: {e}", path.display()))?;
+                Some(InputTable::from_csv(&text).map_err(|e| format!("{}: {e}", path.display()))?)
+            }
+        };
+        Ok(Algorithm { master, coupling, inputs })
+    }
 }
 
 /// The system bound for runs under the master and coupling named on the command line.
@@ -64,6 +82,9 @@ fn bind<'a>(system: &'a System, algorithm: &Algorithm) -> Result<Bound<'a>, Stri
     };
     let mut bound = Bound::new(system, master(algorithm.master.as_deref())?)?;
     bound.set_coupling(coupling);
+    if let Some(table) = &algorithm.inputs {
+        bound.set_inputs(table).map_err(|e| format!("--input-file: {e}"))?;
+    }
     Ok(bound)
 }
 
@@ -99,7 +120,7 @@ fn number(x: f64) -> String {
 }
 
 /// The sandbox of systems run in worker processes of this binary: each run or point stopped
-/// after `timeout`, each worker limited to `memory_mib` MiB, sharing a [`Page`] with its
+/// after `timeout`, each worker limited to `memory_mib` MiB, sharing a `Page` with its
 /// supervisor.
 pub fn isolation(timeout: Option<std::time::Duration>, memory_mib: u64) -> Result<Config, String> {
     let config = isolated::config(WorkerCommand::this_program(&[WORKER_COMMAND])?, timeout, memory_mib)?;
@@ -114,7 +135,7 @@ pub struct Systems;
 pub enum Setup {
     /// Load the system from the supervisor's copy and bind it under the algorithm (first,
     /// once per worker).
-    Load { files: SystemFiles, algorithm: Algorithm },
+    Load { files: SystemFiles, algorithm: Box<Algorithm> },
     /// Plan this sweep, for the [`Job::Point`]s that follow.
     Sweep(Box<SweepSpec>),
 }
@@ -428,7 +449,7 @@ pub fn simulate(
         }),
         Some(config) => {
             let width = 1 + bound.columns.len();
-            let setup = Setup::Load { files: system.files(), algorithm: algorithm.clone() };
+            let setup = Setup::Load { files: system.files(), algorithm: Box::new(algorithm.clone()) };
             let mut session = Session::<Systems>::new(config, &[setup], false);
             let job = Job::Run { grid, sets: run.set.clone() };
             let outcome = session.run(job, &interrupt::requested, |Rows(values)| {
@@ -565,7 +586,7 @@ impl<'a> Sweep<'a> {
                 sweep::on_threads(points, threads, &interrupt::requested, |i, point| self.plan.run_point(&self.bound, i, point), deliver)
             }
             Some(mut workers) => {
-                workers.setup(&Setup::Load { files: self.system.files(), algorithm: self.algorithm.clone() });
+                workers.setup(&Setup::Load { files: self.system.files(), algorithm: Box::new(self.algorithm.clone()) });
                 // A component that allows one instance per process gets a process per point.
                 let components = &self.system.components;
                 workers.one_job_per_worker(components.iter().any(|c| isolated::once_per_process(&c.fmu.description, c.fmu.interface)));

@@ -102,6 +102,8 @@ impl<M: Model> OdeSystem for Driven<'_, M> {
     fn dim(&self) -> usize {
         M::N_STATES
     }
+    // Always inlined into the solver's stages, as the held model's (`System::rhs`).
+    #[inline(always)]
     fn rhs(&self, t: f64, x: &[f64], dx: &mut [f64]) {
         let model = self.at(t);
         System::of(&**model).rhs(t, x, dx)
@@ -205,11 +207,17 @@ impl<M: Model> Core<M> {
         self.state.outputs_dirty = true;
     }
 
-    /// The driven inputs' fields with their derivatives at the current time, for the output
-    /// derivatives.
-    pub(super) fn input_derivatives(&self) -> smallvec::SmallVec<[(usize, [f64; MAX_ORDER]); 4]> {
+    /// The driven inputs' fields with their values and derivatives at the current time, for
+    /// the output derivatives (into `self.trajectory.inputs`).
+    pub(super) fn input_derivatives(&mut self) {
         let t = self.state.t;
-        self.state.drives.iter().filter_map(|d| self.table.rows[d.row].field.map(|f| (f, d.derivatives_at(t)))).collect()
+        let rows = &self.table.rows;
+        let inputs = &mut self.trajectory.inputs;
+        inputs.clear();
+        inputs.extend(self.state.drives.iter().filter_map(|d| match (rows[d.row].field, &rows[d.row].slot) {
+            (Some(f), Slot::Model(Access::Real { get, .. })) => Some((f, get(&self.state.model), d.derivatives_at(t))),
+            _ => None,
+        }));
     }
 }
 

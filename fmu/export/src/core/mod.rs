@@ -242,6 +242,8 @@ pub struct Core<M: Model> {
     /// the cached Jacobian blocks (`jacobians`) are those of the current point.
     version: u64,
     jacobians: derivatives::Jacobians,
+    /// The output derivatives' buffers and lifted model, kept from call to call.
+    trajectory: derivatives::Trajectory,
 }
 
 impl<M: Model> Core<M> {
@@ -257,12 +259,14 @@ impl<M: Model> Core<M> {
             fresh: None,
             version: 0,
             jacobians: Default::default(),
+            trajectory: Default::default(),
         }
     }
 
     /// Lets the model read its resources from `dir` (at instantiation).
     pub fn load_resources(&mut self, dir: &std::path::Path) -> Result<(), crate::model::ModelError> {
         self.state.model.resources(dir)?;
+        self.version += 1;
         self.fresh = Some(Box::new(self.state.model.clone()));
         Ok(())
     }

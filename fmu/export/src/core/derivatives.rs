@@ -378,7 +378,32 @@ impl<M: Model> Core<M> {
         };
         let rows = &self.table.rows;
         let pass = &mut self.trajectory;
-        pass.outputs.clear();
+        // An importer asks for the same outputs and orders at every step: checked once.
+        if pass.vrs != vrs || pass.orders != orders {
+            pass.plan(rows, vrs, orders, function)?;
+        }
+        self.input_derivatives();
+        let pass = &mut self.trajectory;
+        (pass.t, pass.version) = (self.state.t, self.version);
+        (lifting.trajectory)(&self.state.model, &self.state.x, pass).map_err(|e| Failure::error(format!("{function}: {e}")))?;
+        for ((value, d), &order) in values.iter_mut().zip(&pass.rates).zip(orders) {
+            *value = d[order as usize - 1];
+        }
+        if values.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(self.not_differentiable(values, vrs, true, function))
+        }
+    }
+}
+
+impl Trajectory {
+    /// Checks a request for the derivatives of orders `orders` of outputs `vrs` and makes
+    /// `outputs` the unknowns it reads; the request is kept (`vrs`, `orders`) when valid.
+    fn plan<M>(&mut self, rows: &[Row<M>], vrs: &[u32], orders: &[i32], function: &str) -> CallResult {
+        self.vrs.clear();
+        self.orders.clear();
+        self.outputs.clear();
         for (&vr, &order) in vrs.iter().zip(orders) {
             let Some(row) = rows.get(vr as usize) else {
                 return Err(Failure::error(format!("{function}: value reference {vr} is not a variable of this FMU")));
@@ -395,25 +420,16 @@ impl<M: Model> Core<M> {
                     row.name
                 )));
             }
-            pass.outputs.push(match (&row.slot, row.field) {
+            self.outputs.push(match (&row.slot, row.field) {
                 _ if row.variability != Variability::Continuous => Unknown::Zero,
                 (Slot::Model(Access::State(k)), _) => Unknown::State(*k),
                 (Slot::Model(Access::Real { .. }), Some(field)) => Unknown::Field(field),
                 _ => Unknown::Zero,
             });
         }
-        self.input_derivatives();
-        let pass = &mut self.trajectory;
-        (pass.t, pass.version) = (self.state.t, self.version);
-        (lifting.trajectory)(&self.state.model, &self.state.x, pass).map_err(|e| Failure::error(format!("{function}: {e}")))?;
-        for ((value, d), &order) in values.iter_mut().zip(&pass.rates).zip(orders) {
-            *value = d[order as usize - 1];
-        }
-        if values.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(self.not_differentiable(values, vrs, true, function))
-        }
+        self.vrs.extend_from_slice(vrs);
+        self.orders.extend_from_slice(orders);
+        Ok(())
     }
 }
 
@@ -435,6 +451,9 @@ pub struct Trajectory {
     pub inputs: Vec<(usize, f64, Rates)>,
     /// Per output: a state, a model field, or `Zero`.
     pub outputs: Vec<Unknown>,
+    /// The last valid request `outputs` was made for: value references and orders.
+    vrs: Vec<u32>,
+    orders: Vec<i32>,
     /// The result, per output.
     pub rates: Vec<Rates>,
     /// The model lifted into third-order dual numbers by the last pass (`M::Over<Dual3_64>`)
@@ -802,6 +821,11 @@ mod tests {
         assert!(err.message.contains("order 4 of 'y' refused") && err.message.contains("1 to 3"), "{}", err.message);
         let err = core.output_derivatives(&[u], &[1], &mut out[..1], "fmiTest").unwrap_err();
         assert!(err.message.contains("'u' (value reference") && err.message.contains("not a Real output"), "{}", err.message);
+        // The instance keeps the last request's plan: a new request, and the refused one again
+        // after a valid one, are checked afresh.
+        core.output_derivatives(&[y, x], &[2, 1], &mut out[..2], "test").unwrap();
+        assert_eq!(out[..2], [128.5, -5.5]);
+        assert!(core.output_derivatives(&[u], &[1], &mut out[..1], "fmiTest").is_err());
     }
 
     /// The lifted model an instance keeps from one output-derivative call to the next gives

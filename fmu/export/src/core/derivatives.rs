@@ -495,25 +495,24 @@ where
     }
     let t = Dual3_64::new(pass.t, 1.0, 0.0, 0.0);
     let n = x.len();
-    let (xs, dx, rates) = (&mut pass.x, &mut pass.dx, &mut pass.state_rates);
-    xs.resize(n, Dual3_64::from(0.0));
-    dx.resize(n, Dual3_64::from(0.0));
-    // Per state: its derivatives of orders 1 to MAX_ORDER, found one order per pass.
-    rates.clear();
-    rates.resize(n, [0.0; MAX_ORDER]);
-    let states = |xs: &mut [Dual3_64], rates: &[Rates]| {
-        for ((xs, &v), &[d1, d2, d3]) in xs.iter_mut().zip(x).zip(rates) {
-            *xs = Dual3_64::new(v, d1, d2, d3);
-        }
-    };
+    pass.x.resize(n, Dual3_64::from(0.0));
+    pass.dx.resize(n, Dual3_64::from(0.0));
+    pass.state_rates.resize(n, [0.0; MAX_ORDER]);
+    let (xs, dx, rates) = (&mut pass.x[..n], &mut pass.dx[..n], &mut pass.state_rates[..n]);
+    for k in 0..n {
+        xs[k] = Dual3_64::from(x[k]);
+    }
+    // Per state: its derivatives of orders 1 to MAX_ORDER, found one order per pass and
+    // given to the state's dual number for the next.
     for order in 0..MAX_ORDER {
-        states(xs, rates);
         lifted.derivatives(t, xs, dx);
-        for (rate, d) in rates.iter_mut().zip(dx.iter()) {
-            rate[order] = [d.re, d.v1, d.v2][order];
+        for k in 0..n {
+            let (d, x) = (&dx[k], &mut xs[k]);
+            let rate = [d.re, d.v1, d.v2][order];
+            rates[k][order] = rate;
+            *[&mut x.v1, &mut x.v2, &mut x.v3][order] = rate;
         }
     }
-    states(xs, rates);
     if pass.outputs.iter().any(|u| matches!(u, Unknown::Field(_))) {
         lifted.outputs(t, xs);
     }

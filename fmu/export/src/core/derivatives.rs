@@ -482,11 +482,11 @@ pub fn trajectory<M: Model + Lift>(model: &M, x: &[f64], pass: &mut Trajectory) 
 where
     M::Over<Dual3_64>: Send + 'static,
 {
-    let current = matches!(&pass.lifted, Some((version, m)) if *version == pass.version && m.is::<M::Over<Dual3_64>>());
-    if !current {
+    // An instance holds one model type: the version alone says whether the lift is current.
+    if !matches!(&pass.lifted, Some((version, _)) if *version == pass.version) {
         pass.lifted = Some((pass.version, Box::new(model.lift::<Dual3_64>())));
     }
-    let lifted = pass.lifted.as_mut().and_then(|(_, m)| m.downcast_mut::<M::Over<Dual3_64>>()).expect("lifted just above");
+    let lifted = pass.lifted.as_mut().and_then(|(_, m)| m.downcast_mut::<M::Over<Dual3_64>>()).expect("an instance lifts one model type");
     for &(f, value, [d1, d2, d3]) in &pass.inputs {
         *M::field(lifted, f) = Dual3_64::new(value, d1, d2, d3);
     }

@@ -26,7 +26,6 @@
 
 use nalgebra::SVector;
 use num_dual::{Derivative, Dual3_64, DualSVec64};
-use smallvec::{smallvec, SmallVec};
 
 use super::interpolation::MAX_ORDER;
 use super::{CallResult, Core, Failure};
@@ -422,7 +421,33 @@ impl<M: Model> Core<M> {
             )));
         };
         let rows = &self.table.rows;
-        let mut outputs: SmallVec<[Unknown; 8]> = SmallVec::with_capacity(vrs.len());
+        let pass = &mut self.trajectory;
+        // An importer asks for the same outputs and orders at every step: checked once.
+        if pass.vrs != vrs || pass.orders != orders {
+            pass.plan(rows, vrs, orders, function)?;
+        }
+        self.input_derivatives();
+        let pass = &mut self.trajectory;
+        (pass.t, pass.version) = (self.state.t, self.version);
+        (lifting.trajectory)(&self.state.model, &self.state.x, pass).map_err(|e| Failure::error(format!("{function}: {e}")))?;
+        for ((value, d), &order) in values.iter_mut().zip(&pass.rates).zip(orders) {
+            *value = d[order as usize - 1];
+        }
+        if values.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(self.not_differentiable(values, vrs, true, function))
+        }
+    }
+}
+
+impl Trajectory {
+    /// Checks a request for the derivatives of orders `orders` of outputs `vrs` and makes
+    /// `outputs` the unknowns it reads; the request is kept (`vrs`, `orders`) when valid.
+    fn plan<M>(&mut self, rows: &[Row<M>], vrs: &[u32], orders: &[i32], function: &str) -> CallResult {
+        self.vrs.clear();
+        self.orders.clear();
+        self.outputs.clear();
         for (&vr, &order) in vrs.iter().zip(orders) {
             let Some(row) = rows.get(vr as usize) else {
                 return Err(Failure::error(format!("{function}: value reference {vr} is not a variable of this FMU")));
@@ -439,95 +464,111 @@ impl<M: Model> Core<M> {
                     row.name
                 )));
             }
-            outputs.push(match (&row.slot, row.field) {
+            self.outputs.push(match (&row.slot, row.field) {
                 _ if row.variability != Variability::Continuous => Unknown::Zero,
                 (Slot::Model(Access::State(k)), _) => Unknown::State(*k),
                 (Slot::Model(Access::Real { .. }), Some(field)) => Unknown::Field(field),
                 _ => Unknown::Zero,
             });
         }
-        let inputs = self.input_derivatives();
-        let pass = Trajectory { t: self.state.t, x: &self.state.x, inputs: &inputs, outputs: &outputs };
-        let mut out: SmallVec<[Rates; 8]> = smallvec![[0.0; MAX_ORDER]; outputs.len()];
-        (lifting.trajectory)(&self.state.model, &pass, &mut out).map_err(|e| Failure::error(format!("{function}: {e}")))?;
-        for ((value, d), &order) in values.iter_mut().zip(&out).zip(orders) {
-            *value = d[order as usize - 1];
-        }
-        if values.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(self.not_differentiable(values, vrs, true, function))
-        }
+        self.vrs.extend_from_slice(vrs);
+        self.orders.extend_from_slice(orders);
+        Ok(())
     }
 }
 
 /// Per output: its time derivatives of orders 1 to [`MAX_ORDER`] ([`trajectory`]).
 pub type Rates = [f64; MAX_ORDER];
 
-/// What [`trajectory`] evaluates: the point, the inputs' time derivatives there, and the
-/// outputs to differentiate.
-pub struct Trajectory<'a> {
+/// What [`trajectory`] evaluates, what it found, and what it keeps for the next call: a
+/// polynomial coupling asks for output derivatives at every communication step, so an
+/// instance keeps one of these, and its buffers and lifted model, from call to call.
+#[derive(Default)]
+pub struct Trajectory {
+    /// The time of the point.
     pub t: f64,
-    pub x: &'a [f64],
-    /// The driven inputs: their model fields ([`crate::Lift::field`]) and first [`MAX_ORDER`]
-    /// time derivatives at `t` (the other inputs are held: derivatives 0).
-    pub inputs: &'a [(usize, [f64; MAX_ORDER])],
+    /// The instance's version (`Core::version`): a model lifted at the same version is the
+    /// model's lift still.
+    pub version: u64,
+    /// The driven inputs: their model fields ([`crate::Lift::field`]), values and first
+    /// [`MAX_ORDER`] time derivatives at `t` (the other inputs are held: derivatives 0).
+    pub inputs: Vec<(usize, f64, Rates)>,
     /// Per output: a state, a model field, or `Zero`.
-    pub outputs: &'a [Unknown],
+    pub outputs: Vec<Unknown>,
+    /// The last valid request `outputs` was made for: value references and orders.
+    vrs: Vec<u32>,
+    orders: Vec<i32>,
+    /// The result, per output.
+    pub rates: Vec<Rates>,
+    /// The model lifted into third-order dual numbers by the last pass (`M::Over<Dual3_64>`)
+    /// and the version it was lifted at. Between steps that set nothing, the parameters, held
+    /// inputs and discrete state (what the lift copies) stay as they were; time and states are
+    /// each pass's own, and the driven inputs are set at every pass. Lifting afresh
+    /// (converting every field, cloning the model's strings and tables, dropping them again)
+    /// cost more than the derivatives.
+    lifted: Option<(u64, Box<dyn std::any::Any + Send>)>,
+    /// The states as dual numbers, their derivatives, and per state its rates.
+    x: Vec<Dual3_64>,
+    dx: Vec<Dual3_64>,
+    state_rates: Vec<Rates>,
 }
 
-/// The first [`MAX_ORDER`] time derivatives of outputs along the trajectory through the pass's
-/// point, by Taylor-mode forward differentiation: time, states and inputs become third-order
-/// dual numbers in the one direction of time (time's derivative 1, the inputs' theirs). The
-/// states' derivatives come from the right-hand side itself, one order per pass: x' = f(x, u,
-/// t); the k-th derivative of f along the trajectory needs the states' derivatives up to k
-/// only, so the pass with those known gives x^(k+1) as f's k-th derivative part. The outputs,
-/// evaluated on the completed states, then carry their derivatives. Exact to rounding, from
-/// the equations the simulation runs. `#[derive(Variables)]` points
-/// [`crate::model::Lifting`] here.
-pub fn trajectory<M: Model + Lift>(model: &M, pass: &Trajectory, out: &mut [[f64; MAX_ORDER]]) -> Result<(), ModelError> {
-    let mut lifted: M::Over<Dual3_64> = model.lift();
-    for &(f, [d1, d2, d3]) in pass.inputs {
-        let field = M::field(&mut lifted, f);
-        *field = Dual3_64::new(field.re, d1, d2, d3);
+/// The first [`MAX_ORDER`] time derivatives of `pass.outputs` along the trajectory through
+/// (`pass.t`, `x`), into `pass.rates`, by Taylor-mode forward differentiation: time, states
+/// and inputs become third-order dual numbers in the one direction of time (time's derivative
+/// 1, the inputs' theirs). The states' derivatives come from the right-hand side itself, one
+/// order per pass: x' = f(x, u, t); the k-th derivative of f along the trajectory needs the
+/// states' derivatives up to k only, so the pass with those known gives x^(k+1) as f's k-th
+/// derivative part. The outputs, evaluated on the completed states, then carry their
+/// derivatives. Exact to rounding, from the equations the simulation runs.
+/// `#[derive(Variables)]` points [`crate::model::Lifting`] here.
+pub fn trajectory<M: Model + Lift>(model: &M, x: &[f64], pass: &mut Trajectory) -> Result<(), ModelError>
+where
+    M::Over<Dual3_64>: Send + 'static,
+{
+    // An instance holds one model type: the version alone says whether the lift is current.
+    if !matches!(&pass.lifted, Some((version, _)) if *version == pass.version) {
+        pass.lifted = Some((pass.version, Box::new(model.lift::<Dual3_64>())));
+    }
+    let lifted = pass.lifted.as_mut().and_then(|(_, m)| m.downcast_mut::<M::Over<Dual3_64>>()).expect("an instance lifts one model type");
+    for &(f, value, [d1, d2, d3]) in &pass.inputs {
+        *M::field(lifted, f) = Dual3_64::new(value, d1, d2, d3);
     }
     if !pass.inputs.is_empty() {
-        M::refresh_over(&mut lifted);
+        M::refresh_over(lifted);
     }
     let t = Dual3_64::new(pass.t, 1.0, 0.0, 0.0);
-    let n = pass.x.len();
-    // Per state: its derivatives of orders 1 to MAX_ORDER, found one order per pass.
-    // On the stack for models of up to 16 states: this runs at every communication step of a
-    // polynomial coupling.
-    let mut rates: SmallVec<[Rates; 16]> = smallvec![[0.0; MAX_ORDER]; n];
-    let mut x: SmallVec<[Dual3_64; 16]> = smallvec![Dual3_64::from(0.0); n];
-    let states = |x: &mut [Dual3_64], rates: &[Rates]| {
-        for ((x, &v), &[d1, d2, d3]) in x.iter_mut().zip(pass.x).zip(rates) {
-            *x = Dual3_64::new(v, d1, d2, d3);
-        }
-    };
-    let mut dx: SmallVec<[Dual3_64; 16]> = smallvec![Dual3_64::from(0.0); n];
+    let n = x.len();
+    pass.x.resize(n, Dual3_64::from(0.0));
+    pass.dx.resize(n, Dual3_64::from(0.0));
+    pass.state_rates.resize(n, [0.0; MAX_ORDER]);
+    let (xs, dx, rates) = (&mut pass.x[..n], &mut pass.dx[..n], &mut pass.state_rates[..n]);
+    for k in 0..n {
+        xs[k] = Dual3_64::from(x[k]);
+    }
+    // Per state: its derivatives of orders 1 to MAX_ORDER, found one order per pass and
+    // given to the state's dual number for the next.
     for order in 0..MAX_ORDER {
-        states(&mut x, &rates);
-        lifted.derivatives(t, &x, &mut dx);
-        for (rate, d) in rates.iter_mut().zip(&dx) {
-            rate[order] = [d.re, d.v1, d.v2][order];
+        lifted.derivatives(t, xs, dx);
+        for k in 0..n {
+            let (d, x) = (&dx[k], &mut xs[k]);
+            let rate = [d.re, d.v1, d.v2][order];
+            rates[k][order] = rate;
+            *[&mut x.v1, &mut x.v2, &mut x.v3][order] = rate;
         }
     }
-    states(&mut x, &rates);
     if pass.outputs.iter().any(|u| matches!(u, Unknown::Field(_))) {
-        lifted.outputs(t, &x);
+        lifted.outputs(t, xs);
     }
-    for (o, unknown) in out.iter_mut().zip(pass.outputs) {
-        *o = match *unknown {
-            Unknown::State(k) => rates[k],
-            Unknown::Field(f) => {
-                let v = M::field(&mut lifted, f);
-                [v.v1, v.v2, v.v3]
-            }
-            _ => [0.0; MAX_ORDER],
-        };
-    }
+    pass.rates.clear();
+    pass.rates.extend(pass.outputs.iter().map(|unknown| match *unknown {
+        Unknown::State(k) => rates[k],
+        Unknown::Field(f) => {
+            let v = M::field(lifted, f);
+            [v.v1, v.v2, v.v3]
+        }
+        _ => [0.0; MAX_ORDER],
+    }));
     Ok(())
 }
 
@@ -851,6 +892,51 @@ mod tests {
         assert!(err.message.contains("order 4 of 'y' refused") && err.message.contains("1 to 3"), "{}", err.message);
         let err = core.output_derivatives(&[u], &[1], &mut out[..1], "fmiTest").unwrap_err();
         assert!(err.message.contains("'u' (value reference") && err.message.contains("not a Real output"), "{}", err.message);
+        // The instance keeps the last request's plan: a new request, and the refused one again
+        // after a valid one, are checked afresh.
+        core.output_derivatives(&[y, x], &[2, 1], &mut out[..2], "test").unwrap();
+        assert_eq!(out[..2], [128.5, -5.5]);
+        assert!(core.output_derivatives(&[u], &[1], &mut out[..1], "fmiTest").is_err());
+    }
+
+    /// The lifted model an instance keeps from one output-derivative call to the next gives
+    /// what a fresh lift gives, to the bit: when a step moved a driven input's value (no set in
+    /// between, so the kept model is used), and after a held input is set (x' = -k x + u with
+    /// u = 1.5 at x = 3: x' = -4.5, x'' = 9, x''' = -18, y' = 2 x x' = -27,
+    /// y'' = 2 x'^2 + 2 x x'' = 94.5, y''' = 6 x' x'' + 2 x x''' = -351, exact in binary).
+    #[test]
+    fn the_kept_lifted_model_gives_what_a_fresh_lift_gives() {
+        let fresh = |core: &Core<Decay>| {
+            let kept = &core.trajectory;
+            let mut pass = super::Trajectory {
+                t: core.state.t,
+                version: core.version,
+                inputs: kept.inputs.clone(),
+                outputs: kept.outputs.clone(),
+                ..Default::default()
+            };
+            super::trajectory(&core.state.model, &core.state.x, &mut pass).unwrap();
+            pass.rates
+        };
+        let mut core = stepping();
+        let (x, y, u) = (vr(&core, "x"), vr(&core, "y"), vr(&core, "u"));
+        let (vrs, orders, mut out) = ([x, x, x, y, y, y], [1, 2, 3, 1, 2, 3], [0.0; 6]);
+        core.output_derivatives(&vrs, &orders, &mut out, "test").unwrap();
+        assert_eq!(out, [-5.5, 11.0, -22.0, -33.0, 126.5, -495.0], "u = 0.5 held");
+        core.set_real(&[u], &[1.5], Phase::Running, "StepComplete").unwrap();
+        core.output_derivatives(&vrs, &orders, &mut out, "test").unwrap();
+        assert_eq!(out, [-4.5, 9.0, -18.0, -27.0, 94.5, -351.0], "u = 1.5 held");
+        core.set_input_derivatives(&[u, u, u], &[1, 2, 3], &[0.25, 0.5, -1.0], "test").unwrap();
+        core.output_derivatives(&vrs, &orders, &mut out, "test").unwrap();
+        let version = core.version;
+        core.do_step(0.0, 0.25).unwrap();
+        assert_eq!(core.version, version, "a step sets nothing: the kept model is used");
+        core.output_derivatives(&vrs, &orders, &mut out, "test").unwrap();
+        assert_eq!(core.trajectory.rates, fresh(&core));
+        assert_ne!(core.trajectory.inputs[0].1, 1.5, "the driven input moved over the step");
+        core.set_real(&[u], &[-2.0], Phase::Running, "StepComplete").unwrap();
+        core.output_derivatives(&vrs, &orders, &mut out, "test").unwrap();
+        assert_eq!(core.trajectory.rates, fresh(&core));
     }
 
     /// With k = 0, x' = u(t): an input driven by the cubic u(t) = 0.5 + 0.25 t + 0.25 t^2 - t^3 / 6

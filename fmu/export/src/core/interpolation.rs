@@ -42,9 +42,14 @@ impl Drive {
     /// The value at `t`: the Taylor polynomial in Horner form.
     #[inline]
     pub fn at(&self, t: f64) -> f64 {
-        let s = t - self.anchor;
+        horner(self.anchor, &self.coefficients(), t)
+    }
+
+    /// The polynomial's coefficients in powers of (t - anchor): the derivatives over k!.
+    #[inline]
+    fn coefficients(&self) -> [f64; MAX_ORDER + 1] {
         let [d1, d2, d3] = self.derivatives;
-        self.value + s * (d1 + s * (d2 / 2.0 + s * (d3 / 6.0)))
+        [self.value, d1, d2 / 2.0, d3 / 6.0]
     }
 
     /// The derivatives at `t` (the polynomial's, shifted from the anchor).
@@ -63,36 +68,62 @@ impl Drive {
     }
 }
 
+/// The polynomial with `coefficients` in powers of (t - anchor), at `t`.
+#[inline(always)]
+fn horner(anchor: f64, coefficients: &[f64; MAX_ORDER + 1], t: f64) -> f64 {
+    let s = t - anchor;
+    let [c0, c1, c2, c3] = *coefficients;
+    c0 + s * (c1 + s * (c2 + s * c3))
+}
+
+/// True when `row` takes time derivatives: a continuous Real input with a setter.
+fn interpolable<M>(row: &crate::table::Row<M>) -> bool {
+    row.causality == Causality::Input
+        && row.variability == Variability::Continuous
+        && matches!(row.slot, Slot::Model(Access::Real { set: Some(_), .. }))
+}
+
 /// A Real input's setter, from the variable table.
 type Setter<M> = fn(&mut M, f64);
+
+/// A driven input as the solver's stages evaluate it: its setter, and its polynomial with the
+/// coefficients divided out once per step rather than at every stage (the same numbers as
+/// [`Drive::at`]'s).
+pub(crate) struct Stage<M> {
+    set: Setter<M>,
+    anchor: f64,
+    coefficients: [f64; MAX_ORDER + 1],
+}
+
+impl<M> Stage<M> {
+    /// The stage form of `drive`, a settable Real input of `rows`.
+    pub fn of(drive: &Drive, rows: &[crate::table::Row<M>]) -> Stage<M> {
+        match rows[drive.row].slot {
+            Slot::Model(Access::Real { set: Some(set), .. }) => Stage { set, anchor: drive.anchor, coefficients: drive.coefficients() },
+            _ => unreachable!("only settable Real inputs are driven"),
+        }
+    }
+}
 
 /// The model with its driven inputs, as the solver's ODE system: each evaluation sets the
 /// inputs to their polynomials' values at its time first. The model is borrowed mutably for
 /// the step (a `RefCell`: the solver's calls take `&self`).
 pub(crate) struct Driven<'a, M> {
     model: std::cell::RefCell<&'a mut M>,
-    /// On the stack for up to four inputs: a driven step builds this at every step.
-    inputs: smallvec::SmallVec<[(Setter<M>, &'a Drive); 4]>,
+    inputs: &'a [Stage<M>],
 }
 
 impl<'a, M: Model> Driven<'a, M> {
-    pub fn new(model: &'a mut M, drives: &'a [Drive], rows: &[crate::table::Row<M>]) -> Driven<'a, M> {
-        let inputs = drives
-            .iter()
-            .map(|d| match rows[d.row].slot {
-                Slot::Model(Access::Real { set: Some(set), .. }) => (set, d),
-                _ => unreachable!("only settable Real inputs are driven"),
-            })
-            .collect();
+    pub fn new(model: &'a mut M, inputs: &'a [Stage<M>]) -> Driven<'a, M> {
         Driven { model: std::cell::RefCell::new(model), inputs }
     }
 
     /// The model with its inputs at `t`.
-    #[inline]
+    #[inline(always)]
     fn at(&self, t: f64) -> std::cell::RefMut<'_, &'a mut M> {
         let mut model = self.model.borrow_mut();
-        for (set, drive) in &self.inputs {
-            set(&mut **model, drive.at(t));
+        for input in self.inputs {
+            (input.set)(&mut **model, horner(input.anchor, &input.coefficients, t));
         }
         model
     }
@@ -102,6 +133,8 @@ impl<M: Model> OdeSystem for Driven<'_, M> {
     fn dim(&self) -> usize {
         M::N_STATES
     }
+    // Always inlined into the solver's stages, as the held model's (`System::rhs`).
+    #[inline(always)]
     fn rhs(&self, t: f64, x: &[f64], dx: &mut [f64]) {
         let model = self.at(t);
         System::of(&**model).rhs(t, x, dx)
@@ -121,34 +154,15 @@ impl<M: Model> Core<M> {
     /// order from 1 to [`MAX_ORDER`], each value finite; all or nothing, as a set. `function`
     /// names the call in messages.
     pub fn set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64], function: &str) -> CallResult {
-        for ((&vr, &order), &value) in vrs.iter().zip(orders).zip(values) {
-            let Some(row) = self.table.rows.get(vr as usize) else {
-                return Err(Failure::error(format!("{function}: value reference {vr} is not a variable of this FMU")));
-            };
-            let input = row.causality == Causality::Input
-                && row.variability == Variability::Continuous
-                && matches!(row.slot, Slot::Model(Access::Real { set: Some(_), .. }));
-            if !input {
-                return Err(Failure::error(format!(
-                    "{function}: '{}' (value reference {vr}) is not a continuous Real input: only those have time derivatives to set",
-                    row.name
-                )));
-            }
-            if !(1..=MAX_ORDER as i32).contains(&order) {
-                return Err(Failure::error(format!(
-                    "{function}: order {order} of '{}' refused: this FMU interpolates inputs with derivatives of order 1 to {MAX_ORDER}",
-                    row.name
-                )));
-            }
-            if !value.is_finite() {
-                return Err(Failure::error(format!(
-                    "{function}: derivative {order} of '{}' = {value} refused: it must be finite",
-                    row.name
-                )));
-            }
+        let rows = &self.table.rows;
+        let takes = |vr: u32, order: i32, value: f64| {
+            rows.get(vr as usize).is_some_and(interpolable) && (1..=MAX_ORDER as i32).contains(&order) && value.is_finite()
+        };
+        if let Some(((&vr, &order), &value)) = vrs.iter().zip(orders).zip(values).find(|((&vr, &o), &v)| !takes(vr, o, v)) {
+            return Err(self.input_derivative_refused(vr, order, value, function));
         }
         let t = self.state.t;
-        let mut changed = false;
+        let (mut changed, mut zeroed) = (false, false);
         for ((&vr, &order), &value) in vrs.iter().zip(orders).zip(values) {
             let row = vr as usize;
             let drives = &mut self.state.drives;
@@ -164,9 +178,12 @@ impl<M: Model> Core<M> {
             drive.shift_to(t);
             let old = std::mem::replace(&mut drive.derivatives[order as usize - 1], value);
             changed |= old.to_bits() != value.to_bits();
+            zeroed |= value == 0.0;
         }
         // An input with no derivative left is held, as one that never had any.
-        self.state.drives.retain(|d| d.derivatives != [0.0; MAX_ORDER]);
+        if zeroed {
+            self.state.drives.retain(|d| d.derivatives != [0.0; MAX_ORDER]);
+        }
         self.version += 1;
         if changed {
             if let Some(integrator) = self.state.integrator.as_mut() {
@@ -174,6 +191,28 @@ impl<M: Model> Core<M> {
             }
         }
         Ok(())
+    }
+
+    /// Why `set_input_derivatives` refused input `vr`'s derivative of `order` = `value`.
+    #[cold]
+    #[inline(never)]
+    fn input_derivative_refused(&self, vr: u32, order: i32, value: f64, function: &str) -> Failure {
+        let Some(row) = self.table.rows.get(vr as usize) else {
+            return Failure::error(format!("{function}: value reference {vr} is not a variable of this FMU"));
+        };
+        if !interpolable(row) {
+            Failure::error(format!(
+                "{function}: '{}' (value reference {vr}) is not a continuous Real input: only those have time derivatives to set",
+                row.name
+            ))
+        } else if !(1..=MAX_ORDER as i32).contains(&order) {
+            Failure::error(format!(
+                "{function}: order {order} of '{}' refused: this FMU interpolates inputs with derivatives of order 1 to {MAX_ORDER}",
+                row.name
+            ))
+        } else {
+            Failure::error(format!("{function}: derivative {order} of '{}' = {value} refused: it must be finite", row.name))
+        }
     }
 
     /// Re-anchors the polynomial of an input just set to `value` at the current time.
@@ -205,11 +244,17 @@ impl<M: Model> Core<M> {
         self.state.outputs_dirty = true;
     }
 
-    /// The driven inputs' fields with their derivatives at the current time, for the output
-    /// derivatives.
-    pub(super) fn input_derivatives(&self) -> smallvec::SmallVec<[(usize, [f64; MAX_ORDER]); 4]> {
+    /// The driven inputs' fields with their values and derivatives at the current time, for
+    /// the output derivatives (into `self.trajectory.inputs`).
+    pub(super) fn input_derivatives(&mut self) {
         let t = self.state.t;
-        self.state.drives.iter().filter_map(|d| self.table.rows[d.row].field.map(|f| (f, d.derivatives_at(t)))).collect()
+        let rows = &self.table.rows;
+        let inputs = &mut self.trajectory.inputs;
+        inputs.clear();
+        inputs.extend(self.state.drives.iter().filter_map(|d| match (rows[d.row].field, &rows[d.row].slot) {
+            (Some(f), Slot::Model(Access::Real { get, .. })) => Some((f, get(&self.state.model), d.derivatives_at(t))),
+            _ => None,
+        }));
     }
 }
 

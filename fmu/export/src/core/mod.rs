@@ -242,6 +242,11 @@ pub struct Core<M: Model> {
     /// the cached Jacobian blocks (`jacobians`) are those of the current point.
     version: u64,
     jacobians: derivatives::Jacobians,
+    /// The output derivatives' buffers and lifted model, kept from call to call.
+    trajectory: derivatives::Trajectory,
+    /// The driven inputs as a driven step's stages evaluate them (rebuilt at every such step,
+    /// kept for its buffer).
+    stages: Vec<interpolation::Stage<M>>,
 }
 
 impl<M: Model> Core<M> {
@@ -257,12 +262,15 @@ impl<M: Model> Core<M> {
             fresh: None,
             version: 0,
             jacobians: Default::default(),
+            trajectory: Default::default(),
+            stages: Vec::new(),
         }
     }
 
     /// Lets the model read its resources from `dir` (at instantiation).
     pub fn load_resources(&mut self, dir: &std::path::Path) -> Result<(), crate::model::ModelError> {
         self.state.model.resources(dir)?;
+        self.version += 1;
         self.fresh = Some(Box::new(self.state.model.clone()));
         Ok(())
     }
@@ -885,10 +893,16 @@ impl<M: Model> Core<M> {
     /// [`Core::advance`] with driven inputs, which are left at their values at the time reached.
     #[inline(never)]
     fn advance_driven(&mut self, t_end: f64) -> Result<Advance, SolverError> {
-        let State { model, x, t, integrator, drives, .. } = &mut self.state;
+        let rows = &self.table.rows;
+        self.stages.clear();
+        self.stages.extend(self.state.drives.iter().map(|d| interpolation::Stage::of(d, rows)));
+        let State { model, x, t, integrator, .. } = &mut self.state;
         let integrator = integrator.as_mut().expect("the integrator exists once started");
-        let outcome = integrator.advance(&interpolation::Driven::new(model, drives, &self.table.rows), t, x, t_end);
-        self.sync_inputs();
+        let outcome = integrator.advance(&interpolation::Driven::new(model, &self.stages), t, x, t_end);
+        // A step that reached t_end ends in `finish_step`, which sets them at t_end.
+        if !matches!(outcome, Ok(Advance::Reached)) {
+            self.sync_inputs();
+        }
         outcome
     }
 

@@ -283,6 +283,11 @@ pub enum EventOutcome {
     /// The experiment is over at this time (e.g. the projectile landed, a limit position):
     /// the step ends early, `fmi2Terminated` becomes true, and `reason` is logged.
     Stop { reason: String },
+    /// What the default [`Model::communication_point`] returns: it changed nothing, so
+    /// what the toolkit derived from the model's fields (its lift into dual numbers for output
+    /// derivatives) still holds. A model's own `communication_point` returns `Continue`.
+    #[doc(hidden)]
+    Unchanged,
 }
 
 /// The values a parameter or input accepts. The toolkit checks every declared range when
@@ -619,7 +624,7 @@ pub trait Model: Variables + Equations<f64> + Default + Clone + Send + Serialize
     /// Called at each communication point: may project `x` back onto constraints (mechanisms)
     /// and return `Stop` (a limit position) or an error.
     fn communication_point(&mut self, _t: f64, _x: &mut [f64]) -> Result<EventOutcome, ModelError> {
-        Ok(EventOutcome::Continue)
+        Ok(EventOutcome::Unchanged)
     }
 
     /// How far `x` is off the model's algebraic constraints, relative to the model's size

@@ -699,7 +699,7 @@ mod tests {
     use super::Mode;
     use crate::core::{Core, Names, Phase};
     use crate::logging::Logger;
-    use crate::model::{Equations, Model, ModelError, ModelInfo};
+    use crate::model::{Equations, EventOutcome, Model, ModelError, ModelInfo};
     use crate::{Scalar, StateVector, Variables};
 
     /// x' = -k x + u, y = x^2 + u: small enough that every derivative is known by hand.
@@ -937,6 +937,68 @@ mod tests {
         core.set_real(&[u], &[-2.0], Phase::Running, "StepComplete").unwrap();
         core.output_derivatives(&vrs, &orders, &mut out, "test").unwrap();
         assert_eq!(core.trajectory.rates, fresh(&core));
+    }
+
+    /// Decay whose communication points double k: a model's own communication-point work
+    /// changes its fields.
+    #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+    #[variables(states = S)]
+    struct Doubling<T = f64> {
+        /// Rate constant
+        #[parameter]
+        k: T,
+        /// Input
+        #[input]
+        u: T,
+    }
+
+    impl Default for Doubling {
+        fn default() -> Self {
+            Doubling { k: 2.0, u: 0.5 }
+        }
+    }
+
+    impl<T: Scalar> Equations<T> for Doubling<T> {
+        fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError> {
+            S { x: T::from(3.0) }.store(x);
+            Ok(())
+        }
+
+        fn derivatives(&self, _t: T, x: &[T], dx: &mut [T]) {
+            let S { x } = S::load(x);
+            S { x: -self.k * x + self.u }.store(dx);
+        }
+    }
+
+    impl Model for Doubling {
+        const N_STATES: usize = 1;
+
+        fn info() -> ModelInfo {
+            ModelInfo { identifier: "doubling", description: "", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
+        }
+
+        fn communication_point(&mut self, _t: f64, _x: &mut [f64]) -> Result<EventOutcome, ModelError> {
+            self.k *= 2.0;
+            Ok(EventOutcome::Continue)
+        }
+    }
+
+    /// The lift kept for output derivatives is dropped when the model's own communication
+    /// point may have changed its fields: after a step that doubled k, x' = -k x + u uses the
+    /// new k (kept, it would use the old one).
+    #[test]
+    fn a_communication_point_of_the_model_drops_the_kept_lift() {
+        let mut core = Core::<Doubling>::new("doubling", Logger::new(None, false), NAMES);
+        core.setup(Some(1e-12), 0.0, None).unwrap();
+        core.start().unwrap();
+        let x = core.table().rows.iter().position(|r| r.name == "x").unwrap() as u32;
+        let mut out = [0.0];
+        core.output_derivatives(&[x], &[1], &mut out, "test").unwrap();
+        assert_eq!(out, [-2.0 * 3.0 + 0.5]);
+        core.do_step(0.0, 0.25).unwrap();
+        assert_eq!(core.state.model.k, 4.0);
+        core.output_derivatives(&[x], &[1], &mut out, "test").unwrap();
+        assert_eq!(out, [-4.0 * core.state.x[0] + 0.5]);
     }
 
     /// With k = 0, x' = u(t): an input driven by the cubic u(t) = 0.5 + 0.25 t + 0.25 t^2 - t^3 / 6

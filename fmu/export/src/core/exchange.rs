@@ -239,7 +239,7 @@ impl<M: Model> Core<M> {
             }
             let State { model, x, .. } = &mut self.state;
             match model.on_event(t, x, &fired) {
-                Ok(EventOutcome::Continue) => {}
+                Ok(EventOutcome::Continue | EventOutcome::Unchanged) => {}
                 Ok(EventOutcome::Stop { reason }) => return Ok(self.end_experiment(&reason, &x_before)),
                 Err(e) => return Err(Failure::broken(format!("the model failed at the event at t = {t}: {e}"))),
             }
@@ -256,6 +256,7 @@ impl<M: Model> Core<M> {
                         );
                     }
                 }
+                Ok(EventOutcome::Unchanged) => {}
                 Ok(EventOutcome::Stop { reason }) => return Ok(self.end_experiment(&reason, &x_before)),
                 Err(e) => return Err(Failure::broken(format!("the model failed at the step event at t = {t}: {e}"))),
             }

@@ -831,7 +831,7 @@ impl<M: Model> Core<M> {
             self.logger.log(Status::Ok, LOG_EVENTS, &format!("event at t = {te} s (indicators {which:?})"));
         }
         match outcome {
-            Ok(EventOutcome::Continue) => Ok(None),
+            Ok(EventOutcome::Continue | EventOutcome::Unchanged) => Ok(None),
             Ok(EventOutcome::Stop { reason }) => self.stop_early(t0, &reason).map(Some),
             Err(e) => Err(self.fail_step(t0, format!("the model failed at the event at t = {te}: {e}"))),
         }
@@ -922,7 +922,12 @@ impl<M: Model> Core<M> {
         let outcome = model.communication_point(*t, x);
         self.state.outputs_dirty = true;
         match outcome {
-            Ok(EventOutcome::Continue) => {
+            Ok(continued @ (EventOutcome::Continue | EventOutcome::Unchanged)) => {
+                // A model's own communication-point work may change its fields: what was
+                // derived from them (the lift kept for output derivatives) is stale.
+                if matches!(continued, EventOutcome::Continue) {
+                    self.version += 1;
+                }
                 // The solver checks the states; outputs (which can overflow first, an energy
                 // ~ omega^2) are computed only when read, and get_real refuses a non-finite one.
                 self.state.last_successful_time = self.state.t;

@@ -10,7 +10,9 @@ import zipfile
 
 import pytest
 
-from serve_tools import MAX_POINTS, FMU_DIR, ROOT, Server, description, lab_models, read_csv, runner, simulate_csv, wait_for
+# server: the session's server of every lab model (no conftest.py here: tests/fmpy's modules
+# import theirs by the name conftest, which a second one in the same run would take).
+from serve_tools import MAX_POINTS, FMU_DIR, ROOT, Server, description, lab_models, read_csv, runner, server, simulate_csv, wait_for  # noqa: F401
 
 # The solver controls every toolkit FMU has: parameters, but not the model's.
 CONTROLS = {"solver", "fixed_step", "abs_tol", "max_step", "n_steps", "n_rhs"}

@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from serve_tools import lab_models, read_csv, simulate_csv, wait_for
+from serve_tools import lab_models, read_csv, server, simulate_csv, wait_for  # noqa: F401 (server: the fixture)
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 CHROMEDRIVER = shutil.which("chromedriver") or "/usr/bin/chromedriver"

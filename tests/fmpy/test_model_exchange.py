@@ -38,7 +38,7 @@ STATES = {
     "double_rocker": (["theta", "theta3", "theta4", "theta3_dot", "theta4_dot"], 1),
     "inverted_crank_slider": (["theta2", "r3", "theta3", "r3_dot", "theta3_dot"], 0),
     "trebuchet": (["theta1", "theta2", "theta3", "omega1", "omega2", "omega3", "x_p", "y_p", "vx_p", "vy_p"], 3),
-    "road": (["x"], 0),
+    "road": (["x"], 2),  # the bump's two edges, where z_r'' jumps
 }
 
 SLIDER = {"der(theta)": "", "der(r1)": "r1_dot", "der(theta3)": "theta3_dot",

@@ -159,10 +159,7 @@ pub fn serve() -> Result<(), String> {
             },
             Incoming::Job { id, job: Job::Point(i) } => {
                 let plan = plan.as_ref().ok_or("a Point request before the Sweep")?;
-                let i = usize::try_from(i).map_err(|_| "point index out of range")?;
-                if i >= plan.space.len {
-                    return Err(format!("point {i} is not in the sweep of {} points", plan.space.len));
-                }
+                let i = plan.space.index(i)?;
                 let result = plan.run_point(&fmu, i, &mut point, &never);
                 serving.finish(id, Outcome::Point(result), trace::fatal_seen())?;
             }

@@ -132,6 +132,15 @@ impl Space {
         Ok(Space { ranges, len })
     }
 
+    /// Point `i` of a worker's request as an index into this space, refused when the space has
+    /// no such point.
+    pub fn index(&self, i: u64) -> Result<usize, String> {
+        match usize::try_from(i) {
+            Ok(i) if i < self.len => Ok(i),
+            _ => Err(format!("point {i} is not in the sweep of {} points", self.len)),
+        }
+    }
+
     /// The parameter values of point `i`, in `--param` order.
     pub fn point(&self, mut i: usize, out: &mut Vec<f64>) {
         out.clear();

@@ -182,7 +182,8 @@ impl Unpacked {
             (rest.join().unwrap_or_else(|_| Err(format!("{}: unpacking failed", path.display()))), read)
         });
         extracted?;
-        let found = find_binary(read?, path, dir.path())?;
+        let found = read?;
+        let binary = find_binary(&found, path, dir.path())?;
         Ok(Unpacked {
             description: found.description,
             fmi1: found.fmi1,
@@ -190,32 +191,22 @@ impl Unpacked {
             fmi3: found.fmi3,
             interface: found.interface,
             identifier: found.identifier,
-            binary: found.binary,
+            binary,
             dir,
             states: found.states,
         })
     }
 }
 
-/// What [`inspect`] reads of an unpacked FMU.
-struct Inspected {
-    states: Option<exchange::StateStructure>,
-    description: Description,
-    fmi1: Option<fmi_schema::fmi1::ModelDescription>,
-    fmi2: Option<fmi_schema::fmi2::ModelDescription>,
-    fmi3: Option<fmi_schema::fmi3::ModelDescription>,
-    interface: Interface,
-    identifier: String,
-    binary: PathBuf,
-}
-
 /// Reads the description of the FMU `path` unpacked in `dir`, chooses `interface` (`None`:
 /// Co-Simulation when offered, else Model Exchange) and finds the binary for this platform.
-fn inspect(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Inspected, String> {
-    find_binary(read_description(path, dir, interface)?, path, dir)
+fn inspect(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<(Described, PathBuf), String> {
+    let described = read_description(path, dir, interface)?;
+    let binary = find_binary(&described, path, dir)?;
+    Ok((described, binary))
 }
 
-/// What [`read_description`] reads: [`Inspected`] but the binary's path.
+/// What [`read_description`] reads of an unpacked FMU's description.
 struct Described {
     states: Option<exchange::StateStructure>,
     description: Description,
@@ -285,10 +276,9 @@ fn read_description(path: &Path, dir: &Path, interface: Option<Interface>) -> Re
     Ok(Described { states, description, fmi1, fmi2, fmi3, interface, identifier })
 }
 
-/// The binary for this platform of the FMU `path` unpacked in `dir`, added to what `described`
-/// read.
-fn find_binary(described: Described, path: &Path, dir: &Path) -> Result<Inspected, String> {
-    let Described { states, description, fmi1, fmi2, fmi3, interface, identifier } = described;
+/// The binary for this platform of the FMU `path` unpacked in `dir`, as `described` names it.
+fn find_binary(described: &Described, path: &Path, dir: &Path) -> Result<PathBuf, String> {
+    let Described { description, identifier, .. } = described;
     let platform = match description.fmi_version {
         FmiVersion::Fmi1 => fmi1::PLATFORM,
         FmiVersion::Fmi2 => fmi2::PLATFORM,
@@ -302,7 +292,7 @@ fn find_binary(described: Described, path: &Path, dir: &Path) -> Result<Inspecte
             platforms(&dir.join("binaries"))
         ));
     }
-    Ok(Inspected { states, description, fmi1, fmi2, fmi3, interface, identifier, binary })
+    Ok(binary)
 }
 
 /// Refuses the FMI 3.0 features the runner does not simulate, naming them: Scheduled Execution
@@ -383,8 +373,8 @@ impl Fmu {
     /// `interface`. A worker process loads its supervisor's copy so: it unpacks nothing and, if
     /// it dies, leaves nothing behind.
     pub fn load_unpacked(path: &Path, dir: &Path, interface: Option<Interface>) -> Result<Fmu, String> {
-        let found = inspect(path, dir, interface)?;
-        Fmu::assemble(path, (found.description, found.states), found.interface, found.identifier, &found.binary, dir, None)
+        let (found, binary) = inspect(path, dir, interface)?;
+        Fmu::assemble(path, (found.description, found.states), found.interface, found.identifier, &binary, dir, None)
     }
 
     /// Loads `binary` of the FMU `path` unpacked in `dir` (deleted with the `Fmu` if `owned`).

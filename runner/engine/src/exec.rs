@@ -183,6 +183,10 @@ impl Texts for Received<'_> {
     fn needs_text(&self, c: usize) -> bool {
         self.lossy.binary_search(&c).is_ok()
     }
+
+    fn push_number_text(&self, c: usize, x: f64, out: &mut Vec<u8>) {
+        self.layout.push_text_of_number(c, x, out)
+    }
 }
 
 /// Where a sweep's points run.

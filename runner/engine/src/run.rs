@@ -268,6 +268,9 @@ pub trait Texts {
     fn text(&self, c: usize, values: &[f64]) -> String;
     /// True when column `c`'s number alone does not give its text.
     fn needs_text(&self, c: usize) -> bool;
+    /// Appends the text of column `c`'s number `x` to `out`, for a column that does not
+    /// [`Texts::needs_text`]: what [`Texts::text`] gives, without a String per number.
+    fn push_number_text(&self, c: usize, x: f64, out: &mut Vec<u8>);
 }
 
 impl Texts for Reader {
@@ -277,6 +280,10 @@ impl Texts for Reader {
 
     fn needs_text(&self, c: usize) -> bool {
         Reader::needs_text(self, c)
+    }
+
+    fn push_number_text(&self, c: usize, x: f64, out: &mut Vec<u8>) {
+        self.push_text_of_number(c, x, out)
     }
 }
 

@@ -12,8 +12,23 @@
 
 /// `format!("{x:?}")` for an f64.
 pub fn f64_text(x: f64) -> String {
+    let mut out = Vec::with_capacity(24);
+    push_f64(x, &mut out);
+    String::from_utf8(out).unwrap_or_default()
+}
+
+/// `format!("{x:?}")` for an f32.
+pub fn f32_text(x: f32) -> String {
+    let mut out = Vec::with_capacity(16);
+    push_f32(x, &mut out);
+    String::from_utf8(out).unwrap_or_default()
+}
+
+/// Appends [`f64_text`]`(x)` to `out` (a result file's row, without a String per number).
+pub fn push_f64(x: f64, out: &mut Vec<u8>) {
     if !x.is_finite() {
-        return format!("{x:?}");
+        out.extend_from_slice(format!("{x:?}").as_bytes());
+        return;
     }
     let bits = x.to_bits();
     let (biased, fraction) = ((bits >> 52) & 0x7ff, bits & ((1 << 52) - 1));
@@ -23,13 +38,14 @@ pub fn f64_text(x: f64) -> String {
     };
     let abs = x.abs();
     let mut buffer = ryu::Buffer::new();
-    layout(buffer.format_finite(x), (abs != 0.0 && abs < 1e-4) || abs >= 1e16, mantissa, exponent)
+    layout(buffer.format_finite(x), (abs != 0.0 && abs < 1e-4) || abs >= 1e16, mantissa, exponent, out)
 }
 
-/// `format!("{x:?}")` for an f32.
-pub fn f32_text(x: f32) -> String {
+/// Appends [`f32_text`]`(x)` to `out`.
+pub fn push_f32(x: f32, out: &mut Vec<u8>) {
     if !x.is_finite() {
-        return format!("{x:?}");
+        out.extend_from_slice(format!("{x:?}").as_bytes());
+        return;
     }
     let bits = x.to_bits();
     let (biased, fraction) = ((bits >> 23) & 0xff, u64::from(bits & ((1 << 23) - 1)));
@@ -39,12 +55,12 @@ pub fn f32_text(x: f32) -> String {
     };
     let abs = x.abs();
     let mut buffer = ryu::Buffer::new();
-    layout(buffer.format_finite(x), (abs != 0.0 && abs < 1e-4) || abs >= 1e16, mantissa, exponent)
+    layout(buffer.format_finite(x), (abs != 0.0 && abs < 1e-4) || abs >= 1e16, mantissa, exponent, out)
 }
 
 /// Lays ryu's text of |x| = `mantissa` 2^`exponent` out as `{:?}` does: decimal with at least one
-/// fractional digit, or (for `exponential`) `d[.ddd]e[-]n`; a tie rounded up.
-fn layout(ryu: &str, exponential: bool, mantissa: u64, exponent: i32) -> String {
+/// fractional digit, or (for `exponential`) `d[.ddd]e[-]n`; a tie rounded up. Appended to `out`.
+fn layout(ryu: &str, exponential: bool, mantissa: u64, exponent: i32, out: &mut Vec<u8>) {
     let (negative, unsigned) = match ryu.strip_prefix('-') {
         Some(rest) => (true, rest.as_bytes()),
         None => (false, ryu.as_bytes()),
@@ -73,7 +89,8 @@ fn layout(ryu: &str, exponential: bool, mantissa: u64, exponent: i32) -> String 
     }
     if start == n {
         // Zero, its sign kept as `{:?}` keeps it.
-        return if negative { "-0.0".to_owned() } else { "0.0".to_owned() };
+        out.extend_from_slice(if negative { b"-0.0" } else { b"0.0" });
+        return;
     }
     while d[n - 1] == b'0' {
         n -= 1;
@@ -96,7 +113,6 @@ fn layout(ryu: &str, exponential: bool, mantissa: u64, exponent: i32) -> String 
     }
     let digits = &d[start..n];
     let len = digits.len() as i32;
-    let mut out = Vec::with_capacity(len as usize + 26);
     if negative {
         out.push(b'-');
     }
@@ -133,7 +149,6 @@ fn layout(ryu: &str, exponential: bool, mantissa: u64, exponent: i32) -> String 
         out.push(b'.');
         out.extend_from_slice(frac);
     }
-    String::from_utf8(out).unwrap_or_default()
 }
 
 /// Whether the digits `d` (times 10^`p`) are the lower of two equally near shortest texts of

@@ -99,10 +99,20 @@ impl Buffer {
     /// integers (Integers, Enumerations and Booleans of either version) in full, as fmpy writes
     /// them, Float32 in its own shortest form, Float64 as its f64 is printed.
     fn text_of_number(&self, x: f64) -> String {
+        let mut out = Vec::new();
+        self.push_text_of_number(x, &mut out);
+        String::from_utf8(out).unwrap_or_default()
+    }
+
+    /// Appends [`Buffer::text_of_number`]`(x)` to `out`.
+    fn push_text_of_number(&self, x: f64, out: &mut Vec<u8>) {
         match self {
-            Buffer::F32(_) => number_text::f32_text(x as f32),
-            Buffer::F64(_) => number_text::f64_text(x),
-            _ => (x as i64).to_string(),
+            Buffer::F32(_) => number_text::push_f32(x as f32, out),
+            Buffer::F64(_) => number_text::push_f64(x, out),
+            _ => {
+                use std::io::Write;
+                let _ = write!(out, "{}", x as i64);
+            }
         }
     }
 }
@@ -206,5 +216,13 @@ impl Reader {
             return number_text::f64_text(x);
         }
         self.groups[self.columns[c].0].buffer.text_of_number(x)
+    }
+
+    /// Appends [`Reader::text_of_number`]`(c, x)` to `out` (a result file's row).
+    pub fn push_text_of_number(&self, c: usize, x: f64, out: &mut Vec<u8>) {
+        if self.direct {
+            return number_text::push_f64(x, out);
+        }
+        self.groups[self.columns[c].0].buffer.push_text_of_number(x, out)
     }
 }

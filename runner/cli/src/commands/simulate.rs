@@ -443,9 +443,7 @@ fn execute(
     identifier: &str,
     mut samples: Option<&mut Samples>,
 ) -> Result<Vec<Trace>, String> {
-    let mut writer = output::csv_writer(options.out.as_deref())?;
-    writer.write_record(&simulation.header).map_err(|e| format!("cannot write CSV: {e}"))?;
-    let mut row = Vec::with_capacity(simulation.header.len());
+    let mut writer = output::CsvRows::open(options.out.as_deref(), &simulation.header)?;
     let mut traces = Vec::new();
     let keep = options.plot.is_some();
     // The rows written so far and the last one's time, for the message of a failed run.
@@ -458,17 +456,22 @@ fn execute(
             }
             rows += 1;
             last = t;
-            row.clear();
             if simulation.overlaid.is_some() {
-                row.push(number_text::f64_text(case.si));
+                number_text::push_f64(case.si, writer.field());
             }
-            row.push(number_text::f64_text(t));
+            number_text::push_f64(t, writer.field());
             // Exactly as the FMU gave them: 64-bit integers in full, Binary in hexadecimal.
-            row.extend((0..simulation.output_columns).map(|c| texts.text(c, values)));
+            for (c, &x) in values[..simulation.output_columns].iter().enumerate() {
+                if texts.needs_text(c) {
+                    writer.text(&texts.text(c, values));
+                } else {
+                    texts.push_number_text(c, x, writer.field());
+                }
+            }
             if let Some(samples) = samples.as_deref_mut() {
                 samples.push((t, values[..simulation.output_columns].to_vec()));
             }
-            writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
+            writer.end_row()
         });
         let outcome = match outcome {
             Ok(outcome) => outcome,
@@ -486,7 +489,7 @@ fn execute(
             let which = case.label.as_ref().map(|l| format!(" ({l})")).unwrap_or_default();
             eprintln!("{identifier}{which}: stopped before the stop time {} s: {reason}", simulation.grid.stop);
             if let Some(path) = &options.final_fmu_state_file {
-                output::finish_csv(writer)?;
+                writer.finish()?;
                 return Err(format!(
                     "{} is not written: the model ended the run before the stop time, where its state would be saved",
                     path.display()
@@ -497,18 +500,18 @@ fn execute(
             traces.push(trace);
         }
     }
-    output::finish_csv(writer)?;
+    writer.finish()?;
     Ok(traces)
 }
 
 /// A failed run's error, after the rows written before the failure are put in place: `--out`
 /// gets them as standard output has them (every row up to the failure, then the error), and
 /// the message says how many there are. Ctrl-C abandons the file, as it does every result.
-fn keep_rows(writer: csv::Writer<output::Output>, error: String, out: Option<&Path>, rows: usize, last: f64) -> String {
+fn keep_rows(writer: output::CsvRows, error: String, out: Option<&Path>, rows: usize, last: f64) -> String {
     let Some(path) = out.filter(|_| !interrupt::requested()) else {
         return error;
     };
-    match output::finish_csv(writer) {
+    match writer.finish() {
         Ok(()) if rows == 0 => format!("{error}\n{} has the header only: the run failed before its first row", path.display()),
         Ok(()) => format!("{error}\n{} keeps the {rows} row(s) before the failure, up to t = {last}", path.display()),
         Err(e) => format!("{error}\n(the rows before the failure are lost too: {e})"),

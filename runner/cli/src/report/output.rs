@@ -191,6 +191,93 @@ pub fn finish_csv(writer: csv::Writer<Output>) -> Result<(), String> {
     output.commit()
 }
 
+/// A CSV table written row by row as the csv crate writes it (`,` between fields, `\n` after a
+/// row, a field quoted only when it holds `,`, `"`, `\r` or `\n`, its quotes doubled), for the
+/// long tables of `simulate`: numbers, which never need quotes, are appended as they are, with
+/// neither a String each nor csv's scan of every field. Rows reach the output in chunks, as
+/// csv's own buffer gave them.
+pub struct CsvRows {
+    /// `None` once finished.
+    output: Option<Output>,
+    pending: Vec<u8>,
+    /// No field of the current row written yet.
+    row_start: bool,
+}
+
+impl CsvRows {
+    const CHUNK: usize = 8 * 1024;
+
+    /// Starts the table on [`Output::open`]`(path)` with the row `header`.
+    pub fn open(path: Option<&Path>, header: &[String]) -> Result<CsvRows, String> {
+        let mut rows = CsvRows { output: Some(Output::open(path)?), pending: Vec::with_capacity(2 * Self::CHUNK), row_start: true };
+        for name in header {
+            rows.text(name);
+        }
+        rows.end_row()?;
+        Ok(rows)
+    }
+
+    /// The buffer to append the next field's bytes to, which need no quotes (a number's text).
+    pub fn field(&mut self) -> &mut Vec<u8> {
+        if !std::mem::take(&mut self.row_start) {
+            self.pending.push(b',');
+        }
+        &mut self.pending
+    }
+
+    /// The next field, any text: quoted when it needs to be.
+    pub fn text(&mut self, text: &str) {
+        let out = self.field();
+        if text.bytes().any(|b| matches!(b, b',' | b'"' | b'\r' | b'\n')) {
+            out.push(b'"');
+            for b in text.bytes() {
+                if b == b'"' {
+                    out.push(b'"');
+                }
+                out.push(b);
+            }
+            out.push(b'"');
+        } else {
+            out.extend_from_slice(text.as_bytes());
+        }
+    }
+
+    /// Ends the current row.
+    pub fn end_row(&mut self) -> Result<(), String> {
+        self.pending.push(b'\n');
+        self.row_start = true;
+        if self.pending.len() >= Self::CHUNK {
+            self.write_pending()?;
+        }
+        Ok(())
+    }
+
+    fn write_pending(&mut self) -> Result<(), String> {
+        if let Some(output) = &mut self.output {
+            output.write_all(&self.pending).map_err(|e| format!("cannot write CSV: {e}"))?;
+        }
+        self.pending.clear();
+        Ok(())
+    }
+
+    /// Writes the rows still pending and commits the output ([`Output::commit`]).
+    pub fn finish(mut self) -> Result<(), String> {
+        self.write_pending()?;
+        self.output.take().map_or(Ok(()), Output::commit)
+    }
+}
+
+impl Drop for CsvRows {
+    /// A command that fails still has every row written so far on standard output, as csv's
+    /// writer gave it; a result file not committed is deleted whatever it holds.
+    fn drop(&mut self) {
+        if let Some(output) = &mut self.output {
+            let _ = output.write_all(&self.pending);
+            let _ = output.flush();
+        }
+    }
+}
+
 /// Writes `bytes` to `dest` atomically.
 pub fn write_file(dest: &Path, bytes: &[u8]) -> Result<(), String> {
     let mut file = ResultFile::create(dest)?;
@@ -201,6 +288,31 @@ pub fn write_file(dest: &Path, bytes: &[u8]) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `simulate`'s tables must keep their bytes: CsvRows against the csv crate's writer (which
+    /// wrote them before) on a header and rows of numbers and of texts that need quotes or not.
+    #[test]
+    fn csv_rows_are_the_csv_crates_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("rows.csv");
+        let header: Vec<String> = ["time", "a,b", "say \"hi\"", "x"].map(String::from).to_vec();
+        let rows = [["0.0", "plain", "", "1e-5"], ["0.5", "two\nlines", "cr\rhere", "-0.0"], ["1.0", "\"quoted\"", " spaced ", "NaN"]];
+        let mut ours = CsvRows::open(Some(&dest), &header).unwrap();
+        for row in rows {
+            ours.field().extend_from_slice(row[0].as_bytes());
+            ours.text(row[1]);
+            ours.text(row[2]);
+            ours.field().extend_from_slice(row[3].as_bytes());
+            ours.end_row().unwrap();
+        }
+        ours.finish().unwrap();
+        let mut theirs = csv::Writer::from_writer(Vec::new());
+        theirs.write_record(&header).unwrap();
+        for row in rows {
+            theirs.write_record(row).unwrap();
+        }
+        assert_eq!(std::fs::read_to_string(&dest).unwrap(), String::from_utf8(theirs.into_inner().unwrap()).unwrap());
+    }
 
     #[test]
     fn a_file_appears_only_when_committed_and_an_abandoned_one_leaves_nothing() {

@@ -128,6 +128,11 @@ def simulate(
     tolerance: float | None = None,
     start_values: StartValues | None = None,
     input: pd.DataFrame | np.ndarray | None = None,
+    *,
+    interface: str | None = None,
+    solver: str | None = None,
+    fixed_step: float | None = None,
+    abs_tolerance: float | None = None,
 ) -> pd.DataFrame:
     """Simulates the FMU once, as ``runner simulate`` does, and returns its outputs.
 
@@ -138,6 +143,12 @@ def simulate(
     ``time`` or a DataFrame with a ``time`` column; continuous Reals are interpolated linearly,
     other values held, and a repeated time is a discontinuity.
 
+    ``interface`` is ``"co-simulation"`` or ``"model-exchange"`` (default: Co-Simulation when
+    the FMU offers it). A Model Exchange FMU is integrated by the runner's ``solver`` (as
+    ``runner simulate --solver``: ``"dopri5"`` by default; ``"bdf"`` or ``"esdirk"`` for a
+    stiff FMU), with ``fixed_step`` (s) for the fixed-step methods and
+    ``abs_tolerance`` beside ``tolerance`` for the adaptive ones.
+
     Returns a DataFrame whose first column is ``time``, then one column per output (array
     elements as ``name[i]``); Reals are float64, Integers int64, Booleans bool, Strings (FMI 2.0
     and 3.0) and Binaries (hexadecimal) str, as ``runner simulate`` writes them. ``df.attrs["ended_early"]`` holds why a run stopped before
@@ -147,8 +158,10 @@ def simulate(
     """
     path, grid_sources, sets = _resolve(fmu, "simulate", stop_time, output_interval, tolerance, start_values)
     table = _input_columns(input) if input is not None else None
-    model = _engine.Model(path)
-    names, kinds, data, rows, texts, ended_early = model.simulate(grid_sources, sets, table)
+    model = _engine.Model(path, interface)
+    names, kinds, data, rows, texts, ended_early = model.simulate(
+        grid_sources, sets, table, solver, _number("fixed_step", fixed_step), _number("abs_tolerance", abs_tolerance)
+    )
     matrix = np.frombuffer(data, dtype="<f8").reshape(rows, len(names))
     columns: dict[str, Any] = {}
     for c, (name, kind) in enumerate(zip(names, kinds)):

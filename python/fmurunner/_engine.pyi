@@ -43,7 +43,7 @@ class Model:
 
     identifier: str
     model_name: str
-    def __init__(self, path: str) -> None: ...
+    def __init__(self, path: str, interface: str | None = None) -> None: ...
     @staticmethod
     def from_bytes(data: bytes, name: str) -> Model: ...
     def simulate(
@@ -51,6 +51,9 @@ class Model:
         grid_sources: list[GridArgs],
         sets: list[str],
         input: tuple[list[str], list[float], list[list[float]]] | None = None,
+        solver: str | None = None,
+        fixed_step: float | None = None,
+        abs_tolerance: float | None = None,
     ) -> tuple[list[str], list[str], bytes, int, dict[str, list[str]], str | None]: ...
     def plan_sweep(
         self, grid_sources: list[GridArgs], sets: list[str], ranges: list[tuple[str, list[float]]], metrics: list[str]

@@ -264,10 +264,13 @@ fn plan_sweep(
 
 #[pymethods]
 impl Model {
-    /// Unpacks and loads the FMU at `path` (Co-Simulation when it offers it, else Model Exchange).
+    /// Unpacks and loads the FMU at `path` through `interface` (`co-simulation` or
+    /// `model-exchange`; by default Co-Simulation when it offers it, else Model Exchange).
     #[new]
-    fn new(py: Python<'_>, path: &str) -> PyResult<Model> {
-        let fmu = py.detach(|| Fmu::load_as(Path::new(path), None)).map_err(err)?;
+    #[pyo3(signature = (path, interface=None))]
+    fn new(py: Python<'_>, path: &str, interface: Option<&str>) -> PyResult<Model> {
+        let interface = stepping::interface_of(interface)?;
+        let fmu = py.detach(|| Fmu::load_as(Path::new(path), interface)).map_err(err)?;
         Ok(Model { fmu, _copy: None })
     }
 
@@ -298,21 +301,42 @@ impl Model {
 
     /// One run: `sets` (`NAME=VALUE`) before initialization, the grid from the first of
     /// `grid_sources` that gives each entry (else the FMU's default experiment), `input` as
-    /// (names, time, columns). Returns (names, kinds, row-major f64 bytes of time and the
-    /// outputs, rows, {column: texts} for columns numbers cannot give, why it ended early).
-    #[allow(clippy::type_complexity)]
-    #[pyo3(signature = (grid_sources, sets, input=None))]
+    /// (names, time, columns); a Model Exchange FMU integrated by `solver` (a method name), with
+    /// `fixed_step` and `abs_tolerance` for the methods that use them. Returns (names, kinds,
+    /// row-major f64 bytes of time and the outputs, rows, {column: texts} for columns numbers
+    /// cannot give, why it ended early).
+    #[allow(clippy::type_complexity, clippy::too_many_arguments)]
+    #[pyo3(signature = (grid_sources, sets, input=None, solver=None, fixed_step=None, abs_tolerance=None))]
     fn simulate<'py>(
         &self,
         py: Python<'py>,
         grid_sources: Vec<GridArgs>,
         sets: Vec<String>,
         input: Option<(Vec<String>, Vec<f64>, Vec<Vec<f64>>)>,
+        solver: Option<&str>,
+        fixed_step: Option<f64>,
+        abs_tolerance: Option<f64>,
     ) -> PyResult<(Vec<String>, Vec<&'static str>, Bound<'py, PyBytes>, usize, Bound<'py, PyDict>, Option<String>)> {
         let md = &self.fmu.description;
+        let named = solver.is_some() || fixed_step.is_some() || abs_tolerance.is_some();
+        let mut integrator = stepping::solver_of(solver)?;
+        if let Some(h) = fixed_step {
+            if !(h.is_finite() && h > 0.0) {
+                return Err(err(format!("fixed_step={h} must be a positive number (seconds)")));
+            }
+            integrator.fixed_step = h;
+        }
+        if let Some(a) = abs_tolerance {
+            if !(a.is_finite() && a >= 0.0) {
+                return Err(err(format!("abs_tolerance={a} must be a number, zero or greater")));
+            }
+            integrator.abs_tol = a;
+        }
+        stepping::check_solver(md, &self.fmu.identifier, self.fmu.interface, named).map_err(err)?;
         let (names, kinds, data, rows, texts, ended_early) = py
             .detach(|| -> Result<_, String> {
-                let grid = self.grid(&grid_sources)?;
+                let mut grid = self.grid(&grid_sources)?;
+                grid.solver = integrator;
                 let assignments = variables::parse_sets(md, &sets)?;
                 let inputs = match input {
                     Some((names, time, values)) => Some(InputTable::from_columns(names, time, values)?),

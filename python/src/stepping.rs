@@ -176,7 +176,7 @@ pub struct Stepper {
     backend: Mutex<Backend>,
 }
 
-fn solver_of(name: Option<&str>) -> PyResult<Solver> {
+pub(crate) fn solver_of(name: Option<&str>) -> PyResult<Solver> {
     let mut solver = Solver::default();
     if let Some(name) = name {
         solver.method = Method::from_name(name).ok_or_else(|| {
@@ -187,7 +187,7 @@ fn solver_of(name: Option<&str>) -> PyResult<Solver> {
     Ok(solver)
 }
 
-fn interface_of(name: Option<&str>) -> PyResult<Option<Interface>> {
+pub(crate) fn interface_of(name: Option<&str>) -> PyResult<Option<Interface>> {
     name.map(|n| {
         let spelled = n.replace('_', "-").to_ascii_lowercase();
         Interface::from_name(&spelled).ok_or_else(|| err(format!("'{n}' is not an interface: use 'co-simulation' or 'model-exchange'")))
@@ -637,7 +637,7 @@ impl Stepper {
 }
 
 /// Refuses a named solver for an FMU that runs as Co-Simulation, where it would do nothing.
-fn check_solver(description: &Description, identifier: &str, interface: Interface, named: bool) -> Result<(), String> {
+pub(crate) fn check_solver(description: &Description, identifier: &str, interface: Interface, named: bool) -> Result<(), String> {
     if named && interface == Interface::CoSimulation {
         return Err(format!(
             "solver= sets the runner's integrator, which only Model Exchange uses; {identifier} runs as Co-Simulation here, where the FMU integrates itself{}",

@@ -174,6 +174,51 @@ def test_simulate_records_the_outputs_runner_simulate_writes_strings_included(tm
     assert list(ours["Int32_output"]) == [-7] * 3 and list(ours["Boolean_output"]) == [True] * 3
 
 
+def test_a_stiff_model_exchange_fmu_runs_with_an_implicit_solver_as_the_cli_and_cvode_run_it(tmp_path):
+    """Reference VanDerPol (FMI 3.0) with mu = 1000 through Model Exchange and the runner's BDF:
+    the same engine as `runner simulate --interface model-exchange --solver bdf`, so the same
+    bits; and against fmpy's CVODE, an independent integrator, at rtol 1e-7 (the tightest at
+    which it gets through the jump near t = 807 s within its 500 steps per sample). x0 is
+    compared where the solution is slow (|x1| < 0.01): in a jump a shift in time of the order of
+    the tolerance is an O(1) difference. CVODE's own error there (its atol 1e-7) sets the bound,
+    5e-4 of x0's amplitude, as in tests/fmpy's comparison of the command line."""
+    import csv
+    import subprocess
+
+    from fmurunner_helpers import RUNNER
+
+    fmu = REFERENCE / "fmi3" / "VanDerPol.fmu"
+    ours = fmurunner.simulate(fmu, interface="model-exchange", solver="bdf", abs_tolerance=1e-10, stop_time=1000.0, output_interval=1.0,
+                              tolerance=1e-8, start_values={"mu": 1000.0})
+    out = tmp_path / "cli.csv"
+    subprocess.run([str(RUNNER), "simulate", str(fmu), "--interface", "model-exchange", "--solver", "bdf", "--abs-tolerance", "1e-10",
+                    "--stop-time", "1000", "--output-interval", "1", "--tolerance", "1e-8", "--set", "mu=1000", "--out", str(out)],
+                   check=True, capture_output=True)
+    with open(out, newline="") as f:
+        rows = list(csv.reader(f))
+    assert list(ours.columns) == rows[0]
+    for i, name in enumerate(rows[0]):
+        assert ours[name].tolist() == [float(r[i]) for r in rows[1:]], name
+    theirs = _fmpy_frame(simulate_fmu(str(fmu), fmi_type="ModelExchange", solver="CVode", relative_tolerance=1e-7, stop_time=1000.0,
+                                      output_interval=1.0, start_values={"mu": 1000.0}, record_events=False))
+    assert len(ours) == len(theirs)
+    slow = np.abs(theirs["x1"].to_numpy()) < 0.01
+    assert slow.sum() > 900
+    assert np.max(np.abs(ours["x0"].to_numpy()[slow] - theirs["x0"].to_numpy()[slow])) < 5e-4
+
+
+def test_solver_options_are_checked():
+    fmu = REFERENCE / "fmi2" / "VanDerPol.fmu"
+    with pytest.raises(fmurunner.RunnerError, match="only Model Exchange uses.*interface='model-exchange'"):
+        fmurunner.simulate(fmu, solver="bdf")
+    with pytest.raises(fmurunner.RunnerError, match="unknown solver 'cvode'"):
+        fmurunner.simulate(fmu, interface="model-exchange", solver="cvode")
+    with pytest.raises(fmurunner.RunnerError, match="fixed_step=-1 must be a positive number"):
+        fmurunner.simulate(fmu, interface="model-exchange", solver="rk4", fixed_step=-1.0)
+    with pytest.raises(fmurunner.RunnerError, match="'me' is not an interface"):
+        fmurunner.simulate(fmu, interface="me")
+
+
 def test_every_public_name_has_a_docstring():
     """The issue asks for docstrings on every public function and class: fmurunner's names, and
     every public method, property and attribute of Simulation (its stepping calls are the Rust

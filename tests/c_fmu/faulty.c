@@ -9,7 +9,9 @@
  * the instance runs in, so tests can count the processes a sweep used. Compiled with
  * -DONCE_PER_PROCESS, fmi2Instantiate refuses a second instance in one process (its
  * modelDescription then declares canBeInstantiatedOnlyOncePerProcess); with -DSLOW_LOAD, loading
- * the binary takes a second (an initializer that sleeps); with -DEXIT_HANDLER, the first
+ * the binary takes a second (an initializer that sleeps); with -DCRASH_ON_LOAD, loading it
+ * crashes the process with SIGSEGV (an initializer, as a broken static constructor does); with
+ * -DEXIT_HANDLER, the first
  * fmi2Instantiate registers code of the binary to run at process exit; with -DNEEDS_PYTHON, it
  * leaves a libpython symbol undefined. It also has the solver
  * controls `runner compare` sets (solver, fixed_step, abs_tol; n_steps and n_rhs count steps),
@@ -44,6 +46,13 @@ static int instances_made;
 
 #ifdef SLOW_LOAD
 __attribute__((constructor)) static void slow_load(void) { sleep(1); }
+#endif
+
+#ifdef CRASH_ON_LOAD
+/* A write through NULL, not raise(SIGSEGV): Rust's runtime in the host has a SIGSEGV handler
+ * (for stack overflows) that returns from a raised signal, but not from a real fault. */
+static int *volatile nowhere; /* NULL, read at run time */
+__attribute__((constructor)) static void crash_on_load(void) { *nowhere = 1; }
 #endif
 
 #ifdef NEEDS_PYTHON

@@ -132,6 +132,29 @@ fn a_hanging_component_times_out_its_point_only() {
     assert!(err.contains("--timeout needs a worker process"), "{err}");
 }
 
+/// A component whose binary crashes as it loads (an initializer raising SIGSEGV, as a broken
+/// static constructor does): the supervisor reads and checks the system without loading any
+/// binary, so it survives; every point of a sweep fails alone, and `runner simulate` of the
+/// system fails with an exit code of 1, not a signal, both naming the component.
+#[test]
+fn a_binary_that_crashes_as_it_loads_costs_only_the_worker() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = faulty_fmu(dir.path(), "faulty.fmu", false, &[]);
+    let bad = faulty_fmu(dir.path(), "crashing.fmu", false, &["-DCRASH_ON_LOAD"]);
+    let ssd = r#"<ssd:System name="s"><ssd:Elements><ssd:Component name="good" source="resources/faulty.fmu"/><ssd:Component name="bad" source="resources/crashing.fmu"/></ssd:Elements></ssd:System>"#;
+    let root = system(dir.path(), "crash_on_load", ssd, &[("faulty.fmu", &good), ("crashing.fmu", &bad)], &[]);
+    let o = sweep(dir.path(), &root, &["good.k=0.5,1"], "points.csv", &[]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let (_, rows) = read_csv(&dir.path().join("points.csv"));
+    assert_eq!(rows.len(), 2);
+    for row in &rows {
+        assert_eq!(row[3], "crashed: SIGSEGV while loading the binary of component 'bad'", "{row:?}");
+    }
+    let o = runner(dir.path(), &["simulate", root.to_str().unwrap(), "--stop-time", "0.1"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("crashed: SIGSEGV while loading the binary of component 'bad'"), "{}", stderr(&o));
+}
+
 /// System worker processes whose parent is this test process: orphans, which a killed runner
 /// must not leave (its workers die with it).
 fn orphaned_system_workers() -> Vec<u32> {

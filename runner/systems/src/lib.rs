@@ -9,4 +9,4 @@ mod system;
 pub mod xml;
 
 pub use master::{Bound, Coupling, Failure, Master, Outcome};
-pub use system::{is_system, Component, ComponentFiles, System, SystemFiles};
+pub use system::{is_system, Component, ComponentFiles, ComponentFmu, System, SystemFiles};

@@ -1,10 +1,13 @@
-//! A system's FMUs, loaded: one unpacked FMU per component (two components of one FMU file are
-//! two instances of two loads, so each keeps its own resources).
+//! A system's FMUs: one unpacked FMU per component (two components of one FMU file are two
+//! instances of two loads, so each keeps its own resources). [`System::open`] reads and checks
+//! them without running any of their code; their binaries are loaded where the system runs:
+//! [`System::load_binaries`] in this process, [`System::load_copy`] in a worker process, so a
+//! binary that crashes as it loads costs only the worker.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use fmi_importer::{Causality, Description, Fmu, Interface, Kind, Unpacked};
+use fmi_importer::{Causality, Description, Fmu, Instance, Interface, Kind, Unpacked};
 use serde::{Deserialize, Serialize};
 
 use crate::ssd::{ComponentSpec, Structure};
@@ -13,7 +16,7 @@ use crate::ssd::{ComponentSpec, Structure};
 pub struct Component {
     /// The flattened name (`car`, `sub.car`).
     pub name: String,
-    pub fmu: Fmu,
+    pub fmu: ComponentFmu,
     /// Output name -> the inputs it depends on directly (ModelStructure; all inputs where the
     /// FMU does not say).
     pub feedthrough: HashMap<String, Vec<String>>,
@@ -24,7 +27,28 @@ pub struct Component {
     _dir: Option<tempfile::TempDir>,
 }
 
-/// A loaded system.
+/// A component's FMU: what its description says, read before any of its code runs, and its
+/// binary once loaded.
+pub struct ComponentFmu {
+    pub description: Description,
+    pub interface: Interface,
+    /// `None` until [`System::load_binaries`] (a worker's copy is loaded at once).
+    binary: Option<Fmu>,
+}
+
+impl ComponentFmu {
+    /// The loaded FMU.
+    pub fn loaded(&self) -> Result<&Fmu, String> {
+        self.binary.as_ref().ok_or_else(|| format!("{}'s binary is not loaded in this process", self.description.model_name))
+    }
+
+    /// A new instance ([`Fmu::instantiate`]).
+    pub fn instantiate(&self, name: &str, debug_logging: bool) -> Result<Instance<'_>, String> {
+        self.loaded()?.instantiate(name, debug_logging)
+    }
+}
+
+/// A system, opened.
 pub struct System {
     /// Where it was read from.
     pub path: PathBuf,
@@ -96,12 +120,22 @@ impl System {
             let linked = structure.links.iter().flat_map(|l| [&l.from, &l.to]).filter(|(c, _)| *c == index);
             check_connectors(&unpacked.description, unpacked.fmi3.as_ref(), spec, linked.map(|(_, v)| v.as_str())).map_err(at)?;
             let feedthrough = feedthrough(&unpacked);
-            let fmu = Fmu::load_unpacked(&spec.source, unpacked.dir.path(), Some(unpacked.interface)).map_err(at)?;
             let (dir, interface) = (unpacked.dir.path().to_path_buf(), unpacked.interface);
+            let fmu = ComponentFmu { description: unpacked.description, interface, binary: None };
             components.push(Component { name: spec.name.clone(), fmu, feedthrough, dir, interface, _dir: Some(unpacked.dir) });
         }
         let archive_root = archive.as_ref().map(|d| d.path().to_path_buf());
         Ok(System { path: path.to_path_buf(), ssd, archive_root, structure, components, _archive: archive })
+    }
+
+    /// Loads every component's binary into this process, to run the system here.
+    pub fn load_binaries(&mut self) -> Result<(), String> {
+        for (c, (component, spec)) in self.components.iter_mut().zip(&self.structure.components).enumerate() {
+            if component.fmu.binary.is_none() {
+                component.fmu.binary = Some(load_binary(c, &component.name, &spec.source, &component.dir, component.interface)?);
+            }
+        }
+        Ok(())
     }
 
     /// Where this system's files are, for a worker process to load this copy
@@ -114,7 +148,12 @@ impl System {
             components: self
                 .components
                 .iter()
-                .map(|c| ComponentFiles { dir: c.dir.clone(), interface: c.interface, feedthrough: c.feedthrough.clone() })
+                .map(|c| ComponentFiles {
+                    name: c.name.clone(),
+                    dir: c.dir.clone(),
+                    interface: c.interface,
+                    feedthrough: c.feedthrough.clone(),
+                })
                 .collect(),
         }
     }
@@ -131,9 +170,9 @@ impl System {
             return Err(format!("{}: the system changed while it was being run", files.path.display()));
         }
         let mut components = Vec::with_capacity(files.components.len());
-        for (spec, copy) in structure.components.iter().zip(&files.components) {
-            let fmu =
-                Fmu::load_unpacked(&spec.source, &copy.dir, Some(copy.interface)).map_err(|e| format!("component '{}': {e}", spec.name))?;
+        for (c, (spec, copy)) in structure.components.iter().zip(&files.components).enumerate() {
+            let binary = load_binary(c, &spec.name, &spec.source, &copy.dir, copy.interface)?;
+            let fmu = ComponentFmu { description: binary.description.clone(), interface: binary.interface, binary: Some(binary) };
             components.push(Component {
                 name: spec.name.clone(),
                 fmu,
@@ -154,6 +193,15 @@ impl System {
     }
 }
 
+/// Loads the binary of component `c`, `name`, unpacked in `dir` from `source`; the importer's
+/// call slot names the component meanwhile (a worker that dies loading it says which).
+fn load_binary(c: usize, name: &str, source: &Path, dir: &Path, interface: Interface) -> Result<Fmu, String> {
+    fmi_importer::trace::set_context(c as u32 + 1);
+    let loaded = Fmu::load_unpacked(source, dir, Some(interface)).map_err(|e| format!("component '{name}': {e}"));
+    fmi_importer::trace::set_context(0);
+    loaded
+}
+
 /// Where a system opened by one process is on disk ([`System::files`]), for another to load.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct SystemFiles {
@@ -169,6 +217,8 @@ pub struct SystemFiles {
 /// the raw description when it was unpacked).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ComponentFiles {
+    /// Its flattened name, for a worker's reports before the structure is read.
+    pub name: String,
     pub dir: PathBuf,
     pub interface: Interface,
     pub feedthrough: HashMap<String, Vec<String>>,

@@ -77,7 +77,10 @@ pub struct Options {
 fn run_system(options: &Options) -> Result<Summary, String> {
     let threads = thread_count(options)?;
     let sandbox = sandbox_limits(options, threads)?;
-    let system = System::open(Path::new(&options.fmu))?;
+    let mut system = System::open(Path::new(&options.fmu))?;
+    if sandbox.is_none() {
+        system.load_binaries()?;
+    }
     let algorithm = system::Algorithm::new(options.master.clone(), options.coupling.clone(), options.input_file.as_deref())?;
     let sweep = system::Sweep::new(&system, &options.run, &algorithm, &options.params, &options.metrics)?;
     let plan = sweep.plan();

@@ -9,9 +9,9 @@
 //! master tells the importer's call slot which component it drives
 //! (`fmi_importer::trace::set_context`), and the worker keeps the components' names in the
 //! memory it shares with its supervisor, so the report names the component, the FMI call and
-//! the time. The supervisor opens the system once (unpacks it, and loads the components'
-//! binaries to read and check it); its workers load that copy ([`System::load_copy`]) and leave
-//! nothing behind when they die.
+//! the time. The supervisor opens the system once (unpacks it, and reads and checks it without
+//! loading any component's binary); its workers load that copy ([`System::load_copy`]), so a
+//! binary that crashes as it loads costs a worker, and leave nothing behind when they die.
 
 use std::ops::Range;
 use std::path::Path;
@@ -214,7 +214,8 @@ impl Page {
         };
         match (call, time) {
             (Call::None, _) => format!("before its first FMI call{component}"),
-            (Call::Load, _) => "while loading the components' binaries".to_owned(),
+            (Call::Load, _) if component.is_empty() => "while loading the components' binaries".to_owned(),
+            (Call::Load, _) => format!("while loading the binary{component}"),
             (call, Some(t)) => format!("in {}{component} at t = {t}", call.name()),
             (call, None) => format!("in {}{component}", call.name()),
         }
@@ -345,11 +346,12 @@ pub fn serve() -> Result<(), String> {
         None => return Ok(()),
         Some(_) => return Err("the first request must be Load".to_owned()),
     };
+    // Named before loading: a binary that crashes as it loads is reported by its component.
+    page.write_names(files.components.iter().map(|c| c.name.as_str()));
     let system = match System::load_copy(&files) {
         Ok(system) => system,
         Err(e) => return serving.ready(Err(e)),
     };
-    page.write_names(system.components.iter().map(|c| c.name.as_str()));
     let bound = match bind(&system, &algorithm) {
         Ok(bound) => bound,
         Err(e) => return serving.ready(Err(e)),
@@ -417,7 +419,10 @@ pub fn simulate(
     isolation: Option<Config>,
     plot: Option<Plot>,
 ) -> Result<(), String> {
-    let system = System::open(path)?;
+    let mut system = System::open(path)?;
+    if isolation.is_none() {
+        system.load_binaries()?;
+    }
     let bound = bind(&system, algorithm)?;
     warn(&bound, algorithm);
     let grid = grid(&system, run)?;
@@ -630,6 +635,9 @@ mod tests {
         assert_eq!(page.place(), "in fmi2DoStep at t = 0.31");
         page.slot.call.store(Call::Load as u32, Ordering::Relaxed);
         assert_eq!(page.place(), "while loading the components' binaries");
+        page.slot.context.store(1, Ordering::Relaxed);
+        assert_eq!(page.place(), "while loading the binary of component 'road'");
+        page.slot.context.store(0, Ordering::Relaxed);
         // Names that do not fit are left out, not cut.
         let long = "x".repeat(NAMES);
         page.write_names(["road", long.as_str()]);

@@ -667,7 +667,7 @@ impl<C: Exchange> ModelExchange<C> {
 
     /// The early end of the run at the current time.
     fn ended(&self, reason: String) -> Step {
-        Step::Ended { reason: format!("the model ended the simulation at t = {}: {reason}", self.t), last_time: Some(self.t) }
+        Step::Ended { reason: crate::model_ended(&format!("t = {}", self.t), &reason), last_time: Some(self.t) }
     }
 
     /// Integrates from the communication point `t` over `h` with the runner's integrator,

@@ -110,6 +110,17 @@ fn explain_load_error(error: String, dirs: &[&str]) -> String {
     error
 }
 pub use model::{Causality, Description, FmiVersion, Interface, Kind, Variability, Variable};
+
+/// Why a model ended the run at `when` (`t = 2.79`): its logged `reason` after "the model ended
+/// the simulation at `when`", or the reason alone when it already says when (this toolkit's
+/// FMUs log "the simulation ended at t = 2.79 s: ...": the time once is enough).
+pub fn model_ended(when: &str, reason: &str) -> String {
+    if reason.contains(when) {
+        reason.to_owned()
+    } else {
+        format!("the model ended the simulation at {when}: {reason}")
+    }
+}
 pub use reader::Reader;
 pub use solvers::Method;
 
@@ -770,6 +781,14 @@ mod tests {
     }
 
     use super::*;
+
+    /// A third-party FMU's reason gets the time; this toolkit's, which says it, does not twice.
+    #[test]
+    fn an_early_end_says_when_once() {
+        assert_eq!(model_ended("t = 2.5", "landed"), "the model ended the simulation at t = 2.5: landed");
+        let ours = "the simulation ended at t = 2.5 s: the projectile landed";
+        assert_eq!(model_ended("t = 2.5", ours), ours);
+    }
     use crate::archive::{write_zip, Entry};
 
     /// The implicit methods' finite-difference Jacobian groups the columns that share no row of

@@ -235,7 +235,7 @@ async function simulate(changedAt) {
     if (result.model !== lab.model.id) return;
     lab.result = result;
     draw(result, changedAt);
-    status(result.ended_early ? `The run ended at t = ${result.time[result.time.length - 1]} s: ${result.ended_early}` : `${result.time.length} samples; run ${result.run_ms.toFixed(1)} ms`);
+    status(result.ended_early ? `The run ended early: ${result.ended_early}` : `${result.time.length} samples; run ${result.run_ms.toFixed(1)} ms`);
     // The scene follows once the values settle (not for every step of a slider drag).
     if (lab.model.animation && pending === null) loadScene();
   } catch (e) {

@@ -70,7 +70,8 @@ pub fn run(options: &Options) -> Result<Written, String> {
     }
     let trace = prepared.record()?;
     if let Some(reason) = &trace.ended_early {
-        eprintln!("{}: the run ended at t = {} s: {reason}", prepared.fmu.identifier, trace.time.last().copied().unwrap_or(0.0));
+        // The importer's reason says when.
+        eprintln!("{}: the run ended early: {reason}", prepared.fmu.identifier);
     }
     let motion = prepared.scene.motion(&trace)?;
     let frames = prepared.timing.frames(&trace.time);

@@ -154,7 +154,7 @@ impl<'a> CoSimulation<'a> {
             Some(last) => format!("t = {last}"),
             None => format!("the step from t = {t}"),
         };
-        Ok(Step::Ended { reason: format!("the model ended the simulation at {when}: {reason}"), last_time })
+        Ok(Step::Ended { reason: crate::model_ended(&when, &reason), last_time })
     }
 }
 

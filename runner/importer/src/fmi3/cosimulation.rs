@@ -209,10 +209,7 @@ impl<'a> CoSimulation<'a> {
         let reached = if early && self.early_return { last } else { t_end };
         if terminate {
             let reason = self.component.env.log.take_problem().unwrap_or_else(|| "the FMU asked to terminate the simulation".to_owned());
-            return Ok(Step::Ended {
-                reason: format!("the model ended the simulation at t = {reached}: {reason}"),
-                last_time: Some(reached),
-            });
+            return Ok(Step::Ended { reason: crate::model_ended(&format!("t = {reached}"), &reason), last_time: Some(reached) });
         }
         if event && self.event_mode {
             return Ok(Step::Event { time: reached });
@@ -240,7 +237,7 @@ impl<'a> CoSimulation<'a> {
         self.component.check("fmi3EnterEventMode", status)?;
         if self.update_discrete_states(&format!("at t = {time}"))? {
             let reason = self.component.env.log.take_problem().unwrap_or_else(|| "the FMU asked to terminate the simulation".to_owned());
-            return Ok(Some(format!("the model ended the simulation at t = {time}: {reason}")));
+            return Ok(Some(crate::model_ended(&format!("t = {time}"), &reason)));
         }
         trace::enter(Call::Fmi3EnterStepMode, time);
         let entered = call_log::enter("fmi3EnterStepMode", String::new);

@@ -423,7 +423,7 @@ impl<M: Model> Core<M> {
         let rows = &self.table.rows;
         let pass = &mut self.trajectory;
         // An importer asks for the same outputs and orders at every step: checked once.
-        if pass.vrs != vrs || pass.orders != orders {
+        if !pass.request.is(vrs, orders) {
             pass.plan(rows, vrs, orders, function)?;
         }
         self.input_derivatives();
@@ -445,8 +445,7 @@ impl Trajectory {
     /// Checks a request for the derivatives of orders `orders` of outputs `vrs` and makes
     /// `outputs` the unknowns it reads; the request is kept (`vrs`, `orders`) when valid.
     fn plan<M>(&mut self, rows: &[Row<M>], vrs: &[u32], orders: &[i32], function: &str) -> CallResult {
-        self.vrs.clear();
-        self.orders.clear();
+        self.request.forget();
         self.outputs.clear();
         for (&vr, &order) in vrs.iter().zip(orders) {
             let Some(row) = rows.get(vr as usize) else {
@@ -471,8 +470,8 @@ impl Trajectory {
                 _ => Unknown::Zero,
             });
         }
-        self.vrs.extend_from_slice(vrs);
-        self.orders.extend_from_slice(orders);
+        self.request.keep(vrs, orders);
+        self.order = orders.iter().map(|&o| o as usize).max().unwrap_or(0);
         Ok(())
     }
 }
@@ -495,9 +494,12 @@ pub struct Trajectory {
     pub inputs: Vec<(usize, f64, Rates)>,
     /// Per output: a state, a model field, or `Zero`.
     pub outputs: Vec<Unknown>,
+    /// The highest order asked for: the states' derivatives are found up to it (one pass of
+    /// the right-hand side each), and the outputs' rates above it are not those of the
+    /// trajectory (an importer that passes first derivatives only costs one pass).
+    pub order: usize,
     /// The last valid request `outputs` was made for: value references and orders.
-    vrs: Vec<u32>,
-    orders: Vec<i32>,
+    request: super::Request,
     /// The result, per output.
     pub rates: Vec<Rates>,
     /// The model lifted into third-order dual numbers by the last pass (`M::Over<Dual3_64>`)
@@ -539,16 +541,18 @@ where
     }
     let t = Dual3_64::new(pass.t, 1.0, 0.0, 0.0);
     let n = x.len();
-    pass.x.resize(n, Dual3_64::from(0.0));
-    pass.dx.resize(n, Dual3_64::from(0.0));
-    pass.state_rates.resize(n, [0.0; MAX_ORDER]);
+    if pass.x.len() != n {
+        pass.x.resize(n, Dual3_64::from(0.0));
+        pass.dx.resize(n, Dual3_64::from(0.0));
+        pass.state_rates.resize(n, [0.0; MAX_ORDER]);
+    }
     let (xs, dx, rates) = (&mut pass.x[..n], &mut pass.dx[..n], &mut pass.state_rates[..n]);
     for k in 0..n {
         xs[k] = Dual3_64::from(x[k]);
     }
-    // Per state: its derivatives of orders 1 to MAX_ORDER, found one order per pass and
-    // given to the state's dual number for the next.
-    for order in 0..MAX_ORDER {
+    // Per state: its derivatives of orders 1 to the highest asked for, found one order per
+    // pass and given to the state's dual number for the next (the parts above stay 0).
+    for order in 0..pass.order.min(MAX_ORDER) {
         lifted.derivatives(t, xs, dx);
         for k in 0..n {
             let (d, x) = (&dx[k], &mut xs[k]);
@@ -913,6 +917,7 @@ mod tests {
                 version: core.version,
                 inputs: kept.inputs.clone(),
                 outputs: kept.outputs.clone(),
+                order: kept.order,
                 ..Default::default()
             };
             super::trajectory(&core.state.model, &core.state.x, &mut pass).unwrap();
@@ -1033,6 +1038,46 @@ mod tests {
         assert!(err.message.contains("order 0 of 'u' refused"), "{}", err.message);
         let err = core.set_input_derivatives(&[x], &[1], &[1.0], "fmiTest").unwrap_err();
         assert!(err.message.contains("'x'") && err.message.contains("not a continuous Real input"), "{}", err.message);
+    }
+
+    /// A request of lower orders finds the states' derivatives up to its highest order only,
+    /// and gives the same numbers as the full request for those orders, to the bit (the
+    /// values by hand above: u = 0.5 driven by u' = 0.25, u'' = 0.5, u''' = -1).
+    #[test]
+    fn lower_orders_are_those_of_the_full_request() {
+        let mut core = stepping();
+        let (x, y, u) = (vr(&core, "x"), vr(&core, "y"), vr(&core, "u"));
+        core.set_input_derivatives(&[u, u, u], &[1, 2, 3], &[0.25, 0.5, -1.0], "test").unwrap();
+        let mut out = [0.0; 2];
+        core.output_derivatives(&[x, y], &[1, 1], &mut out, "test").unwrap();
+        assert_eq!(out, [-5.5, -32.75]);
+        assert_eq!(core.trajectory.order, 1);
+        core.output_derivatives(&[y, x], &[2, 1], &mut out, "test").unwrap();
+        assert_eq!(out, [128.5, -5.5]);
+        assert_eq!(core.trajectory.order, 2);
+    }
+
+    /// A master sets the same inputs and orders at every step: checked once, but a value that
+    /// is not finite is still refused by name, and a different request is checked afresh (a
+    /// refused one is not kept: asked again, it is refused again).
+    #[test]
+    fn a_repeated_input_request_still_refuses_bad_values_and_new_variables() {
+        let mut core = stepping();
+        let (x, u) = (vr(&core, "x"), vr(&core, "u"));
+        core.set_input_derivatives(&[u, u], &[1, 2], &[0.25, 0.5], "test").unwrap();
+        core.set_input_derivatives(&[u, u], &[1, 2], &[0.5, 1.0], "test").unwrap();
+        let err = core.set_input_derivatives(&[u, u], &[1, 2], &[0.5, f64::NAN], "fmiTest").unwrap_err();
+        assert!(err.message.contains("derivative 2 of 'u' = NaN refused"), "{}", err.message);
+        for _ in 0..2 {
+            let err = core.set_input_derivatives(&[u, x], &[1, 1], &[0.5, 1.0], "fmiTest").unwrap_err();
+            assert!(err.message.contains("'x'") && err.message.contains("not a continuous Real input"), "{}", err.message);
+        }
+        let err = core.set_input_derivatives(&[u, u], &[1, 4], &[0.5, 1.0], "fmiTest").unwrap_err();
+        assert!(err.message.contains("order 4 of 'u' refused"), "{}", err.message);
+        // The refused calls changed nothing: u' = 0.5, u'' = 1 drive x' = -k x + u.
+        let mut rates = [0.0; 2];
+        core.output_derivatives(&[x, x], &[1, 2], &mut rates, "test").unwrap();
+        assert_eq!(rates, [-5.5, 11.5]);
     }
 
     /// Derivatives set back to zero leave the input held by the same arithmetic as an input

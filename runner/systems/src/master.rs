@@ -1029,8 +1029,26 @@ struct Start<'s> {
 }
 
 /// Reads component `c`'s output derivatives that polynomial connections pass (none: nothing).
-#[inline(never)]
+/// The test is inlined into the loops, so that a component without any costs no call.
+#[inline(always)]
 fn read_rates(
+    plan: &Plan,
+    components: &[Component],
+    c: usize,
+    instance: &mut Instance,
+    scratch: &mut [f64],
+    rates: &mut [Rates],
+    t: f64,
+) -> Result<(), Failure> {
+    if plan.rates[c].call_vrs.is_empty() {
+        return Ok(());
+    }
+    read_rates_of(plan, components, c, instance, scratch, rates, t)
+}
+
+/// [`read_rates`] for a component that has output derivatives to read.
+#[inline(never)]
+fn read_rates_of(
     plan: &Plan,
     components: &[Component],
     c: usize,
@@ -1041,9 +1059,6 @@ fn read_rates(
 ) -> Result<(), Failure> {
     driving(c);
     let r = &plan.rates[c];
-    if r.call_vrs.is_empty() {
-        return Ok(());
-    }
     instance.get_output_derivatives(&r.call_vrs, &r.call_orders, scratch).map_err(|e| failure(components, c, t, e))?;
     for (&x, &(slot, k)) in scratch.iter().zip(&r.call_slots) {
         rates[slot][k] = x;
@@ -1053,8 +1068,9 @@ fn read_rates(
 
 /// Sets component `c`'s polynomial inputs' derivatives for the step from `t` (none: nothing).
 /// Their values were set by [`transfer`]; an interpolating input's value is its source's at the
-/// step's start instead (Gauss-Seidel: the source is at the step's end already).
-#[inline(never)]
+/// step's start instead (Gauss-Seidel: the source is at the step's end already). The test is
+/// inlined into the loops, so that a component without any costs no call.
+#[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn pass_rates(
     plan: &Plan,
@@ -1067,11 +1083,28 @@ fn pass_rates(
     start: &Start,
     t: f64,
 ) -> Result<(), Failure> {
-    driving(c);
-    let inputs = &plan.inputs[c];
-    if inputs.rates.is_empty() {
+    if plan.inputs[c].rates.is_empty() {
         return Ok(());
     }
+    pass_rates_of(plan, components, c, instance, passed, values, rates, start, t)
+}
+
+/// [`pass_rates`] for a component with polynomial inputs.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn pass_rates_of(
+    plan: &Plan,
+    components: &[Component],
+    c: usize,
+    instance: &mut Instance,
+    passed: &mut [f64],
+    values: &[f64],
+    rates: &[Rates],
+    start: &Start,
+    t: f64,
+) -> Result<(), Failure> {
+    driving(c);
+    let inputs = &plan.inputs[c];
     let fail = |e: String| failure(components, c, t, format!("{e} (setting {} with their derivatives)", inputs.rate_names.join(", ")));
     let (derivatives, interpolated) = passed.split_at_mut(inputs.rate_vrs.len());
     if !inputs.interpolated.is_empty() {

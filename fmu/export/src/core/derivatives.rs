@@ -25,7 +25,7 @@
 //! depend on them.
 
 use nalgebra::SVector;
-use num_dual::{Derivative, Dual3_64, DualSVec64};
+use num_dual::{Derivative, Dual2_64, Dual3_64, Dual64, DualSVec64};
 
 use super::interpolation::MAX_ORDER;
 use super::{CallResult, Core, Failure};
@@ -411,8 +411,8 @@ impl<M: Model> Core<M> {
     /// `fmi2GetRealOutputDerivatives`, `fmi3GetOutputDerivatives`: `values[i]` = the
     /// `orders[i]`-th time derivative of the Real output `vrs[i]` at the current time, along
     /// the trajectory the FMU is on (its states moving as the right-hand side says, its inputs
-    /// as their polynomials do, or held): exact, from the model's equations in third-order
-    /// dual numbers ([`trajectory`]). Orders 1 to [`MAX_ORDER`]; a discrete output's
+    /// as their polynomials do, or held): exact, from the model's equations in dual numbers of
+    /// the highest order asked for ([`trajectory`]). Orders 1 to [`MAX_ORDER`]; a discrete output's
     /// derivatives are 0. `function` names the call in messages.
     pub fn output_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &mut [f64], function: &str) -> CallResult {
         let Some(lifting) = M::lifting() else {
@@ -423,7 +423,7 @@ impl<M: Model> Core<M> {
         let rows = &self.table.rows;
         let pass = &mut self.trajectory;
         // An importer asks for the same outputs and orders at every step: checked once.
-        if pass.vrs != vrs || pass.orders != orders {
+        if !pass.request.is(vrs, orders) {
             pass.plan(rows, vrs, orders, function)?;
         }
         self.input_derivatives();
@@ -445,8 +445,7 @@ impl Trajectory {
     /// Checks a request for the derivatives of orders `orders` of outputs `vrs` and makes
     /// `outputs` the unknowns it reads; the request is kept (`vrs`, `orders`) when valid.
     fn plan<M>(&mut self, rows: &[Row<M>], vrs: &[u32], orders: &[i32], function: &str) -> CallResult {
-        self.vrs.clear();
-        self.orders.clear();
+        self.request.forget();
         self.outputs.clear();
         for (&vr, &order) in vrs.iter().zip(orders) {
             let Some(row) = rows.get(vr as usize) else {
@@ -471,8 +470,8 @@ impl Trajectory {
                 _ => Unknown::Zero,
             });
         }
-        self.vrs.extend_from_slice(vrs);
-        self.orders.extend_from_slice(orders);
+        self.request.keep(vrs, orders);
+        self.order = orders.iter().map(|&o| o as usize).max().unwrap_or(0);
         Ok(())
     }
 }
@@ -495,66 +494,89 @@ pub struct Trajectory {
     pub inputs: Vec<(usize, f64, Rates)>,
     /// Per output: a state, a model field, or `Zero`.
     pub outputs: Vec<Unknown>,
+    /// The highest order asked for: the pass evaluates in dual numbers of that order (one
+    /// pass of the right-hand side per order for the states' derivatives), and the rates
+    /// above it are 0 (an importer that passes first derivatives only costs one pass, in
+    /// first-order dual numbers).
+    pub order: usize,
     /// The last valid request `outputs` was made for: value references and orders.
-    vrs: Vec<u32>,
-    orders: Vec<i32>,
+    request: super::Request,
     /// The result, per output.
     pub rates: Vec<Rates>,
-    /// The model lifted into third-order dual numbers by the last pass (`M::Over<Dual3_64>`)
+    /// The model lifted into the dual numbers of the last pass (`M::Over<D>`, [`Taylor`])
     /// and the version it was lifted at. Between steps that set nothing, the parameters, held
     /// inputs and discrete state (what the lift copies) stay as they were; time and states are
     /// each pass's own, and the driven inputs are set at every pass. Lifting afresh
     /// (converting every field, cloning the model's strings and tables, dropping them again)
     /// cost more than the derivatives.
     lifted: Option<(u64, Box<dyn std::any::Any + Send>)>,
-    /// The states as dual numbers, their derivatives, and per state its rates.
-    x: Vec<Dual3_64>,
-    dx: Vec<Dual3_64>,
+    /// The states as dual numbers and their derivatives (of the order evaluated in), and per
+    /// state its rates.
+    numbers: Numbers,
     state_rates: Vec<Rates>,
 }
 
 /// The first [`MAX_ORDER`] time derivatives of `pass.outputs` along the trajectory through
 /// (`pass.t`, `x`), into `pass.rates`, by Taylor-mode forward differentiation: time, states
-/// and inputs become third-order dual numbers in the one direction of time (time's derivative
-/// 1, the inputs' theirs). The states' derivatives come from the right-hand side itself, one
-/// order per pass: x' = f(x, u, t); the k-th derivative of f along the trajectory needs the
-/// states' derivatives up to k only, so the pass with those known gives x^(k+1) as f's k-th
-/// derivative part. The outputs, evaluated on the completed states, then carry their
-/// derivatives. Exact to rounding, from the equations the simulation runs.
-/// `#[derive(Variables)]` points [`crate::model::Lifting`] here.
+/// and inputs become dual numbers in the one direction of time (time's derivative 1, the
+/// inputs' theirs), with as many derivative parts as the highest order asked for
+/// (`pass.order`: [`Dual64`] for first derivatives, [`Dual2_64`] for second, third-order
+/// [`Dual3_64`] otherwise; the rates above it are 0). The states' derivatives come from the
+/// right-hand side itself, one order per pass: x' = f(x, u, t); the k-th derivative of f
+/// along the trajectory needs the states' derivatives up to k only, so the pass with those
+/// known gives x^(k+1) as f's k-th derivative part. The outputs, evaluated on the completed
+/// states, then carry their derivatives. Exact to rounding, from the equations the simulation
+/// runs. `#[derive(Variables)]` points [`crate::model::Lifting`] here.
 pub fn trajectory<M: Model + Lift>(model: &M, x: &[f64], pass: &mut Trajectory) -> Result<(), ModelError>
 where
+    M::Over<Dual64>: Send + 'static,
+    M::Over<Dual2_64>: Send + 'static,
     M::Over<Dual3_64>: Send + 'static,
 {
-    // An instance holds one model type: the version alone says whether the lift is current.
-    if !matches!(&pass.lifted, Some((version, _)) if *version == pass.version) {
-        pass.lifted = Some((pass.version, Box::new(model.lift::<Dual3_64>())));
+    match pass.order {
+        0 | 1 => trajectory_in::<M, Dual64>(model, x, pass),
+        2 => trajectory_in::<M, Dual2_64>(model, x, pass),
+        _ => trajectory_in::<M, Dual3_64>(model, x, pass),
     }
-    let lifted = pass.lifted.as_mut().and_then(|(_, m)| m.downcast_mut::<M::Over<Dual3_64>>()).expect("an instance lifts one model type");
-    for &(f, value, [d1, d2, d3]) in &pass.inputs {
-        *M::field(lifted, f) = Dual3_64::new(value, d1, d2, d3);
+}
+
+/// [`trajectory`] in the dual numbers `D`.
+fn trajectory_in<M: Model + Lift, D: Taylor>(model: &M, x: &[f64], pass: &mut Trajectory) -> Result<(), ModelError>
+where
+    M::Over<D>: Send + 'static,
+{
+    // An instance holds one model type: the version and the number type say whether the lift
+    // is current.
+    if !matches!(&pass.lifted, Some((version, m)) if *version == pass.version && m.is::<M::Over<D>>()) {
+        pass.lifted = Some((pass.version, Box::new(model.lift::<D>())));
+    }
+    let Some((_, lifted)) = pass.lifted.as_mut() else { unreachable!("lifted just above") };
+    let lifted = lifted.downcast_mut::<M::Over<D>>().expect("lifted in this number type just above");
+    for (f, value, d) in &pass.inputs {
+        *M::field(lifted, *f) = D::taylor(*value, d);
     }
     if !pass.inputs.is_empty() {
         M::refresh_over(lifted);
     }
-    let t = Dual3_64::new(pass.t, 1.0, 0.0, 0.0);
+    let t = D::taylor(pass.t, &[1.0, 0.0, 0.0]);
     let n = x.len();
-    pass.x.resize(n, Dual3_64::from(0.0));
-    pass.dx.resize(n, Dual3_64::from(0.0));
-    pass.state_rates.resize(n, [0.0; MAX_ORDER]);
-    let (xs, dx, rates) = (&mut pass.x[..n], &mut pass.dx[..n], &mut pass.state_rates[..n]);
-    for k in 0..n {
-        xs[k] = Dual3_64::from(x[k]);
+    let (xs, dx) = D::buffers(&mut pass.numbers);
+    if xs.len() != n {
+        xs.resize(n, D::from(0.0));
+        dx.resize(n, D::from(0.0));
+        pass.state_rates.resize(n, [0.0; MAX_ORDER]);
     }
-    // Per state: its derivatives of orders 1 to MAX_ORDER, found one order per pass and
-    // given to the state's dual number for the next.
-    for order in 0..MAX_ORDER {
+    let (xs, dx, rates) = (&mut xs[..n], &mut dx[..n], &mut pass.state_rates[..n]);
+    for k in 0..n {
+        xs[k] = D::from(x[k]);
+    }
+    // Per state: its derivatives of orders 1 to D::ORDER, found one order per pass and given to
+    // the state's dual number for the next.
+    for order in 0..D::ORDER {
         lifted.derivatives(t, xs, dx);
-        for k in 0..n {
-            let (d, x) = (&dx[k], &mut xs[k]);
-            let rate = [d.re, d.v1, d.v2][order];
-            rates[k][order] = rate;
-            *[&mut x.v1, &mut x.v2, &mut x.v3][order] = rate;
+        for ((d, x), r) in dx.iter().zip(xs.iter_mut()).zip(rates.iter_mut()) {
+            r[order] = d.part(order);
+            x.set_part(order + 1, r[order]);
         }
     }
     if pass.outputs.iter().any(|u| matches!(u, Unknown::Field(_))) {
@@ -562,14 +584,108 @@ where
     }
     pass.rates.clear();
     pass.rates.extend(pass.outputs.iter().map(|unknown| match *unknown {
-        Unknown::State(k) => rates[k],
-        Unknown::Field(f) => {
-            let v = M::field(lifted, f);
-            [v.v1, v.v2, v.v3]
+        Unknown::State(k) => {
+            let mut r = [0.0; MAX_ORDER];
+            r[..D::ORDER].copy_from_slice(&rates[k][..D::ORDER]);
+            r
         }
+        Unknown::Field(f) => M::field(lifted, f).rates(),
         _ => [0.0; MAX_ORDER],
     }));
     Ok(())
+}
+
+/// The states and their derivatives as dual numbers of each order, kept from call to call.
+#[derive(Default)]
+pub struct Numbers {
+    first: (Vec<Dual64>, Vec<Dual64>),
+    second: (Vec<Dual2_64>, Vec<Dual2_64>),
+    third: (Vec<Dual3_64>, Vec<Dual3_64>),
+}
+
+/// The dual numbers [`trajectory`] evaluates in: derivatives of orders 1 to `ORDER` along
+/// time.
+pub trait Taylor: crate::Scalar {
+    /// The highest order it carries.
+    const ORDER: usize;
+    /// The number with value `value` and time derivatives `d` (those up to `ORDER`).
+    fn taylor(value: f64, d: &Rates) -> Self;
+    /// Its part of order `k` (0: the value).
+    fn part(&self, k: usize) -> f64;
+    /// Sets its part of order `k`, from 1 to `ORDER` (none above).
+    fn set_part(&mut self, k: usize, value: f64);
+    /// Its derivatives, 0 above `ORDER`.
+    fn rates(&self) -> Rates;
+    /// The states' buffers of this type.
+    fn buffers(numbers: &mut Numbers) -> (&mut Vec<Self>, &mut Vec<Self>);
+}
+
+impl Taylor for Dual64 {
+    const ORDER: usize = 1;
+    fn taylor(value: f64, d: &Rates) -> Self {
+        Dual64::new(value, d[0])
+    }
+    fn part(&self, k: usize) -> f64 {
+        [self.re, self.eps][k]
+    }
+    fn set_part(&mut self, k: usize, value: f64) {
+        if k == 1 {
+            self.eps = value;
+        }
+    }
+    fn rates(&self) -> Rates {
+        [self.eps, 0.0, 0.0]
+    }
+    fn buffers(numbers: &mut Numbers) -> (&mut Vec<Self>, &mut Vec<Self>) {
+        (&mut numbers.first.0, &mut numbers.first.1)
+    }
+}
+
+impl Taylor for Dual2_64 {
+    const ORDER: usize = 2;
+    fn taylor(value: f64, d: &Rates) -> Self {
+        Dual2_64::new(value, d[0], d[1])
+    }
+    fn part(&self, k: usize) -> f64 {
+        [self.re, self.v1, self.v2][k]
+    }
+    fn set_part(&mut self, k: usize, value: f64) {
+        match k {
+            1 => self.v1 = value,
+            2 => self.v2 = value,
+            _ => {}
+        }
+    }
+    fn rates(&self) -> Rates {
+        [self.v1, self.v2, 0.0]
+    }
+    fn buffers(numbers: &mut Numbers) -> (&mut Vec<Self>, &mut Vec<Self>) {
+        (&mut numbers.second.0, &mut numbers.second.1)
+    }
+}
+
+impl Taylor for Dual3_64 {
+    const ORDER: usize = 3;
+    fn taylor(value: f64, d: &Rates) -> Self {
+        Dual3_64::new(value, d[0], d[1], d[2])
+    }
+    fn part(&self, k: usize) -> f64 {
+        [self.re, self.v1, self.v2, self.v3][k]
+    }
+    fn set_part(&mut self, k: usize, value: f64) {
+        match k {
+            1 => self.v1 = value,
+            2 => self.v2 = value,
+            3 => self.v3 = value,
+            _ => {}
+        }
+    }
+    fn rates(&self) -> Rates {
+        [self.v1, self.v2, self.v3]
+    }
+    fn buffers(numbers: &mut Numbers) -> (&mut Vec<Self>, &mut Vec<Self>) {
+        (&mut numbers.third.0, &mut numbers.third.1)
+    }
 }
 
 /// One known of a forward pass: what gets the derivative part.
@@ -913,6 +1029,7 @@ mod tests {
                 version: core.version,
                 inputs: kept.inputs.clone(),
                 outputs: kept.outputs.clone(),
+                order: kept.order,
                 ..Default::default()
             };
             super::trajectory(&core.state.model, &core.state.x, &mut pass).unwrap();
@@ -1033,6 +1150,46 @@ mod tests {
         assert!(err.message.contains("order 0 of 'u' refused"), "{}", err.message);
         let err = core.set_input_derivatives(&[x], &[1], &[1.0], "fmiTest").unwrap_err();
         assert!(err.message.contains("'x'") && err.message.contains("not a continuous Real input"), "{}", err.message);
+    }
+
+    /// A request of lower orders finds the states' derivatives up to its highest order only,
+    /// and gives the same numbers as the full request for those orders, to the bit (the
+    /// values by hand above: u = 0.5 driven by u' = 0.25, u'' = 0.5, u''' = -1).
+    #[test]
+    fn lower_orders_are_those_of_the_full_request() {
+        let mut core = stepping();
+        let (x, y, u) = (vr(&core, "x"), vr(&core, "y"), vr(&core, "u"));
+        core.set_input_derivatives(&[u, u, u], &[1, 2, 3], &[0.25, 0.5, -1.0], "test").unwrap();
+        let mut out = [0.0; 2];
+        core.output_derivatives(&[x, y], &[1, 1], &mut out, "test").unwrap();
+        assert_eq!(out, [-5.5, -32.75]);
+        assert_eq!(core.trajectory.order, 1);
+        core.output_derivatives(&[y, x], &[2, 1], &mut out, "test").unwrap();
+        assert_eq!(out, [128.5, -5.5]);
+        assert_eq!(core.trajectory.order, 2);
+    }
+
+    /// A master sets the same inputs and orders at every step: checked once, but a value that
+    /// is not finite is still refused by name, and a different request is checked afresh (a
+    /// refused one is not kept: asked again, it is refused again).
+    #[test]
+    fn a_repeated_input_request_still_refuses_bad_values_and_new_variables() {
+        let mut core = stepping();
+        let (x, u) = (vr(&core, "x"), vr(&core, "u"));
+        core.set_input_derivatives(&[u, u], &[1, 2], &[0.25, 0.5], "test").unwrap();
+        core.set_input_derivatives(&[u, u], &[1, 2], &[0.5, 1.0], "test").unwrap();
+        let err = core.set_input_derivatives(&[u, u], &[1, 2], &[0.5, f64::NAN], "fmiTest").unwrap_err();
+        assert!(err.message.contains("derivative 2 of 'u' = NaN refused"), "{}", err.message);
+        for _ in 0..2 {
+            let err = core.set_input_derivatives(&[u, x], &[1, 1], &[0.5, 1.0], "fmiTest").unwrap_err();
+            assert!(err.message.contains("'x'") && err.message.contains("not a continuous Real input"), "{}", err.message);
+        }
+        let err = core.set_input_derivatives(&[u, u], &[1, 4], &[0.5, 1.0], "fmiTest").unwrap_err();
+        assert!(err.message.contains("order 4 of 'u' refused"), "{}", err.message);
+        // The refused calls changed nothing: u' = 0.5, u'' = 1 drive x' = -k x + u.
+        let mut rates = [0.0; 2];
+        core.output_derivatives(&[x, x], &[1, 2], &mut rates, "test").unwrap();
+        assert_eq!(rates, [-5.5, 11.5]);
     }
 
     /// Derivatives set back to zero leave the input held by the same arithmetic as an input

@@ -66,6 +66,16 @@ impl Drive {
             self.anchor = t;
         }
     }
+
+    /// Moves the anchor to `t` with the new value `value` there: [`Drive::shift_to`] and the
+    /// value set, without the old polynomial's value at `t`.
+    pub fn anchor_at(&mut self, t: f64, value: f64) {
+        if t != self.anchor {
+            self.derivatives = self.derivatives_at(t);
+            self.anchor = t;
+        }
+        self.value = value;
+    }
 }
 
 /// The polynomial with `coefficients` in powers of (t - anchor), at `t`.
@@ -122,8 +132,11 @@ impl<'a, M: Model> Driven<'a, M> {
     #[inline(always)]
     fn at(&self, t: f64) -> std::cell::RefMut<'_, &'a mut M> {
         let mut model = self.model.borrow_mut();
-        for input in self.inputs {
-            (input.set)(&mut **model, horner(input.anchor, &input.coefficients, t));
+        let set = |model: &mut M, input: &Stage<M>| (input.set)(model, horner(input.anchor, &input.coefficients, t));
+        match self.inputs {
+            // The usual case, one driven input, without the loop's bookkeeping at every stage.
+            [input] => set(&mut model, input),
+            inputs => inputs.iter().for_each(|input| set(&mut model, input)),
         }
         model
     }
@@ -154,12 +167,23 @@ impl<M: Model> Core<M> {
     /// order from 1 to [`MAX_ORDER`], each value finite; all or nothing, as a set. `function`
     /// names the call in messages.
     pub fn set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64], function: &str) -> CallResult {
-        let rows = &self.table.rows;
-        let takes = |vr: u32, order: i32, value: f64| {
-            rows.get(vr as usize).is_some_and(interpolable) && (1..=MAX_ORDER as i32).contains(&order) && value.is_finite()
-        };
-        if let Some(((&vr, &order), &value)) = vrs.iter().zip(orders).zip(values).find(|((&vr, &o), &v)| !takes(vr, o, v)) {
-            return Err(self.input_derivative_refused(vr, order, value, function));
+        // A master sets the same inputs and orders at every step: those are checked once (the
+        // kept request), the values at every call.
+        if self.input_request.is(vrs, orders) {
+            if !values.iter().all(|v| v.is_finite()) {
+                let i = values.iter().position(|v| !v.is_finite()).expect("a value is not finite");
+                return Err(self.input_derivative_refused(vrs[i], orders[i], values[i], function));
+            }
+        } else {
+            self.input_request.forget();
+            let rows = &self.table.rows;
+            let takes = |vr: u32, order: i32, value: f64| {
+                rows.get(vr as usize).is_some_and(interpolable) && (1..=MAX_ORDER as i32).contains(&order) && value.is_finite()
+            };
+            if let Some(((&vr, &order), &value)) = vrs.iter().zip(orders).zip(values).find(|((&vr, &o), &v)| !takes(vr, o, v)) {
+                return Err(self.input_derivative_refused(vr, order, value, function));
+            }
+            self.input_request.keep(vrs, orders);
         }
         let t = self.state.t;
         let (mut changed, mut zeroed) = (false, false);
@@ -215,13 +239,14 @@ impl<M: Model> Core<M> {
         }
     }
 
-    /// Re-anchors the polynomial of an input just set to `value` at the current time.
+    /// Re-anchors the polynomial of an input just set to `value` at the current time: its
+    /// derivatives are moved there, its value is the new one (the old polynomial's value there
+    /// is not needed).
     #[inline]
     pub(super) fn input_set(&mut self, row: usize, value: f64) {
         let t = self.state.t;
         if let Some(drive) = self.state.drives.iter_mut().find(|d| d.row == row) {
-            drive.shift_to(t);
-            drive.value = value;
+            drive.anchor_at(t, value);
         }
     }
 

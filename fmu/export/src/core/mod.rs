@@ -29,6 +29,43 @@ pub use interpolation::MAX_ORDER;
 use solvers::controls::{Control, Controls};
 use solvers::{Advance, Integrator, OdeSystem, SolverError};
 
+/// The value references and orders of the last valid request of one kind (the output
+/// derivatives read, the input derivatives set): an importer repeats the same request at every
+/// communication step, so its value references and orders, which depend on the variable table
+/// alone, are checked once; a request that differs is checked afresh, and one refused is not
+/// kept.
+#[derive(Default)]
+pub(crate) struct Request {
+    vrs: Vec<u32>,
+    orders: Vec<i32>,
+}
+
+impl Request {
+    /// True when `vrs` and `orders` are the kept request's. Compared element by element: a
+    /// request is a few entries, and memcmp's two calls cost more than the comparison.
+    #[inline]
+    fn is(&self, vrs: &[u32], orders: &[i32]) -> bool {
+        self.vrs.len() == vrs.len()
+            && self.orders.len() == orders.len()
+            && self.vrs.iter().zip(vrs).all(|(a, b)| a == b)
+            && self.orders.iter().zip(orders).all(|(a, b)| a == b)
+    }
+
+    /// Keeps `vrs` and `orders`, just checked.
+    fn keep(&mut self, vrs: &[u32], orders: &[i32]) {
+        self.vrs.clear();
+        self.vrs.extend_from_slice(vrs);
+        self.orders.clear();
+        self.orders.extend_from_slice(orders);
+    }
+
+    /// Forgets the kept request (one being checked that may be refused).
+    fn forget(&mut self) {
+        self.vrs.clear();
+        self.orders.clear();
+    }
+}
+
 /// Why an operation failed: the status to return, the message to log, and whether the
 /// instance is now broken (the front end then enters its Error state).
 #[derive(Debug, Clone, PartialEq)]
@@ -247,6 +284,8 @@ pub struct Core<M: Model> {
     /// The driven inputs as a driven step's stages evaluate them (rebuilt at every such step,
     /// kept for its buffer).
     stages: Vec<interpolation::Stage<M>>,
+    /// The last valid `set_input_derivatives` request (its value references and orders).
+    input_request: Request,
 }
 
 impl<M: Model> Core<M> {
@@ -264,6 +303,7 @@ impl<M: Model> Core<M> {
             jacobians: Default::default(),
             trajectory: Default::default(),
             stages: Vec::new(),
+            input_request: Request::default(),
         }
     }
 

@@ -26,15 +26,16 @@ SPEED, STOP, STEP = 7.0, 2.0, 1e-3
 BUMP_START, BUMP_LENGTH, BUMP_HEIGHT = 5.0, 1.0, 0.05  # road's defaults (models/road)
 
 
-def system(tmp_path, road_fmi):
+def system(tmp_path, road_fmi, car_fmi=2):
     """systems/quarter_car_road with the road of FMI version `road_fmi` (target/fmu or
-    target/fmu3) and the FMI 2.0 car (FMI 3.0 has no input derivatives)."""
-    folder = tmp_path / f"road{road_fmi}"
+    target/fmu3) and by default the FMI 2.0 car (FMI 3.0 has no input derivatives)."""
+    folder = tmp_path / f"road{road_fmi}car{car_fmi}"
     (folder / "resources").mkdir(parents=True)
     for f in (ROOT / "systems" / "quarter_car_road").iterdir():
         shutil.copy(f, folder)
-    shutil.copy(TARGET / ("fmu3" if road_fmi == 3 else "fmu") / "road.fmu", folder / "resources" / "road.fmu")
-    shutil.copy(TARGET / "fmu" / "quarter_car.fmu", folder / "resources" / "quarter_car.fmu")
+    version = {2: "fmu", 3: "fmu3"}
+    shutil.copy(TARGET / version[road_fmi] / "road.fmu", folder / "resources" / "road.fmu")
+    shutil.copy(TARGET / version[car_fmi] / "quarter_car.fmu", folder / "resources" / "quarter_car.fmu")
     return folder
 
 
@@ -110,3 +111,17 @@ def test_the_car_meets_the_bump_at_its_edges(tmp_path, master):
     assert on_the_grid > 100 * synchronized, (on_the_grid, synchronized)
     assert 3 < on_the_grid / on_the_grid_half < 6, (on_the_grid, on_the_grid_half)
     assert 1.8 < held / held_half < 2.2, (held, held_half)
+
+
+@pytest.mark.parametrize("master", ["jacobi", "gauss-seidel"])
+def test_an_all_fmi3_system_meets_the_edges_as_the_mixed_one_does(tmp_path, master):
+    """Both components FMI 3.0, coupled by the hold (FMI 3.0 sets no input derivatives): the road
+    returns early at each edge and the FMI 3.0 car takes the shorter step to it, as the FMI 2.0
+    car does in the mixed system (both cars are the same model and solver), so the two runs are
+    the same to the bit; and not the run of the FMI 2.0 road, whose edges wait for the grid."""
+    all3 = run(tmp_path, system(tmp_path, 3, car_fmi=3), master, "hold")
+    mixed = run(tmp_path, system(tmp_path, 3), master, "hold")
+    late = run(tmp_path, system(tmp_path, 2), master, "hold")
+    for ours, theirs in zip(all3, mixed):
+        np.testing.assert_array_equal(ours, theirs)
+    assert np.abs(all3[1] - late[1]).max() > 1e-9

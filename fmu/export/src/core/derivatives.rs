@@ -164,6 +164,23 @@ impl Jacobians {
         let at = if unknown { &self.unknown_at } else { &self.known_at };
         at.get(vr as usize).copied().filter(|&p| p != ABSENT).map(|p| p as usize)
     }
+
+    /// The last call's unknowns (`asked_at`) in the known at place `column`, times `seed`,
+    /// into `sensitivity`: an importer asks for a Jacobian column by column, one known seeded.
+    /// Whether the values are all finite.
+    #[inline(always)]
+    fn column_times(&self, column: usize, seed: f64, sensitivity: &mut [f64]) -> bool {
+        let width = self.knowns.len();
+        let mut finite = true;
+        for (out, &place) in sensitivity.iter_mut().zip(&self.asked_at) {
+            // Adding to 0.0 as the general sum does keeps its results to the bit (-0.0 too).
+            let mut v = 0.0;
+            v += self.values[place as usize * width + column] * seed;
+            finite &= v.is_finite();
+            *out = v;
+        }
+        finite
+    }
 }
 
 impl<M: Model> Core<M> {
@@ -284,15 +301,7 @@ impl<M: Model> Core<M> {
         let width = j.knowns.len();
         let mut finite = true;
         if let ([k], [s]) = (knowns, seed) {
-            // One known seeded, as an importer asks for a column: the column times the seed.
-            let column = j.known_at[*k as usize] as usize;
-            for (out, &place) in sensitivity.iter_mut().zip(&j.asked_at) {
-                // Adding to 0.0 as the general sum does keeps its results to the bit (-0.0 too).
-                let mut v = 0.0;
-                v += j.values[place as usize * width + column] * s;
-                finite &= v.is_finite();
-                *out = v;
-            }
+            finite = j.column_times(j.known_at[*k as usize] as usize, *s, sensitivity);
         } else {
             for (out, &place) in sensitivity.iter_mut().zip(&j.asked_at) {
                 let row = &j.values[place as usize * width..][..width];
@@ -309,6 +318,44 @@ impl<M: Model> Core<M> {
         } else {
             Err(self.not_differentiable(sensitivity, unknowns, true, function))
         }
+    }
+
+    /// [`Core::directional_derivative`] when the full call would only read the cached blocks:
+    /// one known seeded, the unknowns of the last call, at the point and in the mode (not
+    /// Initialization Mode, whose reads may compute the initial state) the blocks they need
+    /// were computed for. That is how an importer asks for a Jacobian, column by column at one
+    /// point. `None` otherwise, nothing written: the full call checks, computes and explains.
+    /// Else whether the values are all finite.
+    #[inline(always)]
+    pub fn try_directional_derivative(
+        &self,
+        unknowns: &[u32],
+        knowns: &[u32],
+        seed: &[f64],
+        sensitivity: &mut [f64],
+        mode: Mode,
+    ) -> Option<bool> {
+        let j = &self.jacobians;
+        let ([k], [s]) = (knowns, seed) else { return None };
+        let column = j.place(*k, false)?;
+        let blocks_done = (j.derivatives_done || !j.asked_blocks.derivatives) && (j.others_done || !j.asked_blocks.others);
+        let current = j.mode == Some(mode)
+            && mode != Mode::Initialization
+            && sensitivity.len() == unknowns.len()
+            && j.asked.as_slice() == unknowns
+            && self.at_jacobians_point()
+            && blocks_done;
+        current.then(|| j.column_times(column, *s, sensitivity))
+    }
+
+    /// True when the cached Jacobian blocks were computed at the current point: the same
+    /// version, time and states (to the bit).
+    #[inline(always)]
+    fn at_jacobians_point(&self) -> bool {
+        let j = &self.jacobians;
+        j.point == Some((self.version, self.state.t.to_bits()))
+            && j.x.len() == self.state.x.len()
+            && j.x.iter().zip(&self.state.x).all(|(a, b)| *a == b.to_bits())
     }
 
     /// `fmi3GetAdjointDerivative`: `sensitivity = seed^T J` (one value per known, `seed` one
@@ -377,11 +424,10 @@ impl<M: Model> Core<M> {
             // The parameters checked and the initial state computed as the values are read.
             self.prepare_read(super::Phase::Initializing)?;
         }
-        let point = (self.version, self.state.t.to_bits());
+        let at_point = self.at_jacobians_point();
         let j = &mut self.jacobians;
-        let same_x = j.x.len() == self.state.x.len() && j.x.iter().zip(&self.state.x).all(|(a, b)| *a == b.to_bits());
-        if j.point != Some(point) || !same_x {
-            j.point = Some(point);
+        if !at_point {
+            j.point = Some((self.version, self.state.t.to_bits()));
             j.x.clear();
             j.x.extend(self.state.x.iter().map(|v| v.to_bits()));
             j.values.clear();
@@ -693,7 +739,7 @@ fn forward_in<M: Model + Lift, const N: usize>(model: &M, pass: &Pass, out: &mut
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use serde::{Deserialize, Serialize};
 
     use super::Mode;
@@ -705,7 +751,7 @@ mod tests {
     /// x' = -k x + u, y = x^2 + u: small enough that every derivative is known by hand.
     #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
     #[variables(states = S)]
-    struct Decay<T = f64> {
+    pub(crate) struct Decay<T = f64> {
         /// Rate constant
         #[parameter]
         k: T,

@@ -3,7 +3,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use crate::core::derivatives::{Known, Pass, Unknown};
+use crate::core::derivatives::{field_values, KeptLift, Known, Pass, Unknown};
 use crate::core::Failure;
 use crate::fmi2::state_machine::Interface;
 use crate::fmi2::Instance;
@@ -258,9 +258,12 @@ pub fn jacobian<M: Model>(model: &M, t: f64, x: &[f64], equations: Stage) -> Jac
             _ => Unknown::Zero,
         })
         .collect();
-    let pass = Pass { t, x, knowns: &seeds, unknowns: &targets, initialization: equations == Stage::Initialization };
+    let mut values = Vec::new();
+    field_values(&table.rows, &knowns, &seeds, model, &mut values);
+    let initialization = equations == Stage::Initialization;
+    let pass = Pass { t, x, knowns: &seeds, values: &values, unknowns: &targets, initialization, version: 0 };
     let mut flat = vec![0.0; knowns.len() * unknowns.len()];
-    (lifting.forward)(model, &pass, &mut flat).expect("the model's equations evaluate at this point");
+    (lifting.forward)(model, &pass, &mut KeptLift::default(), &mut flat).expect("the model's equations evaluate at this point");
     let values = flat.chunks(knowns.len().max(1)).take(unknowns.len()).map(<[f64]>::to_vec).collect();
     let name = |i: &usize| table.rows[*i].name;
     Jacobian { unknowns: unknowns.iter().map(name).collect(), knowns: knowns.iter().map(name).collect(), values }

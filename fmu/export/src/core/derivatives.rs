@@ -136,6 +136,11 @@ pub(crate) struct Jacobians {
     x: Vec<u64>,
     /// Row-major: unknowns x knowns.
     values: Vec<f64>,
+    /// Per known: an input's or parameter's value at the point (read at every new point: a
+    /// driven input moves without a set), else 0.
+    known_values: Vec<f64>,
+    /// The model lifted into the passes' dual numbers, kept while the version stays.
+    lifted: KeptLift,
     derivatives_done: bool,
     others_done: bool,
     /// The unknowns of the last call checked against this layout, their places and blocks: an
@@ -328,7 +333,7 @@ impl<M: Model> Core<M> {
     /// Else whether the values are all finite.
     #[inline(always)]
     pub fn try_directional_derivative(
-        &self,
+        &mut self,
         unknowns: &[u32],
         knowns: &[u32],
         seed: &[f64],
@@ -338,14 +343,18 @@ impl<M: Model> Core<M> {
         let j = &self.jacobians;
         let ([k], [s]) = (knowns, seed) else { return None };
         let column = j.place(*k, false)?;
+        let checked =
+            j.mode == Some(mode) && mode != Mode::Initialization && sensitivity.len() == unknowns.len() && j.asked.as_slice() == unknowns;
+        if !checked {
+            return None;
+        }
         let blocks_done = (j.derivatives_done || !j.asked_blocks.derivatives) && (j.others_done || !j.asked_blocks.others);
-        let current = j.mode == Some(mode)
-            && mode != Mode::Initialization
-            && sensitivity.len() == unknowns.len()
-            && j.asked.as_slice() == unknowns
-            && self.at_jacobians_point()
-            && blocks_done;
-        current.then(|| j.column_times(column, *s, sensitivity))
+        if !(blocks_done && self.at_jacobians_point()) {
+            // The first column at a new point: the call is the last one's but for its known,
+            // so only the blocks are made. A failure goes to the general path to be explained.
+            self.jacobian_blocks(self.jacobians.asked_blocks, mode).ok()?;
+        }
+        Some(self.jacobians.column_times(column, *s, sensitivity))
     }
 
     /// True when the cached Jacobian blocks were computed at the current point: the same
@@ -432,6 +441,7 @@ impl<M: Model> Core<M> {
             j.x.extend(self.state.x.iter().map(|v| v.to_bits()));
             j.values.clear();
             j.values.resize(j.unknowns.len() * j.knowns.len(), 0.0);
+            field_values(&self.table.rows, &j.knowns, &j.seeds, &self.state.model, &mut j.known_values);
             j.derivatives_done = false;
             j.others_done = false;
         }
@@ -442,9 +452,16 @@ impl<M: Model> Core<M> {
                 continue;
             }
             let block = if derivatives { &j.derivative_block } else { &j.other_block };
-            let pass =
-                Pass { t: self.state.t, x: &self.state.x, knowns: &j.seeds, unknowns: block, initialization: mode == Mode::Initialization };
-            (lifting.forward)(&self.state.model, &pass, &mut j.values)
+            let pass = Pass {
+                t: self.state.t,
+                x: &self.state.x,
+                knowns: &j.seeds,
+                values: &j.known_values,
+                unknowns: block,
+                initialization: mode == Mode::Initialization,
+                version: self.version,
+            };
+            (lifting.forward)(&self.state.model, &pass, &mut j.lifted, &mut j.values)
                 .map_err(|e| Failure::error(format!("the parameters were refused: {e}")))?;
         }
         j.derivatives_done |= needs_derivatives;
@@ -552,10 +569,8 @@ pub struct Trajectory {
     /// each pass's own, and the driven inputs are set at every pass. Lifting afresh
     /// (converting every field, cloning the model's strings and tables, dropping them again)
     /// cost more than the derivatives.
-    lifted: Option<(u64, Box<dyn std::any::Any + Send>)>,
-    /// The states as dual numbers, their derivatives, and per state its rates.
-    x: Vec<Dual3_64>,
-    dx: Vec<Dual3_64>,
+    lifted: KeptLift,
+    /// Per state: its rates.
     state_rates: Vec<Rates>,
 }
 
@@ -572,11 +587,7 @@ pub fn trajectory<M: Model + Lift>(model: &M, x: &[f64], pass: &mut Trajectory) 
 where
     M::Over<Dual3_64>: Send + 'static,
 {
-    // An instance holds one model type: the version alone says whether the lift is current.
-    if !matches!(&pass.lifted, Some((version, _)) if *version == pass.version) {
-        pass.lifted = Some((pass.version, Box::new(model.lift::<Dual3_64>())));
-    }
-    let lifted = pass.lifted.as_mut().and_then(|(_, m)| m.downcast_mut::<M::Over<Dual3_64>>()).expect("an instance lifts one model type");
+    let Lifted { model: lifted, x: xs, dx } = pass.lifted.get::<M, Dual3_64>(model, pass.version);
     for &(f, value, [d1, d2, d3]) in &pass.inputs {
         *M::field(lifted, f) = Dual3_64::new(value, d1, d2, d3);
     }
@@ -585,13 +596,11 @@ where
     }
     let t = Dual3_64::new(pass.t, 1.0, 0.0, 0.0);
     let n = x.len();
-    pass.x.resize(n, Dual3_64::from(0.0));
-    pass.dx.resize(n, Dual3_64::from(0.0));
+    xs.clear();
+    xs.extend(x.iter().map(|&v| Dual3_64::from(v)));
+    dx.resize(n, Dual3_64::from(0.0));
     pass.state_rates.resize(n, [0.0; MAX_ORDER]);
-    let (xs, dx, rates) = (&mut pass.x[..n], &mut pass.dx[..n], &mut pass.state_rates[..n]);
-    for k in 0..n {
-        xs[k] = Dual3_64::from(x[k]);
-    }
+    let rates = &mut pass.state_rates[..n];
     // Per state: its derivatives of orders 1 to MAX_ORDER, found one order per pass and
     // given to the state's dual number for the next.
     for order in 0..MAX_ORDER {
@@ -616,6 +625,45 @@ where
         _ => [0.0; MAX_ORDER],
     }));
     Ok(())
+}
+
+/// A model lifted into the dual numbers `D` with its states' buffers: what a pass evaluates.
+pub struct Lifted<L, D> {
+    pub model: L,
+    pub x: Vec<D>,
+    pub dx: Vec<D>,
+}
+
+/// A lifted model kept from pass to pass with the instance's version (`Core::version`) it was
+/// lifted at: while the version stays, the parameters, held inputs and discrete state (what
+/// the lift copies) are as they were, and each pass sets only its own time, states and seeded
+/// knowns. Lifting afresh (converting every field, cloning the model's strings and tables,
+/// dropping them again) cost more than the derivatives.
+#[derive(Default)]
+pub struct KeptLift(Option<(u64, Box<dyn std::any::Any + Send>)>);
+
+impl KeptLift {
+    /// `model` lifted into `D`: the kept one when lifted into `D` at `version`, else afresh.
+    pub fn get<M: Model + Lift, D: crate::Scalar + Send + 'static>(&mut self, model: &M, version: u64) -> &mut Lifted<M::Over<D>, D>
+    where
+        M::Over<D>: Send + 'static,
+    {
+        let kept = matches!(&self.0, Some((v, m)) if *v == version && m.is::<Lifted<M::Over<D>, D>>());
+        if !kept {
+            self.0 = Some((version, Box::new(Lifted { model: model.lift::<D>(), x: Vec::<D>::new(), dx: Vec::new() })));
+        }
+        self.0.as_mut().and_then(|(_, m)| m.downcast_mut()).expect("lifted into D just above")
+    }
+}
+
+/// Per known: the value of an input or parameter (a model field) in `model`, else 0, into
+/// `out`: what a pass seeds it with.
+pub fn field_values<M>(rows: &[Row<M>], knowns: &[usize], seeds: &[Known], model: &M, out: &mut Vec<f64>) {
+    out.clear();
+    out.extend(knowns.iter().zip(seeds).map(|(&row, seed)| match (seed, &rows[row].slot) {
+        (Known::Field(_), Slot::Model(Access::Real { get, .. })) => get(model),
+        _ => 0.0,
+    }));
 }
 
 /// One known of a forward pass: what gets the derivative part.
@@ -652,10 +700,14 @@ pub struct Pass<'a> {
     pub t: f64,
     pub x: &'a [f64],
     pub knowns: &'a [Known],
+    /// Per known: its value when a model field ([`field_values`]).
+    pub values: &'a [f64],
     pub unknowns: &'a [Unknown],
     /// Initialization Mode: the states are unknowns, computed by `initial_state` from the
     /// (seeded) parameters.
     pub initialization: bool,
+    /// The instance's version ([`KeptLift`]).
+    pub version: u64,
 }
 
 /// The number with value `value` and derivative part 1 in lane `lane` (0 elsewhere; no
@@ -674,57 +726,77 @@ fn seeded<const N: usize>(value: f64, lane: Option<usize>) -> DualSVec64<N> {
 
 /// The Jacobian of `model`'s equations at the pass's point: `out` (row-major, unknowns x
 /// knowns) gets the derivative of each unknown with respect to each known, by forward passes
-/// in vector dual numbers of up to [`LANES`] knowns each. The model is lifted, its seeded
-/// parameters' derived fields computed again, and only what the unknowns need is evaluated.
-/// `#[derive(Variables)]` points [`crate::model::Lifting`] here.
-pub fn forward<M: Model + Lift>(model: &M, pass: &Pass, out: &mut [f64]) -> Result<(), ModelError> {
+/// in vector dual numbers of up to [`LANES`] knowns each. The model's lift is kept in `kept`
+/// between calls (lifted afresh at initialization, whose `initial_state` may change it); each
+/// pass seeds the knowns, computes the seeded parameters' derived fields again, and evaluates
+/// only what the unknowns need. `#[derive(Variables)]` points [`crate::model::Lifting`] here.
+pub fn forward<M: Model + Lift>(model: &M, pass: &Pass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
+where
+    M::Over<DualSVec64<2>>: Send + 'static,
+    M::Over<DualSVec64<4>>: Send + 'static,
+    M::Over<DualSVec64<LANES>>: Send + 'static,
+{
     // Fewer knowns than LANES (a model with a few states: time and the states) take narrower
     // numbers: each lane costs its share of every operation whether seeded or not.
     match pass.knowns.len() {
-        0..=2 => forward_in::<M, 2>(model, pass, out),
-        3..=4 => forward_in::<M, 4>(model, pass, out),
-        _ => forward_in::<M, LANES>(model, pass, out),
+        0..=2 => forward_in::<M, 2>(model, pass, kept, out),
+        3..=4 => forward_in::<M, 4>(model, pass, kept, out),
+        _ => forward_in::<M, LANES>(model, pass, kept, out),
     }
 }
 
 /// [`forward`] in passes of `N` knowns each.
-fn forward_in<M: Model + Lift, const N: usize>(model: &M, pass: &Pass, out: &mut [f64]) -> Result<(), ModelError> {
+fn forward_in<M: Model + Lift, const N: usize>(model: &M, pass: &Pass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
+where
+    M::Over<DualSVec64<N>>: Send + 'static,
+{
+    let mut fresh;
+    let Lifted { model: lifted, x, dx } = if pass.initialization {
+        fresh = Lifted { model: model.lift(), x: Vec::new(), dx: Vec::new() };
+        &mut fresh
+    } else {
+        kept.get::<M, DualSVec64<N>>(model, pass.version)
+    };
     let width = pass.knowns.len();
     let wants = |f: fn(&Unknown) -> bool| pass.unknowns.iter().any(f);
     let (derivatives, outputs) = (wants(|u| matches!(u, Unknown::Derivative(_))), wants(|u| matches!(u, Unknown::Field(_))));
-    let mut x = Vec::with_capacity(pass.x.len());
-    let mut dx = vec![DualSVec64::from(0.0); pass.x.len()];
+    let fields = pass.knowns.iter().any(|k| matches!(k, Known::Field(_)));
+    dx.resize(pass.x.len(), DualSVec64::from(0.0));
     for (chunk, knowns) in pass.knowns.chunks(N).enumerate() {
-        let lane_of = |known: Known| knowns.iter().position(|k| *k == known);
-        let mut lifted: M::Over<DualSVec64<N>> = model.lift();
-        let mut fields = false;
+        if fields {
+            // Every field known gets its value, seeded in this pass's lanes and unseeded in
+            // the others' (a kept lift holds the last pass's seeds).
+            for (i, known) in pass.knowns.iter().enumerate() {
+                if let Known::Field(f) = *known {
+                    *M::field(lifted, f) = seeded(pass.values[i], (i / N == chunk).then_some(i % N));
+                }
+            }
+            M::refresh_over(lifted);
+        }
+        let mut t = DualSVec64::from(pass.t);
+        x.clear();
+        x.extend(pass.x.iter().map(|&v| DualSVec64::from(v)));
         for (l, known) in knowns.iter().enumerate() {
-            if let Known::Field(f) = *known {
-                let field = M::field(&mut lifted, f);
-                *field = seeded(field.re, Some(l));
-                fields = true;
+            match *known {
+                Known::Time => t = seeded(pass.t, Some(l)),
+                Known::State(k) => x[k] = seeded(pass.x[k], Some(l)),
+                _ => {}
             }
         }
-        if fields {
-            M::refresh_over(&mut lifted);
-        }
-        let t = seeded(pass.t, lane_of(Known::Time));
-        x.clear();
-        x.extend(pass.x.iter().enumerate().map(|(k, &v)| seeded(v, lane_of(Known::State(k)))));
         if pass.initialization {
-            lifted.initial_state(&mut x)?;
+            lifted.initial_state(x)?;
         }
         if derivatives {
-            lifted.derivatives(t, &x, &mut dx);
+            lifted.derivatives(t, x, dx);
         }
         if outputs {
-            lifted.outputs(t, &x);
+            lifted.outputs(t, x);
         }
         for (i, unknown) in pass.unknowns.iter().enumerate() {
             let eps = match *unknown {
                 Unknown::Derivative(k) => dx[k].eps.0.as_ref(),
                 Unknown::State(k) => x[k].eps.0.as_ref(),
-                Unknown::Field(f) => M::field(&mut lifted, f).eps.0.as_ref(),
+                Unknown::Field(f) => M::field(lifted, f).eps.0.as_ref(),
                 Unknown::Zero => None,
                 Unknown::Skip => continue,
             };

@@ -48,7 +48,13 @@ impl<V: Version, M: Model> Instance<V, M> {
     /// when the call is allowed and not traced: whether the values are all finite; `None`
     /// leaves the call to [`Instance::get_directional_derivative`], nothing written.
     #[inline(always)]
-    pub fn try_get_directional_derivative(&self, unknowns: &[u32], knowns: &[u32], seed: &[f64], sensitivity: &mut [f64]) -> Option<bool> {
+    pub fn try_get_directional_derivative(
+        &mut self,
+        unknowns: &[u32],
+        knowns: &[u32],
+        seed: &[f64],
+        sensitivity: &mut [f64],
+    ) -> Option<bool> {
         if !self.permits(Call::GetDirectionalDerivative) || self.core.logger.wants(LOG_CALLS) {
             return None;
         }

@@ -261,7 +261,7 @@ pub fn jacobian<M: Model>(model: &M, t: f64, x: &[f64], equations: Stage) -> Jac
     let mut values = Vec::new();
     field_values(&table.rows, &knowns, &seeds, model, &mut values);
     let initialization = equations == Stage::Initialization;
-    let pass = Pass { t, x, knowns: &seeds, values: &values, unknowns: &targets, initialization, version: 0 };
+    let pass = Pass { t, x, knowns: &seeds, values: &values, seeded: 0..seeds.len(), unknowns: &targets, initialization, version: 0 };
     let mut flat = vec![0.0; knowns.len() * unknowns.len()];
     (lifting.forward)(model, &pass, &mut KeptLift::default(), &mut flat).expect("the model's equations evaluate at this point");
     let values = flat.chunks(knowns.len().max(1)).take(unknowns.len()).map(<[f64]>::to_vec).collect();

@@ -178,11 +178,14 @@ impl Jacobians {
     #[inline(always)]
     fn column_times(&self, column: usize, seed: f64, sensitivity: &mut [f64]) -> bool {
         let width = self.knowns.len();
+        // The column's values from the start: a slice in registers, not the Vec read again
+        // after every store to `sensitivity` (which may alias it, for all the compiler knows).
+        let values = self.values.get(column..).unwrap_or_default();
         let mut finite = true;
         for (out, &place) in sensitivity.iter_mut().zip(&self.asked_at) {
             // Adding to 0.0 as the general sum does keeps its results to the bit (-0.0 too).
             let mut v = 0.0;
-            v += self.values[place as usize * width + column] * seed;
+            v += values[place as usize * width] * seed;
             finite &= v.is_finite();
             *out = v;
         }

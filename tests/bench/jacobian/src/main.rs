@@ -17,14 +17,14 @@
 //! source (check the model structure, allocate A, B, C and D, set the time and states): for
 //! our FMUs an evaluation is about 0.05 us, so those fixed costs weigh.
 //!
-//! Measured (this machine, shared, so +-0.1): at a new point 1.03-1.24, the target missed by
-//! every FMU (quarter_car 1.12 / 1.14 in FMI 2.0 / 3.0, the 2-state models 1.03-1.24); at the
-//! fixed point 0.72-0.83. Before the export toolkit kept the lifted model between Jacobians the
+//! Measured (this machine, shared, so +-0.1): at a new point 1.02-1.26, the target missed by
+//! every FMU (quarter_car 1.08-1.14 in FMI 2.0 and 3.0, the 2-state models 1.02-1.26); at the
+//! fixed point 0.70-0.85. Before the export toolkit kept the lifted model between Jacobians the
 //! new point measured 1.29-1.91 (quarter_car 1.69 / 1.91). In instructions through the FMU's C
-//! functions (callgrind, quarter_car FMI 2.0), a Jacobian at a new point is 3089 (4506 before;
-//! FMI 3.0 3143, 4583 before) plus setting the time and states (68), against 1002 for n + 1
+//! functions (callgrind, quarter_car FMI 2.0), a Jacobian at a new point is 3061 (4506 before;
+//! FMI 3.0 3105, 4583 before) plus setting the time and states (68), against 1002 for n + 1
 //! evaluations (set the states 43, get the derivatives 124): the 5 column calls' own checks
-//! and reads 1281 (about 256 each), the dual-number pass about 1400 (the right-hand side in
+//! and reads 1253 (about 250 each), the dual-number pass about 1400 (the right-hand side in
 //! 6-lane dual numbers, seeding, reading out), making the block current 307.
 //!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0

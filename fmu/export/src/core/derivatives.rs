@@ -131,8 +131,11 @@ pub(crate) struct Jacobians {
     state_columns: usize,
     seeds: Vec<Known>,
     unknowns: Vec<usize>,
-    derivative_block: Vec<Unknown>,
-    other_block: Vec<Unknown>,
+    derivative_block: Vec<(usize, Unknown)>,
+    other_block: Vec<(usize, Unknown)>,
+    /// What a pass for each evaluates (found once: a scan per pass cost 140 instructions).
+    derivative_evaluates: Evaluates,
+    other_evaluates: Evaluates,
     /// Per unknown place: a state derivative.
     is_derivative: Vec<bool>,
     known_at: Vec<u32>,
@@ -236,10 +239,12 @@ impl<M: Model> Core<M> {
             (Slot::Model(Access::Real { .. }), Some(field)) => Unknown::Field(field),
             _ => Unknown::Zero,
         };
-        let block = |derivatives: bool| -> Vec<Unknown> {
-            j.unknowns.iter().zip(&j.is_derivative).map(|(&row, &d)| if d == derivatives { target(row) } else { Unknown::Skip }).collect()
+        let block = |derivatives: bool| -> Vec<(usize, Unknown)> {
+            let rows = j.unknowns.iter().zip(&j.is_derivative).enumerate();
+            rows.filter(|(_, (_, &d))| d == derivatives).map(|(place, (&row, _))| (place, target(row))).collect()
         };
         (j.derivative_block, j.other_block) = (block(true), block(false));
+        (j.derivative_evaluates, j.other_evaluates) = (Evaluates::of(&j.derivative_block), Evaluates::of(&j.other_block));
         j.known_at = vec![ABSENT; rows.len()];
         j.unknown_at = vec![ABSENT; rows.len()];
         for (place, &row) in j.knowns.iter().enumerate() {
@@ -486,6 +491,7 @@ impl<M: Model> Core<M> {
                     values: &j.known_values,
                     seeded: group,
                     unknowns: if derivatives { &j.derivative_block } else { &j.other_block },
+                    evaluates: if derivatives { j.derivative_evaluates } else { j.other_evaluates },
                     initialization: mode == Mode::Initialization,
                     version: self.version,
                 };
@@ -729,12 +735,11 @@ pub enum Unknown {
     Field(usize),
     /// A variable the equations do not compute (derivative 0).
     Zero,
-    /// Not wanted now: its row of the result is left as it was.
-    Skip,
 }
 
 /// What one forward pass evaluates: the time and states it starts from, the knowns that get
-/// unit seeds (a Jacobian column each) and the unknowns to read.
+/// unit seeds (a Jacobian column each) and the unknowns to read, each with its row of the
+/// result (the other rows are left as they were).
 pub struct Pass<'a> {
     pub t: f64,
     pub x: &'a [f64],
@@ -743,12 +748,33 @@ pub struct Pass<'a> {
     pub values: &'a [f64],
     /// The knowns (their places) whose columns this pass computes; the others are unseeded.
     pub seeded: std::ops::Range<usize>,
-    pub unknowns: &'a [Unknown],
+    pub unknowns: &'a [(usize, Unknown)],
+    /// What the unknowns need evaluated ([`Evaluates::of`]).
+    pub evaluates: Evaluates,
     /// Initialization Mode: the states are unknowns, computed by `initial_state` from the
     /// (seeded) parameters.
     pub initialization: bool,
     /// The instance's version ([`KeptLift`]).
     pub version: u64,
+}
+
+/// The equations a pass evaluates for its unknowns.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Evaluates {
+    /// The right-hand side (some unknowns are state derivatives).
+    pub derivatives: bool,
+    /// The outputs (some unknowns are model fields).
+    pub outputs: bool,
+}
+
+impl Evaluates {
+    /// What `unknowns` need evaluated.
+    pub fn of(unknowns: &[(usize, Unknown)]) -> Evaluates {
+        Evaluates {
+            derivatives: unknowns.iter().any(|(_, u)| matches!(u, Unknown::Derivative(_))),
+            outputs: unknowns.iter().any(|(_, u)| matches!(u, Unknown::Field(_))),
+        }
+    }
 }
 
 /// The number with value `value` and derivative part 1 in lane `lane` (0 elsewhere; no
@@ -813,8 +839,7 @@ where
         kept.get::<M, DualSVec64<N>>(model, pass.version)
     };
     let width = pass.knowns.len();
-    let wants = |f: fn(&Unknown) -> bool| pass.unknowns.iter().any(f);
-    let (derivatives, outputs) = (wants(|u| matches!(u, Unknown::Derivative(_))), wants(|u| matches!(u, Unknown::Field(_))));
+    let Evaluates { derivatives, outputs } = pass.evaluates;
     dx.resize(pass.x.len(), DualSVec64::from(0.0));
     let first = pass.seeded.start;
     for (chunk, knowns) in pass.knowns[pass.seeded.clone()].chunks(N).enumerate() {
@@ -859,13 +884,12 @@ where
         if outputs {
             lifted.outputs(t, x);
         }
-        for (i, unknown) in pass.unknowns.iter().enumerate() {
-            let eps = match *unknown {
+        for &(i, unknown) in pass.unknowns {
+            let eps = match unknown {
                 Unknown::Derivative(k) => dx[k].eps.0.as_ref(),
                 Unknown::State(k) => x[k].eps.0.as_ref(),
                 Unknown::Field(f) => M::field(lifted, f).eps.0.as_ref(),
                 Unknown::Zero => None,
-                Unknown::Skip => continue,
             };
             let row = &mut out[i * width + lanes.start..][..knowns.len()];
             match eps {

@@ -705,8 +705,12 @@ impl KeptLift {
 /// `out`: what a pass seeds it with.
 pub fn field_values<M>(rows: &[Row<M>], knowns: &[usize], seeds: &[Known], model: &M, out: &mut Vec<f64>) {
     out.clear();
-    out.extend(knowns.iter().zip(seeds).map(|(&row, seed)| match (seed, &rows[row].slot) {
-        (Known::Field(_), Slot::Model(Access::Real { get, .. })) => get(model),
+    // The seed first: only a field's row is looked at.
+    out.extend(knowns.iter().zip(seeds).map(|(&row, seed)| match seed {
+        Known::Field(_) => match rows[row].slot {
+            Slot::Model(Access::Real { get, .. }) => get(model),
+            _ => 0.0,
+        },
         _ => 0.0,
     }));
 }

@@ -17,15 +17,17 @@
 //! source (check the model structure, allocate A, B, C and D, set the time and states): for
 //! our FMUs an evaluation is about 0.05 us, so those fixed costs weigh.
 //!
-//! Measured (this machine, shared, so +-0.1): at a new point 1.02-1.26, the target missed by
-//! every FMU (quarter_car 1.08-1.14 in FMI 2.0 and 3.0, the 2-state models 1.02-1.26); at the
-//! fixed point 0.70-0.85. Before the export toolkit kept the lifted model between Jacobians the
+//! Measured (this machine, shared, so +-0.1): at a new point 1.04-1.26, the target missed by
+//! every FMU (quarter_car 1.06-1.13 in FMI 2.0 and 3.0, the 2-state models 1.04-1.26); at the
+//! fixed point 0.74-0.86. Before the export toolkit kept the lifted model between Jacobians the
 //! new point measured 1.29-1.91 (quarter_car 1.69 / 1.91). In instructions through the FMU's C
-//! functions (callgrind, quarter_car FMI 2.0), a Jacobian at a new point is 3061 (4506 before;
-//! FMI 3.0 3105, 4583 before) plus setting the time and states (68), against 1002 for n + 1
+//! functions (callgrind, quarter_car FMI 2.0), a Jacobian at a new point is 2770 (4506 before;
+//! FMI 3.0 2815, 4583 before) plus setting the time and states (68), against 1002 for n + 1
 //! evaluations (set the states 43, get the derivatives 124): the 5 column calls' own checks
-//! and reads 1253 (about 250 each), the dual-number pass about 1400 (the right-hand side in
-//! 6-lane dual numbers, seeding, reading out), making the block current 307.
+//! and reads 1343 (about 270 each, more than the n + 1 evaluations alone), making the block
+//! current 1416 (the dual-number pass 1122, of which the model's own arithmetic about 470 in
+//! 6-lane dual numbers, the rest seeding, dispatch and reading out; checking and recording the
+//! point 293).
 //!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0
 //! FMUs of second_order, mass_spring_damper, quarter_car and pendulum in target/, built by

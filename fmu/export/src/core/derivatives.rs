@@ -354,12 +354,12 @@ impl<M: Model> Core<M> {
         }
     }
 
-    /// [`Core::directional_derivative`] when the full call would only read the cached blocks:
-    /// one known seeded, the unknowns of the last call, at the point and in the mode (not
-    /// Initialization Mode, whose reads may compute the initial state) the blocks they need
-    /// were computed for. That is how an importer asks for a Jacobian, column by column at one
-    /// point. `None` otherwise, nothing written: the full call checks, computes and explains.
-    /// Else whether the values are all finite.
+    /// [`Core::directional_derivative`] when the full call's checks are known to pass: one
+    /// known seeded, the unknowns of the last call (checked then), in the mode of the layout
+    /// (not Initialization Mode, whose reads may compute the initial state). That is how an
+    /// importer asks for a Jacobian, column by column; the first column of a block at a new
+    /// point computes the block. `None` otherwise, nothing written (also when computing fails):
+    /// the full call checks, computes and explains. Else whether the values are all finite.
     #[inline(always)]
     pub fn try_directional_derivative(
         &mut self,

@@ -43,8 +43,8 @@ impl<V: Version, M: Model> Instance<V, M> {
         self.core.directional_derivative(unknowns, knowns, seed, sensitivity, mode, V::name(call))
     }
 
-    /// The usual `GetDirectionalDerivative`, a column of the Jacobian the instance holds for
-    /// its point ([`Core::try_directional_derivative`](crate::core::Core::try_directional_derivative)),
+    /// The usual `GetDirectionalDerivative`, a column of the Jacobian of the instance's point
+    /// ([`Core::try_directional_derivative`](crate::core::Core::try_directional_derivative)),
     /// when the call is allowed and not traced: whether the values are all finite; `None`
     /// leaves the call to [`Instance::get_directional_derivative`], nothing written.
     #[inline(always)]

@@ -5,16 +5,17 @@ use std::ffi::{c_int, c_void};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use super::variables::{get_arguments, set_arguments};
-use super::{instance_mut, ok, slice, slice_mut, with_instance};
+use super::{instance_mut, ok, report_panic, slice, slice_mut, with_instance};
 use crate::core::Failure;
 use crate::frontend::{Call, Version};
 use crate::logging::Status;
 use crate::model::Model;
 
 /// `GetDirectionalDerivative`, each array with its length (as [`get_sensitivity`]). The usual
-/// call, a column of the Jacobian the instance holds for its point, is answered in place: an
-/// importer makes it once per state and input for every Jacobian. Anything else takes the
-/// general path (out of line), which checks the call again and explains a refusal.
+/// call, a column of the Jacobian of the instance's point with the last call's unknowns, is
+/// answered in place (the first at a new point computes the block): an importer makes it once
+/// per state and input for every Jacobian. Anything else takes the general path (out of line),
+/// which checks the call again and explains a refusal.
 #[inline(always)]
 pub unsafe fn get_directional_derivative<V: Version, M: Model>(
     c: *mut c_void,
@@ -29,9 +30,12 @@ pub unsafe fn get_directional_derivative<V: Version, M: Model>(
             let knowns = std::slice::from_raw_parts(knowns, n_knowns);
             let seed = std::slice::from_raw_parts(seed, n_seed);
             let out = std::slice::from_raw_parts_mut(sensitivity, n_sensitivity);
-            // No model code runs, but the guard stays: nothing unwinds into the importer.
-            if let Ok(Some(true)) = catch_unwind(AssertUnwindSafe(|| inst.try_get_directional_derivative(unknowns, knowns, seed, out))) {
-                return Status::Ok as c_int;
+            // The first column at a new point runs the model's equations: a panic there is
+            // reported as the general path reports it, not run again.
+            match catch_unwind(AssertUnwindSafe(|| inst.try_get_directional_derivative(unknowns, knowns, seed, out))) {
+                Ok(Some(true)) => return Status::Ok as c_int,
+                Ok(_) => {}
+                Err(payload) => return report_panic(inst, V::name(Call::GetDirectionalDerivative), payload),
             }
         }
     }
@@ -136,11 +140,16 @@ mod tests {
     /// u = 0.5) in Continuous-Time Mode at x = 1.5, through the C functions' generic bodies,
     /// its log lines collected.
     unsafe fn continuous() -> (*mut c_void, Arc<Mutex<Vec<String>>>) {
+        continuous_of::<Decay>(1.5)
+    }
+
+    /// [`continuous`] for model `M` at state `x`.
+    unsafe fn continuous_of<M: Model>(x: f64) -> (*mut c_void, Arc<Mutex<Vec<String>>>) {
         let log = Arc::new(Mutex::new(Vec::new()));
         let sink = log.clone();
         let logger = Logger::new(Some(Box::new(move |_, _, m: &str| sink.lock().expect("log lock").push(m.to_owned()))), false);
-        let token = crate::table::guid::<Decay>();
-        let c = instantiate::<Fmi3, Decay>(|| {
+        let token = crate::table::guid::<M>();
+        let c = instantiate::<Fmi3, M>(|| {
             Some(Request {
                 call: "fmi3InstantiateModelExchange",
                 logger,
@@ -151,11 +160,95 @@ mod tests {
             })
         });
         assert!(!c.is_null());
-        assert_eq!(simple::<Fmi3, Decay>(c, Call::EnterInitializationMode, |i| i.enter_initialization_mode_with(None, 0.0, None)), 0);
-        assert_eq!(simple::<Fmi3, Decay>(c, Call::ExitInitializationMode, |i| i.exit_initialization_mode()), 0);
-        assert_eq!(simple::<Fmi3, Decay>(c, Call::EnterContinuousTimeMode, |i| i.enter_continuous_time_mode()), 0);
-        assert_eq!(set_continuous_states::<Fmi3, Decay>(c, [1.5].as_ptr(), 1), 0);
+        assert_eq!(simple::<Fmi3, M>(c, Call::EnterInitializationMode, |i| i.enter_initialization_mode_with(None, 0.0, None)), 0);
+        assert_eq!(simple::<Fmi3, M>(c, Call::ExitInitializationMode, |i| i.exit_initialization_mode()), 0);
+        assert_eq!(simple::<Fmi3, M>(c, Call::EnterContinuousTimeMode, |i| i.enter_continuous_time_mode()), 0);
+        assert_eq!(set_continuous_states::<Fmi3, M>(c, [x].as_ptr(), 1), 0);
         (c, log)
+    }
+
+    /// How often `Fragile`'s equations panicked.
+    static PANICS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+    /// x' = -k x, whose equations panic beyond x = 10: a model bug only some states reach.
+    #[derive(Debug, Clone, serde::Serialize, serde::Deserialize, crate::Variables)]
+    #[variables(states = FragileState)]
+    struct Fragile<T = f64> {
+        /// Rate constant
+        #[parameter]
+        k: T,
+    }
+
+    #[derive(crate::StateVector)]
+    struct FragileState<T = f64> {
+        /// The state
+        x: T,
+    }
+
+    impl Default for Fragile {
+        fn default() -> Self {
+            Fragile { k: 1.0 }
+        }
+    }
+
+    impl<T: crate::Scalar> crate::model::Equations<T> for Fragile<T> {
+        fn initial_state(&mut self, x: &mut [T]) -> Result<(), crate::model::ModelError> {
+            FragileState { x: T::from(1.0) }.store(x);
+            Ok(())
+        }
+
+        fn derivatives(&self, _t: T, x: &[T], dx: &mut [T]) {
+            let FragileState { x } = FragileState::load(x);
+            if x.value() > 10.0 {
+                PANICS.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                panic!("model bug at x = {}", x.value());
+            }
+            FragileState { x: -self.k * x }.store(dx);
+        }
+    }
+
+    impl Model for Fragile {
+        const N_STATES: usize = 1;
+
+        fn info() -> crate::model::ModelInfo {
+            crate::model::ModelInfo {
+                identifier: "fragile",
+                description: "",
+                stop_time: 1.0,
+                tolerance: 1e-6,
+                output_interval: 0.1,
+                documentation: "",
+            }
+        }
+    }
+
+    /// The first column at a new point runs the model's equations on the in-place route: a
+    /// panic there is the call's fmi3Error with the general path's log line, the model run
+    /// once (not again on the general path).
+    #[test]
+    fn a_panic_computing_a_column_in_place_is_reported_once() {
+        unsafe {
+            let (c, log) = continuous_of::<Fragile>(1.0);
+            let table = Table::<Fragile>::new();
+            let vr = |name: &str| table.rows.iter().position(|r| r.name == name).unwrap() as u32;
+            let (der, x) = (vr("der(x)"), vr("x"));
+            let mut out = [f64::NAN];
+            let mut column = |c| {
+                let status = get_directional_derivative::<Fmi3, Fragile>(c, (&der, 1), (&x, 1), ([1.0].as_ptr(), 1), (out.as_mut_ptr(), 1));
+                (status, out[0])
+            };
+            assert_eq!(column(c), (0, -1.0), "the full path: d x'/dx = -k");
+            assert_eq!(set_continuous_states::<Fmi3, Fragile>(c, [20.0].as_ptr(), 1), 0);
+            assert_eq!(column(c).0, Status::Error as c_int, "the in-place route at a new point, which panics");
+            assert_eq!(PANICS.load(std::sync::atomic::Ordering::SeqCst), 1, "the model ran once");
+            let lines = log.lock().unwrap().clone();
+            assert!(
+                lines.len() == 1
+                    && lines[0].contains("fmi3GetDirectionalDerivative: internal error in the model code (model bug at x = 20)"),
+                "{lines:?}"
+            );
+            crate::frontend::ffi::free_instance::<Fmi3, Fragile>(c);
+        }
     }
 
     fn vr(name: &str) -> u32 {

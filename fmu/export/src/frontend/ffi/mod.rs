@@ -164,11 +164,7 @@ fn report_failure<V: Version, M: Model>(
 /// Logs a panic caught in the model code, puts the instance in the Error state, returns Error.
 #[cold]
 #[inline(never)]
-pub(super) fn report_panic<V: Version, M: Model>(
-    instance: &mut Instance<V, M>,
-    call: &'static str,
-    payload: Box<dyn std::any::Any + Send>,
-) -> c_int {
+fn report_panic<V: Version, M: Model>(instance: &mut Instance<V, M>, call: &'static str, payload: Box<dyn std::any::Any + Send>) -> c_int {
     instance.poison();
     let msg = format!("{call}: internal error in the model code ({}); the instance is now in the Error state", panic_message(&*payload));
     instance.logger().status(Status::Error, &msg);

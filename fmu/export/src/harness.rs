@@ -3,7 +3,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use crate::core::derivatives::{Known, Pass, Unknown};
+use crate::core::derivatives::{field_values, Evaluates, KeptLift, Known, Pass, Unknown};
 use crate::core::Failure;
 use crate::fmi2::state_machine::Interface;
 use crate::fmi2::Instance;
@@ -249,7 +249,7 @@ pub fn jacobian<M: Model>(model: &M, t: f64, x: &[f64], equations: Stage) -> Jac
             _ => unreachable!("knowns are time, states and real fields"),
         })
         .collect();
-    let targets: Vec<Unknown> = unknowns
+    let targets: Vec<(usize, Unknown)> = unknowns
         .iter()
         .map(|&i| match (&table.rows[i].slot, table.rows[i].field) {
             (Slot::Derivative(k), _) => Unknown::Derivative(*k),
@@ -257,10 +257,24 @@ pub fn jacobian<M: Model>(model: &M, t: f64, x: &[f64], equations: Stage) -> Jac
             (_, Some(field)) => Unknown::Field(field),
             _ => Unknown::Zero,
         })
+        .enumerate()
         .collect();
-    let pass = Pass { t, x, knowns: &seeds, unknowns: &targets, initialization: equations == Stage::Initialization };
+    let mut values = Vec::new();
+    field_values(&table.rows, &knowns, &seeds, model, &mut values);
+    let initialization = equations == Stage::Initialization;
+    let pass = Pass {
+        t,
+        x,
+        knowns: &seeds,
+        values: &values,
+        seeded: 0..seeds.len(),
+        unknowns: &targets,
+        evaluates: Evaluates::of(&targets),
+        initialization,
+        version: 0,
+    };
     let mut flat = vec![0.0; knowns.len() * unknowns.len()];
-    (lifting.forward)(model, &pass, &mut flat).expect("the model's equations evaluate at this point");
+    (lifting.forward)(model, &pass, &mut KeptLift::default(), &mut flat).expect("the model's equations evaluate at this point");
     let values = flat.chunks(knowns.len().max(1)).take(unknowns.len()).map(<[f64]>::to_vec).collect();
     let name = |i: &usize| table.rows[*i].name;
     Jacobian { unknowns: unknowns.iter().map(name).collect(), knowns: knowns.iter().map(name).collect(), values }

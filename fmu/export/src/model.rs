@@ -426,7 +426,7 @@ pub struct Lifting<M> {
     /// [`Lift::derived_current`].
     pub derived_current: fn(&M) -> bool,
     /// One forward pass in dual numbers ([`crate::core::derivatives::forward`]).
-    pub forward: fn(&M, &crate::core::derivatives::Pass, &mut [f64]) -> Result<(), ModelError>,
+    pub forward: fn(&M, &crate::core::derivatives::Pass, &mut crate::core::derivatives::KeptLift, &mut [f64]) -> Result<(), ModelError>,
     /// Output derivatives along the trajectory ([`crate::core::derivatives::trajectory`]).
     pub trajectory: fn(&M, &[f64], &mut crate::core::derivatives::Trajectory) -> Result<(), ModelError>,
 }

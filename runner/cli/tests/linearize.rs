@@ -3,7 +3,8 @@
 //! evaluates them), the pendulum's at any angle its analytic Jacobian, Reference VanDerPol.fmu's
 //! (FMI 2.0 and 3.0) the analytic Jacobian of the Van der Pol equation, from its directional
 //! derivatives and from differences alike; the quarter car's frequency response equals its
-//! closed-form |H(i w)| and the Ex. 4 sweep's steady state; bad input is refused by name.
+//! closed-form |H(i w)| and the Ex. 4 sweep's steady state; bad input is refused by name; states
+//! moved through the importer are linearized where they were moved.
 
 mod common;
 
@@ -430,4 +431,39 @@ fn a_closed_stdout_costs_no_file() {
     assert_eq!(names(&json, "states").len(), 5);
     assert!(std::fs::read_to_string(dir.path().join("quarter_car_bode.csv")).unwrap().starts_with("frequency_hz,omega_rad_s,"));
     assert!(std::fs::read_to_string(dir.path().join("q.svg")).unwrap().starts_with("<svg"));
+}
+
+/// The importer's `move_states`: the next linearization is at the moved states (a new point,
+/// as an implicit solver moves them), so the FMU's directional derivatives there agree with
+/// central differences there (both through the FMU; the differences err by about 1e-10
+/// relative, the tolerance is 1e-7) and differ from those at the start (the pendulum's
+/// d omega'/d theta is -g/L cos theta, which a radian moves by more than 0.1); a wrong number
+/// of values is refused by name.
+#[test]
+fn moved_states_are_linearized_where_they_were_moved() {
+    use fmi_importer::exchange::{JacobianSource, Ports};
+    for path in both("pendulum") {
+        let fmu = fmi_importer::Fmu::load_as(&path, Some(fmi_importer::Interface::ModelExchange)).unwrap();
+        let mut instance = fmu.instantiate("moved", false).unwrap();
+        instance.setup_experiment(None, 0.0, 1.0).unwrap();
+        instance.enter_initialization_mode().unwrap();
+        instance.exit_initialization_mode().unwrap();
+        let mut reader = fmi_importer::Reader::new(fmu.description.fmi_version, &[]).unwrap();
+        let mut jacobian = |instance: &mut fmi_importer::Instance, source| {
+            let ports = Ports { inputs: &[], input_values: &[], outputs: &[], reader: &mut reader };
+            instance.linearize(ports, source).unwrap()
+        };
+        let start = jacobian(&mut instance, JacobianSource::DirectionalDerivatives);
+        let moved: Vec<f64> = start.x.iter().map(|x| x + 1.0).collect();
+        instance.move_states(&moved).unwrap();
+        let exact = jacobian(&mut instance, JacobianSource::DirectionalDerivatives);
+        let differences = jacobian(&mut instance, JacobianSource::FiniteDifferences);
+        assert_eq!((exact.x.as_slice(), differences.x.as_slice()), (moved.as_slice(), moved.as_slice()), "{path:?}");
+        for (e, d) in exact.a.to_rows().iter().flatten().zip(differences.a.to_rows().iter().flatten()) {
+            assert!((e - d).abs() <= 1e-7 * (1.0 + e.abs()), "{path:?}: {:?} against differences {:?}", exact.a, differences.a);
+        }
+        assert!((exact.a[1][0] - start.a[1][0]).abs() > 0.1, "{path:?}: {:?} at the start, {:?} moved", start.a, exact.a);
+        let err = instance.move_states(&[1.0]).unwrap_err();
+        assert!(err.contains("1 state values for 2 continuous states"), "{err}");
+    }
 }

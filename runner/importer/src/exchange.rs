@@ -476,6 +476,19 @@ impl<C: Exchange> ModelExchange<C> {
         Ok(())
     }
 
+    /// Moves the states to `x` (one per continuous state) without calling the FMU: the next
+    /// linearization or step sets them, as an implicit solver moves them between Jacobians.
+    pub fn move_states(&mut self, x: &[f64]) -> Result<(), String> {
+        if x.len() != self.nx {
+            return Err(format!("{}: {} state values for {} continuous states", self.component.name(), x.len(), self.nx));
+        }
+        self.x.copy_from_slice(x);
+        if let Some(integrator) = self.integrator.as_mut() {
+            integrator.invalidate();
+        }
+        Ok(())
+    }
+
     /// Sets one variable.
     pub fn set(&mut self, variable: &Variable, value: &Value) -> Result<(), String> {
         self.component.set(variable, value)

@@ -728,6 +728,18 @@ impl Instance<'_> {
         }
     }
 
+    /// Moves a Model Exchange instance's states to `x` (see `ModelExchange::move_states`).
+    pub fn move_states(&mut self, x: &[f64]) -> Result<(), String> {
+        match self {
+            Instance::Fmi2Me(i) => i.move_states(x),
+            Instance::Fmi1Me(i) => i.move_states(x),
+            Instance::Fmi3Me(i) => i.move_states(x),
+            Instance::Fmi2Cs(_) | Instance::Fmi1Cs(_) | Instance::Fmi3Cs(_) => {
+                Err("a Co-Simulation FMU integrates its states itself: they cannot be moved".to_owned())
+            }
+        }
+    }
+
     /// The linearization at the instance's current time and states over `ports` (see
     /// [`exchange::Jacobians`]): a Model Exchange instance only.
     pub fn linearize(&mut self, ports: exchange::Ports, prefer: exchange::JacobianSource) -> Result<exchange::Jacobians, String> {

@@ -368,10 +368,8 @@ macro_rules! export_fmi2 {
                 seed: *const f64,
                 sensitivity: *mut f64,
             ) -> c_int {
-                let call = Call::GetDirectionalDerivative;
-                fr::get_sensitivity::<V, M>(
+                fr::get_directional_derivative::<V, M>(
                     c,
-                    call,
                     (unknowns, n_unknowns),
                     (knowns, n_knowns),
                     (seed, n_knowns),

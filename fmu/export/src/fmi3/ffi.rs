@@ -453,8 +453,7 @@ macro_rules! export_fmi3 {
                 sensitivity: *mut f64,
                 n_sensitivity: usize,
             ) -> c_int {
-                let call = Call::GetDirectionalDerivative;
-                fr::get_sensitivity::<V, M>(c, call, (unknowns, n_unknowns), (knowns, n_knowns), (seed, n_seed), (sensitivity, n_sensitivity))
+                fr::get_directional_derivative::<V, M>(c, (unknowns, n_unknowns), (knowns, n_knowns), (seed, n_seed), (sensitivity, n_sensitivity))
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi3GetAdjointDerivative(

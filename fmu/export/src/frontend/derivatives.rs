@@ -13,6 +13,7 @@
 use super::{Call, Instance, Interface, Version};
 use crate::core::derivatives::Mode;
 use crate::core::CallResult;
+use crate::logging::LOG_CALLS;
 use crate::model::Model;
 
 impl<V: Version, M: Model> Instance<V, M> {
@@ -40,6 +41,24 @@ impl<V: Version, M: Model> Instance<V, M> {
         self.check(call)?;
         let mode = self.derivative_mode();
         self.core.directional_derivative(unknowns, knowns, seed, sensitivity, mode, V::name(call))
+    }
+
+    /// The usual `GetDirectionalDerivative`, a column of the Jacobian of the instance's point
+    /// ([`Core::try_directional_derivative`](crate::core::Core::try_directional_derivative)),
+    /// when the call is allowed and not traced: whether the values are all finite; `None`
+    /// leaves the call to [`Instance::get_directional_derivative`], nothing written.
+    #[inline(always)]
+    pub fn try_get_directional_derivative(
+        &mut self,
+        unknowns: &[u32],
+        knowns: &[u32],
+        seed: &[f64],
+        sensitivity: &mut [f64],
+    ) -> Option<bool> {
+        if !self.permits(Call::GetDirectionalDerivative) || self.core.logger.wants(LOG_CALLS) {
+            return None;
+        }
+        self.core.try_directional_derivative(unknowns, knowns, seed, sensitivity, self.derivative_mode())
     }
 
     /// `fmi3GetAdjointDerivative`:

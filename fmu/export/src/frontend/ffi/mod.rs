@@ -22,7 +22,7 @@ mod variables;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-pub use derivatives::{get_output_derivatives, get_sensitivity, set_input_derivatives};
+pub use derivatives::{get_directional_derivative, get_output_derivatives, get_sensitivity, set_input_derivatives};
 pub use fmu_state::{
     deserialize_fmu_state, free_fmu_state, get_fmu_state, serialize_fmu_state, serialized_fmu_state_size, set_fmu_state, StateBox,
 };

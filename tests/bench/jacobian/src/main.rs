@@ -111,7 +111,7 @@ fn main() {
     } else {
         args
     };
-    println!("best of {ROUNDS} rounds of {BATCH} Jacobians, release build; the target is met at a new point\n");
+    println!("best of {ROUNDS} rounds of {BATCH} Jacobians, release build; the target is judged at a new point\n");
     println!("| FMU | n | new point: Jacobian (us) | one evaluation (us) | Jacobian / (n + 1) evaluations | at most 1 | fixed point (repeated call): Jacobian / (n + 1) evaluations |");
     println!("|---|---|---|---|---|---|---|");
     let mut missed = false;

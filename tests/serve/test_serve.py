@@ -99,10 +99,15 @@ def test_every_lab_model_in_the_browser(server, browser, tmp_path, model):
 
     # A short sweep of the same parameter: three points around its start (SI, as runner sweep).
     start = variables[name]["start"]
-    js(browser, f"""document.getElementById('sweep-param').value = '{name}';
+    # The parameter chosen as a user does (its change event sets the range and the unit).
+    js(browser, f"""const select = document.getElementById('sweep-param');
+        select.value = '{name}';
+        select.dispatchEvent(new Event('change'));
         document.getElementById('sweep-from').value = '{start!r}';
         document.getElementById('sweep-to').value = '{start * 1.1!r}';
         document.getElementById('sweep-step').value = '{start * 0.05!r}';""")
+    unit = variables[name].get("unit")
+    assert browser.find_element(By.ID, "sweep-unit").text == (f"({unit}, SI as in runner sweep)" if unit else "")
     browser.find_element(By.ID, "sweep-run").click()
     report = wait_for(lambda: js(browser, "return lab.sweep && lab.sweep.finished && lab.sweep"), 60, "the sweep")
     assert report["error"] is None and len(report["rows"]) == report["total"] >= 2, report

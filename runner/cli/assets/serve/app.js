@@ -268,6 +268,9 @@ function eventPlugin() {
           ctx.fillStyle = "#b5410f";
           ctx.setLineDash([5, 4]);
           ctx.font = `${11 * devicePixelRatio}px sans-serif`;
+          // uPlot leaves the alignment of its last axis label on the context.
+          ctx.textBaseline = "alphabetic";
+          const right = u.bbox.left + u.bbox.width;
           for (const e of events) {
             const x = u.valToPos(e.time, "x", true);
             if (x < u.bbox.left || x > u.bbox.left + u.bbox.width) continue;
@@ -275,7 +278,10 @@ function eventPlugin() {
             ctx.moveTo(x, u.bbox.top);
             ctx.lineTo(x, u.bbox.top + u.bbox.height);
             ctx.stroke();
-            ctx.fillText(e.text, x + 3, u.bbox.top + 12 * devicePixelRatio);
+            // Right of its line, or left of it where the text would leave the plot.
+            const fits = x + 3 + ctx.measureText(e.text).width <= right;
+            ctx.textAlign = fits ? "left" : "right";
+            ctx.fillText(e.text, fits ? x + 3 : x - 3, u.bbox.top + 12 * devicePixelRatio);
           }
           ctx.restore();
         },
@@ -285,6 +291,20 @@ function eventPlugin() {
 }
 
 const sync = typeof uPlot !== "undefined" ? uPlot.sync("time") : null;
+
+// Tick labels with as many decimals as the tick spacing needs: uPlot's own keep three, and a
+// sweep metric that changes in its fifth digit showed one label repeated down the axis.
+function tickLabels(u, splits, axis, space, increment) {
+  // The decimals of the spacing itself: 0.25 needs two, 1e-7 seven.
+  const [mantissa, exponent] = Number(increment.toPrecision(12)).toExponential().split("e");
+  const decimals = Math.min(15, Math.max(0, (mantissa.split(".")[1] || "").length - Number(exponent)));
+  return splits.map((v) => (v === null || v === undefined ? "" : String(Number(v.toFixed(decimals)))));
+}
+
+// Room for the longest tick label and the axis label beside it.
+function labelRoom(u, values) {
+  return 30 + 7 * Math.max(5, ...(values || []).map((v) => String(v).length));
+}
 
 function plotWidth() {
   return Math.max(320, $("results").clientWidth - 10);
@@ -307,7 +327,7 @@ function draw(result, changedAt) {
       cursor: { sync: { key: sync.key } },
       legend: { show: false },
       scales: { x: { time: false } },
-      axes: [{ label: k === names.length - 1 ? "time (s)" : "" }, { label: axisLabel(n), size: 70 }],
+      axes: [{ label: k === names.length - 1 ? "time (s)" : "", values: tickLabels }, { label: axisLabel(n), size: 70, values: tickLabels }],
       series: [{ label: "t" }, { label: n, stroke: "#343e58", width: 1.5 }],
       plugins: [eventPlugin()],
     }, [time, data[k]], $("plots")));
@@ -378,16 +398,22 @@ function drawPhase() {
   ctx.font = "11px sans-serif";
   ctx.strokeStyle = "#ccd3e0";
   ctx.fillStyle = "#333";
+  // Tick labels centred under their line, and right-aligned left of the plot, clear of the
+  // vertical axis label.
+  ctx.textAlign = "center";
   for (const t of ticks(x0, x1, 6)) {
     ctx.beginPath(); ctx.moveTo(px(t), T); ctx.lineTo(px(t), H - B); ctx.stroke();
-    ctx.fillText(Number(t.toPrecision(6)), px(t) - 12, H - B + 14);
+    ctx.fillText(Number(t.toPrecision(6)), px(t), H - B + 14);
   }
+  ctx.textAlign = "right";
   for (const t of ticks(y0, y1, 5)) {
     ctx.beginPath(); ctx.moveTo(L, py(t)); ctx.lineTo(W - R, py(t)); ctx.stroke();
-    ctx.fillText(Number(t.toPrecision(6)), 4, py(t) + 4);
+    ctx.fillText(Number(t.toPrecision(6)), L - 6, py(t) + 4);
   }
-  ctx.fillText(axisLabel(xn), W / 2 - 30, H - 6);
-  ctx.save(); ctx.translate(12, H / 2 + 30); ctx.rotate(-Math.PI / 2); ctx.fillText(axisLabel(yn), 0, 0); ctx.restore();
+  ctx.textAlign = "center";
+  ctx.fillText(axisLabel(xn), L + (W - L - R) / 2, H - 6);
+  ctx.save(); ctx.translate(12, T + (H - B - T) / 2); ctx.rotate(-Math.PI / 2); ctx.fillText(axisLabel(yn), 0, 0); ctx.restore();
+  ctx.textAlign = "left";
   ctx.strokeStyle = "#343e58";
   ctx.lineWidth = 1.5;
   ctx.beginPath();
@@ -535,9 +561,14 @@ function buildSweepPanel() {
   const setRange = (name) => {
     const v = variable(name);
     if (!v) return;
+    // Half to twice the start value, within the declared range. Not the whole declared range:
+    // a minimum of 0 is often a value the model refuses (a length, a mass).
     const start = v.start ?? 1;
-    $("sweep-from").value = fieldText(v.min ?? (start > 0 ? start / 2 : 0));
-    $("sweep-to").value = fieldText(v.max ?? (start > 0 ? 2 * start : 1));
+    const lo = start > 0 ? start / 2 : start < 0 ? 2 * start : 0;
+    const hi = start > 0 ? 2 * start : start < 0 ? start / 2 : 1;
+    const within = (x) => Math.min(v.max ?? Infinity, Math.max(v.min ?? -Infinity, x));
+    $("sweep-from").value = fieldText(within(lo));
+    $("sweep-to").value = fieldText(within(hi));
     $("sweep-step").value = fieldText((Number($("sweep-to").value) - Number($("sweep-from").value)) / 20);
     $("sweep-unit").textContent = v.unit ? `(${v.unit}, SI as in runner sweep)` : "";
   };
@@ -642,7 +673,14 @@ function drawSweep() {
         ctx.beginPath(); ctx.arc(x, y, 5 * devicePixelRatio, 0, 2 * Math.PI); ctx.fill();
         ctx.font = `${12 * devicePixelRatio}px sans-serif`;
         const text = `peak ${Number(lab.sweep.peak.y.toPrecision(5))} at ${name} = ${lab.sweep.peak.x}`;
-        ctx.fillText(text, Math.min(x + 8, u.bbox.left + u.bbox.width - ctx.measureText(text).width), y - 8);
+        // uPlot leaves the alignment of its last axis label on the context.
+        ctx.textAlign = "left";
+        ctx.textBaseline = "alphabetic";
+        const width = ctx.measureText(text).width;
+        const left = Math.max(u.bbox.left, Math.min(x + 8, u.bbox.left + u.bbox.width - width));
+        // Below the point when the point is at the top of the plot.
+        const top = y - 8 - 12 * devicePixelRatio < u.bbox.top ? y + 20 * devicePixelRatio : y - 8;
+        ctx.fillText(text, left, top);
         ctx.restore();
       }],
     },
@@ -651,7 +689,7 @@ function drawSweep() {
     width: plotWidth(),
     height: 260,
     scales: { x: { time: false } },
-    axes: [{ label: v && v.unit ? `${name} (${v.unit})` : name }, { label: metric, size: 70 }],
+    axes: [{ label: v && v.unit ? `${name} (${v.unit})` : name, values: tickLabels }, { label: metric, size: labelRoom, values: tickLabels }],
     series: [{ label: name }, { label: metric, stroke: "#343e58", width: 2, points: { show: true } }],
     plugins: [marker],
   }, [xs, ys], $("sweep-plot"));

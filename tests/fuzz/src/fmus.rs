@@ -318,21 +318,34 @@ fn fmu<M: Model>() -> Fmu {
     }
 }
 
-/// Every model of `models/` (the crates `runner build` exports), in a fixed order: a fuzz
-/// input names a model by its index here.
+/// Every model of `models/` (the crates `runner build` exports) that this build takes (its
+/// features: every one by default, five in the smoke build), in a fixed order: a fuzz input
+/// names a model by its index here.
 pub fn all() -> Vec<Fmu> {
-    vec![
-        fmu::<bumper::Bumper>(),
-        fmu::<crank_rocker::FourBar>(),
-        fmu::<crank_slider::CrankSlider>(),
-        fmu::<double_rocker::FourBar>(),
-        fmu::<inverted_crank_slider::InvertedCrankSlider>(),
-        fmu::<mass_spring_damper::MassSpringDamper>(),
-        fmu::<offset_crank_slider::OffsetCrankSlider>(),
-        fmu::<pendulum::Pendulum>(),
-        fmu::<quarter_car::QuarterCar>(),
-        fmu::<road::Road>(),
-        fmu::<second_order::SecondOrder>(),
-        fmu::<trebuchet::Trebuchet>(),
-    ]
+    let mut fmus = Vec::new();
+    #[cfg(feature = "bumper")]
+    fmus.push(fmu::<bumper::Bumper>());
+    #[cfg(feature = "crank_rocker")]
+    fmus.push(fmu::<crank_rocker::FourBar>());
+    #[cfg(feature = "crank_slider")]
+    fmus.push(fmu::<crank_slider::CrankSlider>());
+    #[cfg(feature = "double_rocker")]
+    fmus.push(fmu::<double_rocker::FourBar>());
+    #[cfg(feature = "inverted_crank_slider")]
+    fmus.push(fmu::<inverted_crank_slider::InvertedCrankSlider>());
+    #[cfg(feature = "mass_spring_damper")]
+    fmus.push(fmu::<mass_spring_damper::MassSpringDamper>());
+    #[cfg(feature = "offset_crank_slider")]
+    fmus.push(fmu::<offset_crank_slider::OffsetCrankSlider>());
+    #[cfg(feature = "pendulum")]
+    fmus.push(fmu::<pendulum::Pendulum>());
+    #[cfg(feature = "quarter_car")]
+    fmus.push(fmu::<quarter_car::QuarterCar>());
+    #[cfg(feature = "road")]
+    fmus.push(fmu::<road::Road>());
+    #[cfg(feature = "second_order")]
+    fmus.push(fmu::<second_order::SecondOrder>());
+    #[cfg(feature = "trebuchet")]
+    fmus.push(fmu::<trebuchet::Trebuchet>());
+    fmus
 }

@@ -117,26 +117,31 @@ impl<M> Stage<M> {
 
 /// The model with its driven inputs, as the solver's ODE system: each evaluation sets the
 /// inputs to their polynomials' values at its time first. The model is borrowed mutably for
-/// the step (a `RefCell`: the solver's calls take `&self`).
+/// the step; the solver's calls take `&self`, so it sits in an `UnsafeCell` (a `RefCell`'s
+/// borrow flag, checked and written at every stage, cost quarter_car 8 instructions a stage).
 pub(crate) struct Driven<'a, M> {
-    model: std::cell::RefCell<&'a mut M>,
+    model: std::cell::UnsafeCell<&'a mut M>,
     inputs: &'a [Stage<M>],
 }
 
 impl<'a, M: Model> Driven<'a, M> {
     pub fn new(model: &'a mut M, inputs: &'a [Stage<M>]) -> Driven<'a, M> {
-        Driven { model: std::cell::RefCell::new(model), inputs }
+        Driven { model: std::cell::UnsafeCell::new(model), inputs }
     }
 
-    /// The model with its inputs at `t`.
+    /// The model with its inputs at `t`, borrowed until the caller's evaluation ends.
     #[inline(always)]
-    fn at(&self, t: f64) -> std::cell::RefMut<'_, &'a mut M> {
-        let mut model = self.model.borrow_mut();
+    fn at(&self, t: f64) -> &M {
+        // SAFETY: the one reference to the model out of the cell at a time: `Driven` is not
+        // `Sync` (the cell), the mutable borrow ends with the setters below, and the shared one
+        // returned lives only through the `rhs` or `event_indicators` call that asked for it,
+        // which does not call back into this system.
+        let model: &mut M = unsafe { &mut **self.model.get() };
         let set = |model: &mut M, input: &Stage<M>| (input.set)(model, horner(input.anchor, &input.coefficients, t));
         match self.inputs {
             // The usual case, one driven input, without the loop's bookkeeping at every stage.
-            [input] => set(&mut model, input),
-            inputs => inputs.iter().for_each(|input| set(&mut model, input)),
+            [input] => set(model, input),
+            inputs => inputs.iter().for_each(|input| set(model, input)),
         }
         model
     }
@@ -149,15 +154,13 @@ impl<M: Model> OdeSystem for Driven<'_, M> {
     // Always inlined into the solver's stages, as the held model's (`System::rhs`).
     #[inline(always)]
     fn rhs(&self, t: f64, x: &[f64], dx: &mut [f64]) {
-        let model = self.at(t);
-        System::of(&**model).rhs(t, x, dx)
+        System::of(self.at(t)).rhs(t, x, dx)
     }
     fn n_event_indicators(&self) -> usize {
         M::N_EVENT_INDICATORS
     }
     fn event_indicators(&self, t: f64, x: &[f64], z: &mut [f64]) {
-        let model = self.at(t);
-        Model::event_indicators(&**model, t, x, z)
+        Model::event_indicators(self.at(t), t, x, z)
     }
 }
 

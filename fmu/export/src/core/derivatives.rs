@@ -1393,6 +1393,27 @@ pub(crate) mod tests {
         assert_eq!(core.trajectory.order, 2);
     }
 
+    /// An input's polynomial is found once for its orders in a row: the orders in any order,
+    /// or split over calls, give the polynomial of the full request (its output derivatives,
+    /// to the bit; u' = 0.25, u'' = 0.5, u''' = -1 as above).
+    #[test]
+    fn an_inputs_orders_in_any_order_or_calls_are_the_full_request() {
+        let rates = |calls: &[(&[i32], &[f64])]| {
+            let mut core = stepping();
+            let (x, y, u) = (vr(&core, "x"), vr(&core, "y"), vr(&core, "u"));
+            for (orders, values) in calls {
+                core.set_input_derivatives(&vec![u; orders.len()], orders, values, "test").unwrap();
+            }
+            let mut out = [0.0; 6];
+            core.output_derivatives(&[x, x, x, y, y, y], &[1, 2, 3, 1, 2, 3], &mut out, "test").unwrap();
+            out.map(f64::to_bits)
+        };
+        let full = rates(&[(&[1, 2, 3], &[0.25, 0.5, -1.0])]);
+        assert_eq!(rates(&[(&[3, 1, 2], &[-1.0, 0.25, 0.5])]), full);
+        assert_eq!(rates(&[(&[2], &[0.5]), (&[3, 1], &[-1.0, 0.25])]), full);
+        assert_ne!(rates(&[(&[1, 2], &[0.25, 0.5])]), full, "u''' reaches the output derivatives");
+    }
+
     /// A master sets the same inputs and orders at every step: checked once, but a value that
     /// is not finite is still refused by name, and a different request is checked afresh (a
     /// refused one is not kept: asked again, it is refused again).

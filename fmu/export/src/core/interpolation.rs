@@ -190,20 +190,19 @@ impl<M: Model> Core<M> {
         }
         let t = self.state.t;
         let (mut changed, mut zeroed) = (false, false);
+        // An input's orders come one after another (a master passes 1 to 3 of the same input):
+        // its polynomial is found, and moved to t, once for them.
+        let mut current: Option<(u32, usize)> = None;
         for ((&vr, &order), &value) in vrs.iter().zip(orders).zip(values) {
-            let row = vr as usize;
-            let drives = &mut self.state.drives;
-            let i = match drives.iter().position(|d| d.row == row) {
-                Some(i) => i,
-                None => {
-                    let Slot::Model(Access::Real { get, .. }) = self.table.rows[row].slot else { unreachable!("checked above") };
-                    drives.push(Drive { row, anchor: t, value: get(&self.state.model), derivatives: [0.0; MAX_ORDER] });
-                    drives.len() - 1
+            let i = match current {
+                Some((at, i)) if at == vr => i,
+                _ => {
+                    let i = self.drive_at(vr as usize, t);
+                    current = Some((vr, i));
+                    i
                 }
             };
-            let drive = &mut drives[i];
-            drive.shift_to(t);
-            let old = std::mem::replace(&mut drive.derivatives[order as usize - 1], value);
+            let old = std::mem::replace(&mut self.state.drives[i].derivatives[order as usize - 1], value);
             changed |= old.to_bits() != value.to_bits();
             zeroed |= value == 0.0;
         }
@@ -218,6 +217,23 @@ impl<M: Model> Core<M> {
             }
         }
         Ok(())
+    }
+
+    /// The place in `drives` of the polynomial of input `row` (a new one holding its value if
+    /// it has none), anchored at `t`.
+    #[inline]
+    fn drive_at(&mut self, row: usize, t: f64) -> usize {
+        let drives = &mut self.state.drives;
+        let i = match drives.iter().position(|d| d.row == row) {
+            Some(i) => i,
+            None => {
+                let Slot::Model(Access::Real { get, .. }) = self.table.rows[row].slot else { unreachable!("checked above") };
+                drives.push(Drive { row, anchor: t, value: get(&self.state.model), derivatives: [0.0; MAX_ORDER] });
+                drives.len() - 1
+            }
+        };
+        drives[i].shift_to(t);
+        i
     }
 
     /// Why `set_input_derivatives` refused input `vr`'s derivative of `order` = `value`.

@@ -527,8 +527,8 @@ impl<M: Model> Core<M> {
         let pass = &mut self.trajectory;
         (pass.t, pass.version) = (self.state.t, self.version);
         (lifting.trajectory)(&self.state.model, &self.state.x, pass).map_err(|e| Failure::error(format!("{function}: {e}")))?;
-        for ((value, d), &order) in values.iter_mut().zip(&pass.rates).zip(orders) {
-            *value = d[order as usize - 1];
+        for ((value, &at), &order) in values.iter_mut().zip(&pass.at).zip(orders) {
+            *value = pass.rates[at as usize][order as usize - 1];
         }
         if values.iter().all(|v| v.is_finite()) {
             Ok(())
@@ -540,10 +540,12 @@ impl<M: Model> Core<M> {
 
 impl Trajectory {
     /// Checks a request for the derivatives of orders `orders` of outputs `vrs` and makes
-    /// `outputs` the unknowns it reads; the request is kept (`vrs`, `orders`) when valid.
+    /// `outputs` the unknowns it reads, each once, and `at` their places per value; the
+    /// request is kept (`vrs`, `orders`) when valid.
     fn plan<M>(&mut self, rows: &[Row<M>], vrs: &[u32], orders: &[i32], function: &str) -> CallResult {
         self.request.forget();
         self.outputs.clear();
+        self.at.clear();
         for (&vr, &order) in vrs.iter().zip(orders) {
             let Some(row) = rows.get(vr as usize) else {
                 return Err(Failure::error(format!("{function}: value reference {vr} is not a variable of this FMU")));
@@ -560,12 +562,20 @@ impl Trajectory {
                     row.name
                 )));
             }
-            self.outputs.push(match (&row.slot, row.field) {
+            let unknown = match (&row.slot, row.field) {
                 _ if row.variability != Variability::Continuous => Unknown::Zero,
                 (Slot::Model(Access::State(k)), _) => Unknown::State(*k),
                 (Slot::Model(Access::Real { .. }), Some(field)) => Unknown::Field(field),
                 _ => Unknown::Zero,
-            });
+            };
+            let at = match self.outputs.iter().position(|&u| u == unknown) {
+                Some(at) => at,
+                None => {
+                    self.outputs.push(unknown);
+                    self.outputs.len() - 1
+                }
+            };
+            self.at.push(at as u32);
         }
         self.request.keep(vrs, orders);
         self.order = orders.iter().map(|&o| o as usize).max().unwrap_or(0);
@@ -589,8 +599,11 @@ pub struct Trajectory {
     /// The driven inputs: their model fields ([`crate::Lift::field`]), values and first
     /// [`MAX_ORDER`] time derivatives at `t` (the other inputs are held: derivatives 0).
     pub inputs: Vec<(usize, f64, Rates)>,
-    /// Per output: a state, a model field, or `Zero`.
+    /// The outputs of the request, each once (a master asks for several orders of one): a
+    /// state, a model field, or `Zero`.
     pub outputs: Vec<Unknown>,
+    /// Per value of the request: its output's place in `outputs` (and in `rates`).
+    at: Vec<u32>,
     /// The highest order asked for: the pass evaluates in dual numbers of that order (one
     /// pass of the right-hand side per order for the states' derivatives), and the rates
     /// above it are 0 (an importer that passes first derivatives only costs one pass, in
@@ -598,7 +611,7 @@ pub struct Trajectory {
     pub order: usize,
     /// The last valid request `outputs` was made for: value references and orders.
     request: super::Request,
-    /// The result, per output.
+    /// The result, per output of `outputs`.
     pub rates: Vec<Rates>,
     /// The model lifted into the dual numbers of the last pass (`M::Over<D>`, [`Taylor`])
     /// and the version it was lifted at. Between steps that set nothing, the parameters, held

@@ -192,19 +192,20 @@ impl<M: Model> Core<M> {
         let (mut changed, mut zeroed) = (false, false);
         // An input's orders come one after another (a master passes 1 to 3 of the same input):
         // its polynomial is found, and moved to t, once for them.
-        let mut current: Option<(u32, usize)> = None;
-        for ((&vr, &order), &value) in vrs.iter().zip(orders).zip(values) {
-            let i = match current {
-                Some((at, i)) if at == vr => i,
-                _ => {
-                    let i = self.drive_at(vr as usize, t);
-                    current = Some((vr, i));
-                    i
-                }
-            };
-            let old = std::mem::replace(&mut self.state.drives[i].derivatives[order as usize - 1], value);
-            changed |= old.to_bits() != value.to_bits();
-            zeroed |= value == 0.0;
+        let n = vrs.len().min(orders.len()).min(values.len());
+        let (vrs, orders, values) = (&vrs[..n], &orders[..n], &values[..n]);
+        let mut k = 0;
+        while k < n {
+            let vr = vrs[k];
+            let i = self.drive_at(vr as usize, t);
+            let derivatives = &mut self.state.drives[i].derivatives;
+            while k < n && vrs[k] == vr {
+                let (order, value) = (orders[k], values[k]);
+                let old = std::mem::replace(&mut derivatives[order as usize - 1], value);
+                changed |= old.to_bits() != value.to_bits();
+                zeroed |= value == 0.0;
+                k += 1;
+            }
         }
         // An input with no derivative left is held, as one that never had any.
         if zeroed {

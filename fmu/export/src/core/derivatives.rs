@@ -527,10 +527,12 @@ impl<M: Model> Core<M> {
         let pass = &mut self.trajectory;
         (pass.t, pass.version) = (self.state.t, self.version);
         (lifting.trajectory)(&self.state.model, &self.state.x, pass).map_err(|e| Failure::error(format!("{function}: {e}")))?;
+        let mut finite = true;
         for ((value, &at), &order) in values.iter_mut().zip(&pass.at).zip(orders) {
             *value = pass.rates[at as usize][order as usize - 1];
+            finite &= value.is_finite();
         }
-        if values.iter().all(|v| v.is_finite()) {
+        if finite {
             Ok(())
         } else {
             Err(self.not_differentiable(values, vrs, true, function))
@@ -1016,7 +1018,7 @@ pub(crate) mod tests {
 
     use super::Mode;
     use crate::core::{Core, Names, Phase};
-    use crate::logging::Logger;
+    use crate::logging::{Logger, Status};
     use crate::model::{Equations, EventOutcome, Model, ModelError, ModelInfo};
     use crate::{Scalar, StateVector, Variables};
 
@@ -1404,6 +1406,21 @@ pub(crate) mod tests {
         core.output_derivatives(&[y, x], &[2, 1], &mut out, "test").unwrap();
         assert_eq!(out, [128.5, -5.5]);
         assert_eq!(core.trajectory.order, 2);
+    }
+
+    /// An output derivative that overflows is refused by name, with the value and the time
+    /// (fmiError): at x = 1e200, x' = -k x + u = -2e200 is finite but y' = 2 x x' is -inf.
+    #[test]
+    fn a_non_finite_output_derivative_is_refused_by_name() {
+        let mut core = stepping();
+        let (x, y) = (vr(&core, "x"), vr(&core, "y"));
+        core.state.x[0] = 1e200;
+        let mut out = [0.0; 2];
+        let err = core.output_derivatives(&[x, y], &[1, 1], &mut out, "fmiTest").unwrap_err();
+        assert_eq!(err.status, Status::Error);
+        assert!(err.message.contains("fmiTest: the derivative of 'y' is -inf at t = 0 s"), "{}", err.message);
+        core.output_derivatives(&[x], &[1], &mut out[..1], "fmiTest").unwrap();
+        assert_eq!(out[0], -2e200);
     }
 
     /// An input's polynomial is found once for its orders in a row: the orders in any order,

@@ -527,10 +527,12 @@ impl<M: Model> Core<M> {
         let pass = &mut self.trajectory;
         (pass.t, pass.version) = (self.state.t, self.version);
         (lifting.trajectory)(&self.state.model, &self.state.x, pass).map_err(|e| Failure::error(format!("{function}: {e}")))?;
-        for ((value, d), &order) in values.iter_mut().zip(&pass.rates).zip(orders) {
-            *value = d[order as usize - 1];
+        let mut finite = true;
+        for ((value, &at), &order) in values.iter_mut().zip(&pass.at).zip(orders) {
+            *value = pass.rates[at as usize][order as usize - 1];
+            finite &= value.is_finite();
         }
-        if values.iter().all(|v| v.is_finite()) {
+        if finite {
             Ok(())
         } else {
             Err(self.not_differentiable(values, vrs, true, function))
@@ -540,10 +542,12 @@ impl<M: Model> Core<M> {
 
 impl Trajectory {
     /// Checks a request for the derivatives of orders `orders` of outputs `vrs` and makes
-    /// `outputs` the unknowns it reads; the request is kept (`vrs`, `orders`) when valid.
+    /// `outputs` the unknowns it reads, each once, and `at` their places per value; the
+    /// request is kept (`vrs`, `orders`) when valid.
     fn plan<M>(&mut self, rows: &[Row<M>], vrs: &[u32], orders: &[i32], function: &str) -> CallResult {
         self.request.forget();
         self.outputs.clear();
+        self.at.clear();
         for (&vr, &order) in vrs.iter().zip(orders) {
             let Some(row) = rows.get(vr as usize) else {
                 return Err(Failure::error(format!("{function}: value reference {vr} is not a variable of this FMU")));
@@ -560,12 +564,20 @@ impl Trajectory {
                     row.name
                 )));
             }
-            self.outputs.push(match (&row.slot, row.field) {
+            let unknown = match (&row.slot, row.field) {
                 _ if row.variability != Variability::Continuous => Unknown::Zero,
                 (Slot::Model(Access::State(k)), _) => Unknown::State(*k),
                 (Slot::Model(Access::Real { .. }), Some(field)) => Unknown::Field(field),
                 _ => Unknown::Zero,
-            });
+            };
+            let at = match self.outputs.iter().position(|&u| u == unknown) {
+                Some(at) => at,
+                None => {
+                    self.outputs.push(unknown);
+                    self.outputs.len() - 1
+                }
+            };
+            self.at.push(at as u32);
         }
         self.request.keep(vrs, orders);
         self.order = orders.iter().map(|&o| o as usize).max().unwrap_or(0);
@@ -589,8 +601,11 @@ pub struct Trajectory {
     /// The driven inputs: their model fields ([`crate::Lift::field`]), values and first
     /// [`MAX_ORDER`] time derivatives at `t` (the other inputs are held: derivatives 0).
     pub inputs: Vec<(usize, f64, Rates)>,
-    /// Per output: a state, a model field, or `Zero`.
+    /// The outputs of the request, each once (a master asks for several orders of one): a
+    /// state, a model field, or `Zero`.
     pub outputs: Vec<Unknown>,
+    /// Per value of the request: its output's place in `outputs` (and in `rates`).
+    at: Vec<u32>,
     /// The highest order asked for: the pass evaluates in dual numbers of that order (one
     /// pass of the right-hand side per order for the states' derivatives), and the rates
     /// above it are 0 (an importer that passes first derivatives only costs one pass, in
@@ -598,7 +613,7 @@ pub struct Trajectory {
     pub order: usize,
     /// The last valid request `outputs` was made for: value references and orders.
     request: super::Request,
-    /// The result, per output.
+    /// The result, per output of `outputs`.
     pub rates: Vec<Rates>,
     /// The model lifted into the dual numbers of the last pass (`M::Over<D>`, [`Taylor`])
     /// and the version it was lifted at. Between steps that set nothing, the parameters, held
@@ -1003,7 +1018,7 @@ pub(crate) mod tests {
 
     use super::Mode;
     use crate::core::{Core, Names, Phase};
-    use crate::logging::Logger;
+    use crate::logging::{Logger, Status};
     use crate::model::{Equations, EventOutcome, Model, ModelError, ModelInfo};
     use crate::{Scalar, StateVector, Variables};
 
@@ -1391,6 +1406,42 @@ pub(crate) mod tests {
         core.output_derivatives(&[y, x], &[2, 1], &mut out, "test").unwrap();
         assert_eq!(out, [128.5, -5.5]);
         assert_eq!(core.trajectory.order, 2);
+    }
+
+    /// An output derivative that overflows is refused by name, with the value and the time
+    /// (fmiError): at x = 1e200, x' = -k x + u = -2e200 is finite but y' = 2 x x' is -inf.
+    #[test]
+    fn a_non_finite_output_derivative_is_refused_by_name() {
+        let mut core = stepping();
+        let (x, y) = (vr(&core, "x"), vr(&core, "y"));
+        core.state.x[0] = 1e200;
+        let mut out = [0.0; 2];
+        let err = core.output_derivatives(&[x, y], &[1, 1], &mut out, "fmiTest").unwrap_err();
+        assert_eq!(err.status, Status::Error);
+        assert!(err.message.contains("fmiTest: the derivative of 'y' is -inf at t = 0 s"), "{}", err.message);
+        core.output_derivatives(&[x], &[1], &mut out[..1], "fmiTest").unwrap();
+        assert_eq!(out[0], -2e200);
+    }
+
+    /// An input's polynomial is found once for its orders in a row: the orders in any order,
+    /// or split over calls, give the polynomial of the full request (its output derivatives,
+    /// to the bit; u' = 0.25, u'' = 0.5, u''' = -1 as above).
+    #[test]
+    fn an_inputs_orders_in_any_order_or_calls_are_the_full_request() {
+        let rates = |calls: &[(&[i32], &[f64])]| {
+            let mut core = stepping();
+            let (x, y, u) = (vr(&core, "x"), vr(&core, "y"), vr(&core, "u"));
+            for (orders, values) in calls {
+                core.set_input_derivatives(&vec![u; orders.len()], orders, values, "test").unwrap();
+            }
+            let mut out = [0.0; 6];
+            core.output_derivatives(&[x, x, x, y, y, y], &[1, 2, 3, 1, 2, 3], &mut out, "test").unwrap();
+            out.map(f64::to_bits)
+        };
+        let full = rates(&[(&[1, 2, 3], &[0.25, 0.5, -1.0])]);
+        assert_eq!(rates(&[(&[3, 1, 2], &[-1.0, 0.25, 0.5])]), full);
+        assert_eq!(rates(&[(&[2], &[0.5]), (&[3, 1], &[-1.0, 0.25])]), full);
+        assert_ne!(rates(&[(&[1, 2], &[0.25, 0.5])]), full, "u''' reaches the output derivatives");
     }
 
     /// A master sets the same inputs and orders at every step: checked once, but a value that

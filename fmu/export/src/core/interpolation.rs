@@ -117,26 +117,31 @@ impl<M> Stage<M> {
 
 /// The model with its driven inputs, as the solver's ODE system: each evaluation sets the
 /// inputs to their polynomials' values at its time first. The model is borrowed mutably for
-/// the step (a `RefCell`: the solver's calls take `&self`).
+/// the step; the solver's calls take `&self`, so it sits in an `UnsafeCell` (a `RefCell`'s
+/// borrow flag, checked and written at every stage, cost quarter_car 8 instructions a stage).
 pub(crate) struct Driven<'a, M> {
-    model: std::cell::RefCell<&'a mut M>,
+    model: std::cell::UnsafeCell<&'a mut M>,
     inputs: &'a [Stage<M>],
 }
 
 impl<'a, M: Model> Driven<'a, M> {
     pub fn new(model: &'a mut M, inputs: &'a [Stage<M>]) -> Driven<'a, M> {
-        Driven { model: std::cell::RefCell::new(model), inputs }
+        Driven { model: std::cell::UnsafeCell::new(model), inputs }
     }
 
-    /// The model with its inputs at `t`.
+    /// The model with its inputs at `t`, borrowed until the caller's evaluation ends.
     #[inline(always)]
-    fn at(&self, t: f64) -> std::cell::RefMut<'_, &'a mut M> {
-        let mut model = self.model.borrow_mut();
+    fn at(&self, t: f64) -> &M {
+        // SAFETY: the one reference to the model out of the cell at a time: `Driven` is not
+        // `Sync` (the cell), the mutable borrow ends with the setters below, and the shared one
+        // returned lives only through the `rhs` or `event_indicators` call that asked for it,
+        // which does not call back into this system.
+        let model: &mut M = unsafe { &mut **self.model.get() };
         let set = |model: &mut M, input: &Stage<M>| (input.set)(model, horner(input.anchor, &input.coefficients, t));
         match self.inputs {
             // The usual case, one driven input, without the loop's bookkeeping at every stage.
-            [input] => set(&mut model, input),
-            inputs => inputs.iter().for_each(|input| set(&mut model, input)),
+            [input] => set(model, input),
+            inputs => inputs.iter().for_each(|input| set(model, input)),
         }
         model
     }
@@ -149,15 +154,13 @@ impl<M: Model> OdeSystem for Driven<'_, M> {
     // Always inlined into the solver's stages, as the held model's (`System::rhs`).
     #[inline(always)]
     fn rhs(&self, t: f64, x: &[f64], dx: &mut [f64]) {
-        let model = self.at(t);
-        System::of(&**model).rhs(t, x, dx)
+        System::of(self.at(t)).rhs(t, x, dx)
     }
     fn n_event_indicators(&self) -> usize {
         M::N_EVENT_INDICATORS
     }
     fn event_indicators(&self, t: f64, x: &[f64], z: &mut [f64]) {
-        let model = self.at(t);
-        Model::event_indicators(&**model, t, x, z)
+        Model::event_indicators(self.at(t), t, x, z)
     }
 }
 
@@ -187,22 +190,22 @@ impl<M: Model> Core<M> {
         }
         let t = self.state.t;
         let (mut changed, mut zeroed) = (false, false);
-        for ((&vr, &order), &value) in vrs.iter().zip(orders).zip(values) {
-            let row = vr as usize;
-            let drives = &mut self.state.drives;
-            let i = match drives.iter().position(|d| d.row == row) {
-                Some(i) => i,
-                None => {
-                    let Slot::Model(Access::Real { get, .. }) = self.table.rows[row].slot else { unreachable!("checked above") };
-                    drives.push(Drive { row, anchor: t, value: get(&self.state.model), derivatives: [0.0; MAX_ORDER] });
-                    drives.len() - 1
-                }
-            };
-            let drive = &mut drives[i];
-            drive.shift_to(t);
-            let old = std::mem::replace(&mut drive.derivatives[order as usize - 1], value);
-            changed |= old.to_bits() != value.to_bits();
-            zeroed |= value == 0.0;
+        // An input's orders come one after another (a master passes 1 to 3 of the same input):
+        // its polynomial is found, and moved to t, once for them.
+        let n = vrs.len().min(orders.len()).min(values.len());
+        let (vrs, orders, values) = (&vrs[..n], &orders[..n], &values[..n]);
+        let mut k = 0;
+        while k < n {
+            let vr = vrs[k];
+            let i = self.drive_at(vr as usize, t);
+            let derivatives = &mut self.state.drives[i].derivatives;
+            while k < n && vrs[k] == vr {
+                let (order, value) = (orders[k], values[k]);
+                let old = std::mem::replace(&mut derivatives[order as usize - 1], value);
+                changed |= old.to_bits() != value.to_bits();
+                zeroed |= value == 0.0;
+                k += 1;
+            }
         }
         // An input with no derivative left is held, as one that never had any.
         if zeroed {
@@ -215,6 +218,23 @@ impl<M: Model> Core<M> {
             }
         }
         Ok(())
+    }
+
+    /// The place in `drives` of the polynomial of input `row` (a new one holding its value if
+    /// it has none), anchored at `t`.
+    #[inline]
+    fn drive_at(&mut self, row: usize, t: f64) -> usize {
+        let drives = &mut self.state.drives;
+        let i = match drives.iter().position(|d| d.row == row) {
+            Some(i) => i,
+            None => {
+                let Slot::Model(Access::Real { get, .. }) = self.table.rows[row].slot else { unreachable!("checked above") };
+                drives.push(Drive { row, anchor: t, value: get(&self.state.model), derivatives: [0.0; MAX_ORDER] });
+                drives.len() - 1
+            }
+        };
+        drives[i].shift_to(t);
+        i
     }
 
     /// Why `set_input_derivatives` refused input `vr`'s derivative of `order` = `value`.

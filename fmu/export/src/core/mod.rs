@@ -45,10 +45,10 @@ impl Request {
     /// request is a few entries, and memcmp's two calls cost more than the comparison.
     #[inline]
     fn is(&self, vrs: &[u32], orders: &[i32]) -> bool {
+        // One pass over both.
         self.vrs.len() == vrs.len()
             && self.orders.len() == orders.len()
-            && self.vrs.iter().zip(vrs).all(|(a, b)| a == b)
-            && self.orders.iter().zip(orders).all(|(a, b)| a == b)
+            && self.vrs.iter().zip(&self.orders).zip(vrs.iter().zip(orders)).all(|((a, o), (b, p))| a == b && o == p)
     }
 
     /// Keeps `vrs` and `orders`, just checked.

@@ -31,7 +31,9 @@
 //!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0
 //! FMUs of second_order, mass_spring_damper, quarter_car and pendulum in target/, built by
-//! `runner build`).
+//! `runner build`). For a profiler: `jacobian_bench --one directional|differences FMU` takes one
+//! batch of Jacobians at new points by that source and prints nothing (under callgrind, the
+//! inclusive cost of `jacobian_bench::time` divided by the batch is the cost of one).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -79,10 +81,8 @@ fn time(instance: &mut fmi_importer::Instance, fmu: &Fmu, source: JacobianSource
     Ok(start.elapsed().as_secs_f64() / f64::from(BATCH))
 }
 
-/// The states' count and, per point (new, fixed), the Jacobian by directional derivatives and
-/// one evaluation, in seconds.
-fn measure(path: &Path) -> Result<(usize, [(f64, f64); 2]), String> {
-    let fmu = Fmu::load_as(path, Some(Interface::ModelExchange))?;
+/// An instance of `fmu` after initialization, and its states there.
+fn started(fmu: &Fmu) -> Result<(fmi_importer::Instance<'_>, Vec<f64>), String> {
     let mut instance = fmu.instantiate("bench", false)?;
     instance.setup_experiment(None, 0.0, 1.0)?;
     instance.enter_initialization_mode()?;
@@ -90,6 +90,14 @@ fn measure(path: &Path) -> Result<(usize, [(f64, f64); 2]), String> {
     let mut reader = Reader::new(fmu.description.fmi_version, &[])?;
     let ports = Ports { inputs: &[], input_values: &[], outputs: &[], reader: &mut reader };
     let x0 = instance.linearize(ports, JacobianSource::FiniteDifferences)?.x;
+    Ok((instance, x0))
+}
+
+/// The states' count and, per point (new, fixed), the Jacobian by directional derivatives and
+/// one evaluation, in seconds.
+fn measure(path: &Path) -> Result<(usize, [(f64, f64); 2]), String> {
+    let fmu = Fmu::load_as(path, Some(Interface::ModelExchange))?;
+    let (mut instance, x0) = started(&fmu)?;
     let n = x0.len();
     let mut best = [(f64::INFINITY, f64::INFINITY); 2];
     for _ in 0..ROUNDS {
@@ -103,9 +111,30 @@ fn measure(path: &Path) -> Result<(usize, [(f64, f64); 2]), String> {
     Ok((n, best))
 }
 
+/// `--one SOURCE FMU`: one batch at new points by `source`, for a profiler.
+fn one(source: &str, path: &Path) -> Result<(), String> {
+    let source = match source {
+        "directional" => JacobianSource::DirectionalDerivatives,
+        "differences" => JacobianSource::FiniteDifferences,
+        other => return Err(format!("--one {other}: give directional or differences")),
+    };
+    let fmu = Fmu::load_as(path, Some(Interface::ModelExchange))?;
+    let (mut instance, x0) = started(&fmu)?;
+    time(&mut instance, &fmu, source, Point::New, &x0).map(drop)
+}
+
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../..");
     let args: Vec<PathBuf> = std::env::args().skip(1).map(PathBuf::from).collect();
+    if let [flag, source, path] = args.as_slice() {
+        if flag.as_os_str() == "--one" {
+            if let Err(e) = one(&source.to_string_lossy(), path) {
+                eprintln!("{e}");
+                std::process::exit(2);
+            }
+            return;
+        }
+    }
     let fmus = if args.is_empty() {
         MODELS.iter().flat_map(|m| ["target/fmu", "target/fmu3"].map(|d| root.join(d).join(format!("{m}.fmu")))).collect()
     } else {

@@ -373,6 +373,9 @@ pub struct ModelExchange<C> {
     t: f64,
     x: Vec<f64>,
     next_event_time: Option<f64>,
+    /// A linearization's directional derivatives, column after column, kept for the next one
+    /// (an implicit solver's importer asks for a Jacobian again and again).
+    columns: Vec<f64>,
 }
 
 /// The integrator from `t` towards `target` on the FMU as a [`System`] of `N` states (0: any
@@ -423,6 +426,7 @@ impl<C: Exchange> ModelExchange<C> {
             t: 0.0,
             x: vec![0.0; nx],
             next_event_time: None,
+            columns: Vec::new(),
         }
     }
 

@@ -85,6 +85,13 @@ impl Matrix {
         }
     }
 
+    /// Sets every entry (row, column) to `f(row, column)`.
+    fn fill_with(&mut self, f: impl Fn(usize, usize) -> f64) {
+        for (r, row) in self.values.chunks_exact_mut(self.columns.max(1)).enumerate() {
+            row.iter_mut().enumerate().for_each(|(c, v)| *v = f(r, c));
+        }
+    }
+
     /// The rows as vectors.
     pub fn to_rows(&self) -> Vec<Vec<f64>> {
         (0..self.rows()).map(|i| self[i].to_vec()).collect()
@@ -225,17 +232,15 @@ impl<C: Exchange> ModelExchange<C> {
         columns.resize(height * (nx + nu), 0.0);
         let result = self.directional_calls(&unknowns, j.states.iter().chain(ports.inputs), &mut columns);
         if result.is_ok() {
-            // Column `c` of the unknowns is columns[c * height..][..height]: the derivatives'
-            // rows go to A (a state's column) or B (an input's), the outputs' to C or D.
-            for (c, column) in columns.chunks_exact(height.max(1)).take(nx + nu).enumerate() {
-                let (m_state, m_output, col) = if c < nx { (&mut j.a, &mut j.c, c) } else { (&mut j.b, &mut j.d, c - nx) };
-                let (derivative_rows, output_rows) = column.split_at(nx);
-                for (i, v) in derivative_rows.iter().enumerate() {
-                    m_state.values[i * m_state.columns + col] = *v;
-                }
-                for (&row, v) in computed.iter().zip(output_rows) {
-                    m_output[row][col] = *v;
-                }
+            // Column `c` of the unknowns is columns[c * height..][..height], the derivatives'
+            // rows then the computed outputs': A and C take the states' columns, B and D the
+            // inputs'. Each matrix filled row by row, as it is laid out.
+            let entry = |column: usize, row: usize| columns[column * height + row];
+            j.a.fill_with(|r, c| entry(c, r));
+            j.b.fill_with(|r, c| entry(nx + c, r));
+            for (k, &row) in computed.iter().enumerate() {
+                j.c[row].iter_mut().enumerate().for_each(|(c, v)| *v = entry(c, nx + k));
+                j.d[row].iter_mut().enumerate().for_each(|(c, v)| *v = entry(nx + c, nx + k));
             }
         }
         self.columns = columns;

@@ -17,17 +17,29 @@
 //! source (check the model structure, allocate A, B, C and D, set the time and states): for
 //! our FMUs an evaluation is about 0.05 us, so those fixed costs weigh.
 //!
-//! Measured (this machine, shared, so +-0.1): at a new point 1.04-1.26, the target missed by
-//! every FMU (quarter_car 1.06-1.13 in FMI 2.0 and 3.0, the 2-state models 1.04-1.26); at the
-//! fixed point 0.74-0.86. Before the export toolkit kept the lifted model between Jacobians the
-//! new point measured 1.29-1.91 (quarter_car 1.69 / 1.91). In instructions through the FMU's C
-//! functions (callgrind, quarter_car FMI 2.0), a Jacobian at a new point is 2770 (4506 before;
-//! FMI 3.0 2815, 4583 before) plus setting the time and states (68), against 1002 for n + 1
-//! evaluations (set the states 43, get the derivatives 124): the 5 column calls' own checks
-//! and reads 1343 (about 270 each, more than the n + 1 evaluations alone), making the block
-//! current 1416 (the dual-number pass 1122, of which the model's own arithmetic about 470 in
-//! 6-lane dual numbers, the rest seeding, dispatch and reading out; checking and recording the
-//! point 293).
+//! Measured 2026-12-06 (this machine, shared, load average about 3, so +-0.1; five runs): at a
+//! new point 0.71-1.10, the target missed: mass_spring_damper 0.99-1.10 (FMI 2.0 and 3.0, above 1
+//! in 4 of 5 runs), and single runs of second_order (1.10), quarter_car (1.02, 1.03) and
+//! pendulum (1.02) above 1; otherwise second_order 0.92-1.00, quarter_car 0.86-1.00, pendulum
+//! 0.71-0.98. At the fixed point 0.50-0.69. The same day before the importer's changes below:
+//! 1.15-1.51 (1.04-1.26 measured earlier; before the export toolkit kept the lifted model
+//! between Jacobians 1.29-1.91).
+//!
+//! In instructions per Jacobian at a new point, importer and FMU together (callgrind on
+//! `--one`, FMI 2.0): quarter_car 4893 (5652 before the importer kept its sensitivity buffer,
+//! allocated the matrices without calloc, inlined the call's wrapper and filled the matrices
+//! row by row; FMI 3.0 4924) against 4157 for n + 1 evaluations as counted here (six tenths of
+//! its central-difference Jacobian, 6928): 1.18; second_order 2751 against 2851 (0.96),
+//! mass_spring_damper 2773 against 2746 (1.01), pendulum 2878 against 3001 (0.96). Of those,
+//! about 1200 per Jacobian are the importer's fixed costs whatever the source (set the time and
+//! states, allocate and free the result, the loop here), which finite differences spread over
+//! 2 n evaluations. Inside the FMU's C functions (unchanged) quarter_car's Jacobian at a new
+//! point is 2795 (FMI 3.0 2810; 2770 and 2815 measured before with the same code) plus setting
+//! the time and states (68), against 1002 for n + 1 evaluations (set the states 43, get the
+//! derivatives 124): the 5 column calls' own checks and reads 1343 (about 270 each, more than
+//! the n + 1 evaluations alone), making the block current 1416 (the dual-number pass 1122, of
+//! which the model's own arithmetic about 470 in 6-lane dual numbers, the rest seeding,
+//! dispatch and reading out; checking and recording the point 293).
 //!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0
 //! FMUs of second_order, mass_spring_damper, quarter_car and pendulum in target/, built by

@@ -262,7 +262,7 @@ impl<C: Exchange> ModelExchange<C> {
             trace::enter(C::NAMES.get_directional_derivative.0, self.t);
             let status = self.component.directional_derivative(unknowns, &[known], &[1.0], out);
             self.component.check(call, status)?;
-            if !out.iter().fold(true, |ok, v| ok & v.is_finite()) {
+            if !out.iter().all(|v| v.is_finite()) {
                 let k = out.iter().position(|v| !v.is_finite()).unwrap_or_default();
                 return Err(format!(
                     "{}: {call} of value reference {} with respect to {known} at t = {} returned {}",

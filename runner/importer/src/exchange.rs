@@ -879,7 +879,8 @@ impl<C: Exchange> ModelExchange<C> {
     /// through the integrator's view of the FMU, as the runner's implicit methods take one (n
     /// directional derivatives with unit seeds, or with `directional` false n + 1 derivative
     /// evaluations), into `jacobian` (n x n, row-major), with `work` (3 n values) as scratch.
-    /// The FMU is left at the last point evaluated; `move_states` puts it back.
+    /// The FMU is left at the last point evaluated: the next step or linearization sets the
+    /// instance's own time and states again, as they always do.
     #[doc(hidden)]
     pub fn bench_solver_jacobian(&mut self, x: &[f64], directional: bool, jacobian: &mut [f64], work: &mut [f64]) -> Result<(), String> {
         let name = self.component.name();

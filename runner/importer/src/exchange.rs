@@ -186,8 +186,21 @@ struct Trouble {
     message: String,
 }
 
+/// What the implicit methods' Jacobian reuses from one `directional_derivative` call to the
+/// next, kept by the [`ModelExchange`] and lent to each [`System`] so that no call allocates: the
+/// knowns and seed of a group of columns, and the states the FMU holds from the last call.
+#[derive(Debug, Default)]
+struct JacobianScratch {
+    knowns: Vec<u32>,
+    seed: Vec<f64>,
+    /// The states set for the last directional derivative (valid while the System's
+    /// `jacobian_point` says so).
+    x: Vec<f64>,
+}
+
 /// The FMU seen as the integrator's ODE system: every right-hand side sets the time (when it
 /// changed) and the states and asks for the derivatives; every indicator evaluation likewise.
+/// The columns of one Jacobian by directional derivatives set them once.
 /// A failing call cannot return an error through `OdeSystem`: it records the trouble and
 /// returns NaN, on which the integrator stops (an Error or Fatal poisons every later call, so
 /// the FMU is not called again).
@@ -212,12 +225,39 @@ struct System<'s, C, const N: usize> {
     poisoned: RefCell<Option<Trouble>>,
     /// The last Discard or non-finite derivative (the integrator may retry a smaller step).
     last_discard: RefCell<Option<Trouble>>,
+    /// The seed buffers, and the states of the last directional derivative.
+    scratch: RefCell<&'s mut JacobianScratch>,
+    /// The FMU holds the time `time_set` and the states `scratch.x` of the last directional
+    /// derivative, and nothing has been called since but directional derivatives: the next
+    /// column of the same Jacobian need not set them again. Cleared by every `place` and every
+    /// trouble.
+    jacobian_point: Cell<bool>,
 }
 
-impl<C: Exchange, const N: usize> System<'_, C, N> {
+impl<'s, C: Exchange, const N: usize> System<'s, C, N> {
+    /// The FMU's `nx` states and `nz` event indicators as a system, with the ModelStructure's
+    /// states when they are as many.
+    fn new(calls: &'s C, (nx, nz): (usize, usize), structure: Option<&'s StateStructure>, scratch: &'s mut JacobianScratch) -> Self {
+        let structure = structure.filter(|s| s.states.len() == nx);
+        System {
+            calls,
+            nx,
+            nz,
+            structure,
+            directional: structure.is_some() && calls.provides_directional_derivative(),
+            time_set: Cell::new(f64::NAN),
+            stopped: Cell::new(false),
+            poisoned: RefCell::new(None),
+            last_discard: RefCell::new(None),
+            scratch: RefCell::new(scratch),
+            jacobian_point: Cell::new(false),
+        }
+    }
+
     /// Sets time and states for an evaluation at (t, x); false once poisoned or on failure.
     #[inline(always)]
     fn place(&self, t: f64, x: &[f64]) -> bool {
+        self.jacobian_point.set(false);
         if self.stopped.get() {
             return false;
         }
@@ -247,6 +287,7 @@ impl<C: Exchange, const N: usize> System<'_, C, N> {
     #[cold]
     #[inline(never)]
     fn trouble(&self, call: &str, t: f64, status: c_int, discard_stops: bool) {
+        self.jacobian_point.set(false);
         let reason = self.calls.log().take_reason().unwrap_or_else(|| crate::logging::NO_REASON.to_owned());
         let trouble = Trouble { status, message: format!("{call} at t = {t} returned {}: {reason}", C::status_name(status)) };
         if status == DISCARD && !discard_stops {
@@ -318,19 +359,47 @@ impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
 
     /// One `GetDirectionalDerivative` of every derivative with respect to the states seeded
     /// in `v` (a group of Jacobian columns); a failure is recorded as for the derivatives.
+    /// The time and states are set unless the FMU still holds them from the previous call (the
+    /// previous column of the same Jacobian), bit for bit.
     fn directional_derivative(&self, t: f64, x: &[f64], v: &[f64], out: &mut [f64]) {
         let Some(structure) = self.structure.filter(|_| self.directional) else {
             out.fill(f64::NAN);
             return;
         };
-        if !self.place(t, x) {
-            out.fill(f64::NAN);
-            return;
+        let mut scratch = self.scratch.borrow_mut();
+        let scratch = &mut **scratch;
+        let nx = self.dim();
+        let held = self.jacobian_point.get()
+            && t == self.time_set.get()
+            && scratch.x.len() == nx
+            && scratch.x.iter().zip(&x[..nx]).all(|(held, x)| held.to_bits() == x.to_bits());
+        if !held {
+            if !self.place(t, x) {
+                out.fill(f64::NAN);
+                return;
+            }
+            scratch.x.clear();
+            scratch.x.extend_from_slice(&x[..nx]);
+            self.jacobian_point.set(true);
         }
-        let (knowns, seed): (Vec<u32>, Vec<f64>) =
-            structure.states.iter().zip(v).filter(|(_, s)| **s != 0.0).map(|(vr, s)| (*vr, *s)).unzip();
+        // The seeded states: a unit seed (one column, the implicit methods' usual call) as
+        // slices of the state and of `v`, a group through the kept buffers.
+        let v = &v[..v.len().min(structure.states.len())];
+        let first = v.iter().position(|s| *s != 0.0);
+        let (knowns, seed): (&[u32], &[f64]) = match first {
+            Some(j) if v[j + 1..].iter().all(|s| *s == 0.0) => (&structure.states[j..=j], &v[j..=j]),
+            _ => {
+                scratch.knowns.clear();
+                scratch.seed.clear();
+                for (vr, s) in structure.states.iter().zip(v).filter(|(_, s)| **s != 0.0) {
+                    scratch.knowns.push(*vr);
+                    scratch.seed.push(*s);
+                }
+                (&scratch.knowns, &scratch.seed)
+            }
+        };
         trace::enter(C::NAMES.get_directional_derivative.0, t);
-        let status = self.calls.directional_derivative(&structure.derivatives, &knowns, &seed, out);
+        let status = self.calls.directional_derivative(&structure.derivatives, knowns, seed, out);
         if !accepted(status) {
             self.trouble(C::NAMES.get_directional_derivative.1, t, status, false);
             out.fill(f64::NAN);
@@ -373,6 +442,69 @@ pub struct ModelExchange<C> {
     t: f64,
     x: Vec<f64>,
     next_event_time: Option<f64>,
+    /// A linearization's directional derivatives, column after column, kept for the next one
+    /// (an implicit solver's importer asks for a Jacobian again and again).
+    columns: Vec<f64>,
+    /// What the runner's implicit methods' Jacobians reuse between calls, lent to each
+    /// [`System`].
+    jacobian_scratch: JacobianScratch,
+}
+
+/// `f::<C, N>(args)` with `N` the number of states `nx`: the sizes of the lab's models and of
+/// most small FMUs get a System (and solver) with loops of constant length, any other size the
+/// general one (`N` = 0).
+macro_rules! by_state_count {
+    ($nx:expr, $f:ident::<$c:ty>($($arg:expr),* $(,)?)) => {
+        match $nx {
+            1 => $f::<$c, 1>($($arg),*),
+            2 => $f::<$c, 2>($($arg),*),
+            3 => $f::<$c, 3>($($arg),*),
+            4 => $f::<$c, 4>($($arg),*),
+            5 => $f::<$c, 5>($($arg),*),
+            6 => $f::<$c, 6>($($arg),*),
+            _ => $f::<$c, 0>($($arg),*),
+        }
+    };
+}
+
+/// One Jacobian df/dx at (`t`, `x`) through a [`System`] of `N` states as the runner's implicit
+/// methods take it without a sparsity pattern, into `jacobian` (row-major): n
+/// `directional_derivative` calls with unit seeds, or, with `directional` false, n + 1 `rhs`
+/// calls (at x, then one forward difference per state). `work` holds 3 n values. What went
+/// wrong in the FMU's calls, if anything.
+fn solver_jacobian<C: Exchange, const N: usize>(
+    calls: &C,
+    (nz, structure, scratch): (usize, Option<&StateStructure>, &mut JacobianScratch),
+    (t, x): (f64, &[f64]),
+    directional: bool,
+    (jacobian, work): (&mut [f64], &mut [f64]),
+) -> Option<Trouble> {
+    let n = x.len();
+    let system = System::<C, N>::new(calls, (n, nz), structure, scratch);
+    let (f, rest) = work.split_at_mut(n);
+    let (xs, fs) = rest.split_at_mut(n);
+    if directional {
+        for j in 0..n {
+            xs.fill(0.0);
+            xs[j] = 1.0;
+            system.directional_derivative(t, x, xs, fs);
+            for i in 0..n {
+                jacobian[i * n + j] = fs[i];
+            }
+        }
+    } else {
+        system.rhs(t, x, f);
+        for j in 0..n {
+            xs.copy_from_slice(x);
+            xs[j] = x[j] + f64::EPSILON.sqrt() * x[j].abs().max(1.0);
+            let increment = xs[j] - x[j];
+            system.rhs(t, xs, fs);
+            for i in 0..n {
+                jacobian[i * n + j] = (fs[i] - f[i]) / increment;
+            }
+        }
+    }
+    system.poisoned.into_inner().or(system.last_discard.into_inner())
 }
 
 /// The integrator from `t` towards `target` on the FMU as a [`System`] of `N` states (0: any
@@ -380,23 +512,12 @@ pub struct ModelExchange<C> {
 fn integrate<C: Exchange, const N: usize>(
     integrator: &mut Integrator,
     calls: &C,
-    (nz, structure): (usize, Option<&StateStructure>),
+    (nz, structure, scratch): (usize, Option<&StateStructure>, &mut JacobianScratch),
     t: &mut f64,
     x: &mut [f64],
     target: f64,
 ) -> (Result<Advance, solvers::SolverError>, Option<Trouble>, Option<Trouble>) {
-    let structure = structure.filter(|s| s.states.len() == x.len());
-    let system = System::<C, N> {
-        calls,
-        nx: x.len(),
-        nz,
-        structure,
-        directional: structure.is_some() && calls.provides_directional_derivative(),
-        time_set: Cell::new(f64::NAN),
-        stopped: Cell::new(false),
-        poisoned: RefCell::new(None),
-        last_discard: RefCell::new(None),
-    };
+    let system = System::<C, N>::new(calls, (x.len(), nz), structure, scratch);
     let outcome = integrator.advance(&system, t, x, target);
     (outcome, system.poisoned.into_inner(), system.last_discard.into_inner())
 }
@@ -423,6 +544,8 @@ impl<C: Exchange> ModelExchange<C> {
             t: 0.0,
             x: vec![0.0; nx],
             next_event_time: None,
+            columns: Vec::new(),
+            jacobian_scratch: JacobianScratch::default(),
         }
     }
 
@@ -731,18 +854,8 @@ impl<C: Exchange> ModelExchange<C> {
         let t0 = self.t;
         let (outcome, poisoned, discard) = if target > self.t {
             let (calls, t, x) = (&self.component, &mut self.t, &mut self.x[..]);
-            let layout = (self.nz, self.structure.as_ref());
-            // The sizes of the lab's models and of most small FMUs get a solver with loops of
-            // constant length; any other size the general one.
-            match self.nx {
-                1 => integrate::<C, 1>(integrator, calls, layout, t, x, target),
-                2 => integrate::<C, 2>(integrator, calls, layout, t, x, target),
-                3 => integrate::<C, 3>(integrator, calls, layout, t, x, target),
-                4 => integrate::<C, 4>(integrator, calls, layout, t, x, target),
-                5 => integrate::<C, 5>(integrator, calls, layout, t, x, target),
-                6 => integrate::<C, 6>(integrator, calls, layout, t, x, target),
-                _ => integrate::<C, 0>(integrator, calls, layout, t, x, target),
-            }
+            let layout = (self.nz, self.structure.as_ref(), &mut self.jacobian_scratch);
+            by_state_count!(self.nx, integrate::<C>(integrator, calls, layout, t, x, target))
         } else {
             (Ok(Advance::Reached), None, None)
         };
@@ -762,6 +875,35 @@ impl<C: Exchange> ModelExchange<C> {
         Ok(outcome)
     }
 
+    /// For tests/bench/jacobian only: one Jacobian df/dx at the current time and states `x`
+    /// through the integrator's view of the FMU, as the runner's implicit methods take one (n
+    /// directional derivatives with unit seeds, or with `directional` false n + 1 derivative
+    /// evaluations), into `jacobian` (n x n, row-major), with `work` (3 n values) as scratch.
+    /// The FMU is left at the last point evaluated: the next step or linearization sets the
+    /// instance's own time and states again, as they always do.
+    #[doc(hidden)]
+    pub fn bench_solver_jacobian(&mut self, x: &[f64], directional: bool, jacobian: &mut [f64], work: &mut [f64]) -> Result<(), String> {
+        let name = self.component.name();
+        let n = self.nx;
+        if self.integrator.is_none() {
+            return Err(format!("{name}: the run was not initialized"));
+        }
+        if x.len() != n || jacobian.len() != n * n || work.len() != 3 * n {
+            return Err(format!("{name}: {} states, a {} matrix and {} work values for {n} states", x.len(), jacobian.len(), work.len()));
+        }
+        if directional
+            && !(self.component.provides_directional_derivative() && self.structure.as_ref().is_some_and(|s| s.states.len() == n))
+        {
+            return Err(format!("{name}: no directional derivatives of the states' derivatives"));
+        }
+        let layout = (self.nz, self.structure.as_ref(), &mut self.jacobian_scratch);
+        let trouble = by_state_count!(n, solver_jacobian::<C>(&self.component, layout, (self.t, x), directional, (jacobian, work)));
+        match trouble {
+            Some(trouble) => Err(format!("{name}: {}", trouble.message)),
+            None => Ok(()),
+        }
+    }
+
     /// `CompletedIntegratorStep`, where the FMU needs it: (enterEventMode, terminateSimulation).
     fn completed_step(&mut self) -> Result<(bool, bool), String> {
         if !self.component.needs_completed_integrator_step() {
@@ -771,5 +913,198 @@ impl<C: Exchange> ModelExchange<C> {
         let (status, enter, terminate) = self.component.completed_integrator_step();
         self.component.check(C::NAMES.completed_integrator_step.1, status)?;
         Ok((enter, terminate))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A model f(x) = (x0 x1, x0^2), z = x0, with its Jacobian ((x1, x0), (2 x0, 0)) exact: the
+    /// FMU answers from the time and states it was last given, and counts the calls that set
+    /// them.
+    #[derive(Default)]
+    struct Quadratic {
+        t: Cell<f64>,
+        x: Cell<[f64; 2]>,
+        times_set: Cell<usize>,
+        states_set: Cell<usize>,
+        /// The knowns of the last directional derivative.
+        knowns: RefCell<Vec<u32>>,
+        /// Directional derivatives return Discard.
+        refuse: Cell<bool>,
+        log: LogContext,
+    }
+
+    /// The states' and derivatives' value references.
+    const STATES: [u32; 2] = [10, 11];
+    const DERIVATIVES: [u32; 2] = [20, 21];
+
+    impl Exchange for Quadratic {
+        const NAMES: Names = <crate::fmi2::Exchange2<'static> as Exchange>::NAMES;
+
+        fn status_name(_: c_int) -> &'static str {
+            "status"
+        }
+        fn name(&self) -> &str {
+            "quadratic"
+        }
+        fn log(&self) -> &LogContext {
+            &self.log
+        }
+        fn check(&mut self, _: &str, _: c_int) -> Result<(), String> {
+            unreachable!("the System reports its trouble itself")
+        }
+        fn note_status(&mut self, _: c_int) {}
+        fn set_time(&self, t: f64) -> c_int {
+            self.t.set(t);
+            self.times_set.set(self.times_set.get() + 1);
+            OK
+        }
+        fn set_continuous_states(&self, x: &[f64]) -> c_int {
+            self.x.set([x[0], x[1]]);
+            self.states_set.set(self.states_set.get() + 1);
+            OK
+        }
+        fn get_derivatives(&self, dx: &mut [f64]) -> c_int {
+            let [x0, x1] = self.x.get();
+            dx.copy_from_slice(&[x0 * x1, x0 * x0]);
+            OK
+        }
+        fn get_event_indicators(&self, z: &mut [f64]) -> c_int {
+            z[0] = self.x.get()[0];
+            OK
+        }
+        fn get_continuous_states(&self, x: &mut [f64]) -> c_int {
+            x.copy_from_slice(&self.x.get());
+            OK
+        }
+        fn enter_event_mode(&self) -> c_int {
+            unreachable!("the System never enters event mode")
+        }
+        fn update_discrete_states(&self) -> (c_int, EventUpdate) {
+            unreachable!("the System never updates discrete states")
+        }
+        fn enter_continuous_time_mode(&self) -> c_int {
+            unreachable!("the System never changes mode")
+        }
+        fn needs_completed_integrator_step(&self) -> bool {
+            false
+        }
+        fn completed_integrator_step(&self) -> (c_int, bool, bool) {
+            unreachable!("the System never completes a step")
+        }
+        fn setup_experiment(&mut self, _: Option<f64>, _: f64, _: f64) -> Result<(), String> {
+            unreachable!("the System is made after initialization")
+        }
+        fn enter_initialization_mode(&mut self) -> Result<(), String> {
+            unreachable!("the System is made after initialization")
+        }
+        fn exit_initialization_mode(&mut self) -> Result<(), String> {
+            unreachable!("the System is made after initialization")
+        }
+        fn set(&mut self, _: &Variable, _: &Value) -> Result<(), String> {
+            unreachable!("the System sets no variable")
+        }
+        fn get_string(&mut self, _: &Variable) -> Result<Vec<String>, String> {
+            unreachable!("the System reads no string")
+        }
+        fn read(&mut self, _: &mut Reader, _: &mut [f64]) -> Result<(), String> {
+            unreachable!("the System reads no output")
+        }
+        fn set_reals(&mut self, _: &[u32], _: &[f64]) -> Result<(), String> {
+            unreachable!("the System sets no variable")
+        }
+        fn reset(&mut self) -> Result<(), String> {
+            unreachable!("the System never resets")
+        }
+        fn get_state(&mut self) -> Result<Vec<u8>, String> {
+            unreachable!("the System keeps no state")
+        }
+        fn set_state(&mut self, _: &[u8]) -> Result<(), String> {
+            unreachable!("the System keeps no state")
+        }
+        fn provides_directional_derivative(&self) -> bool {
+            true
+        }
+        fn directional_derivative(&self, unknowns: &[u32], knowns: &[u32], seed: &[f64], out: &mut [f64]) -> c_int {
+            assert_eq!(unknowns, DERIVATIVES);
+            *self.knowns.borrow_mut() = knowns.to_vec();
+            if self.refuse.get() {
+                return DISCARD;
+            }
+            let [x0, x1] = self.x.get();
+            let jacobian = [[x1, x0], [2.0 * x0, 0.0]];
+            for (row, o) in jacobian.iter().zip(out.iter_mut()) {
+                *o = knowns.iter().zip(seed).map(|(vr, s)| row[STATES.iter().position(|k| k == vr).unwrap()] * s).sum();
+            }
+            OK
+        }
+    }
+
+    /// The columns of one Jacobian set the time and states once; a Jacobian at other states,
+    /// or after any other call that placed the FMU elsewhere (derivatives, event indicators),
+    /// or at another time, sets them again and is the one at its own point, compared exactly
+    /// with the analytic Jacobian (the products are exact in binary).
+    #[test]
+    fn a_jacobian_sets_its_states_once_and_is_taken_where_it_is_asked_for() {
+        let fmu = Quadratic::default();
+        let structure = StateStructure { states: STATES.to_vec(), derivatives: DERIVATIVES.to_vec(), pattern: None };
+        let mut scratch = JacobianScratch::default();
+        let sys = System::<Quadratic, 2>::new(&fmu, (2, 1), Some(&structure), &mut scratch);
+        assert!(sys.provides_directional_derivative());
+        let (a, b) = ([2.0, 3.0], [5.0, 7.0]);
+        let (mut column, mut f, mut z) = ([0.0; 2], [0.0; 2], [0.0; 1]);
+        let mut jacobian_column = |t: f64, x: &[f64; 2], seed: [f64; 2], states_set: usize, expected: [f64; 2]| {
+            sys.directional_derivative(t, x, &seed, &mut column);
+            assert_eq!(column, expected, "at t = {t}, x = {x:?}, seed {seed:?}");
+            assert_eq!((fmu.t.get(), fmu.x.get(), fmu.states_set.get()), (t, *x, states_set), "at t = {t}, x = {x:?}, seed {seed:?}");
+        };
+        // Both columns at a: the states set once, each known alone.
+        jacobian_column(0.0, &a, [1.0, 0.0], 1, [3.0, 4.0]);
+        assert_eq!(*fmu.knowns.borrow(), [10]);
+        jacobian_column(0.0, &a, [0.0, 1.0], 1, [2.0, 0.0]);
+        assert_eq!(*fmu.knowns.borrow(), [11]);
+        // The states changed, nothing called in between: the Jacobian at b.
+        jacobian_column(0.0, &b, [1.0, 0.0], 2, [7.0, 10.0]);
+        // The derivatives at a in between: b again, not the FMU's a.
+        sys.rhs(0.0, &a, &mut f);
+        assert_eq!((f, fmu.states_set.get()), ([6.0, 4.0], 3));
+        jacobian_column(0.0, &b, [0.0, 1.0], 4, [5.0, 0.0]);
+        // The event indicators at a in between likewise.
+        sys.event_indicators(0.0, &a, &mut z);
+        assert_eq!((z, fmu.states_set.get()), ([2.0], 5));
+        jacobian_column(0.0, &b, [1.0, 0.0], 6, [7.0, 10.0]);
+        // Another time, the same states: time and states set.
+        jacobian_column(1.0, &b, [1.0, 0.0], 7, [7.0, 10.0]);
+        assert_eq!(fmu.times_set.get(), 2);
+        // A group of both columns, seeded through the buffer, at the point held.
+        jacobian_column(1.0, &b, [1.0, 1.0], 7, [12.0, 10.0]);
+        assert_eq!(*fmu.knowns.borrow(), [10, 11]);
+        jacobian_column(1.0, &b, [0.0, 2.0], 7, [10.0, 0.0]);
+        assert_eq!(*fmu.knowns.borrow(), [11]);
+    }
+
+    /// A refused directional derivative is recorded as before (the Discard the integrator may
+    /// retry, NaN out), and the next column sets the states again rather than trust the FMU
+    /// that refused.
+    #[test]
+    fn a_refused_column_is_recorded_and_the_next_sets_the_states_again() {
+        let fmu = Quadratic::default();
+        let structure = StateStructure { states: STATES.to_vec(), derivatives: DERIVATIVES.to_vec(), pattern: None };
+        let mut scratch = JacobianScratch::default();
+        let sys = System::<Quadratic, 2>::new(&fmu, (2, 1), Some(&structure), &mut scratch);
+        let mut column = [0.0; 2];
+        sys.directional_derivative(0.0, &[2.0, 3.0], &[1.0, 0.0], &mut column);
+        fmu.refuse.set(true);
+        sys.directional_derivative(0.0, &[2.0, 3.0], &[0.0, 1.0], &mut column);
+        assert!(column.iter().all(|v| v.is_nan()), "{column:?}");
+        let discard = sys.last_discard.borrow().clone().expect("the Discard is recorded");
+        assert_eq!(discard.status, DISCARD);
+        assert!(discard.message.starts_with("fmi2GetDirectionalDerivative at t = 0 returned status"), "{}", discard.message);
+        assert!(sys.poisoned.borrow().is_none());
+        fmu.refuse.set(false);
+        sys.directional_derivative(0.0, &[2.0, 3.0], &[0.0, 1.0], &mut column);
+        assert_eq!((column, fmu.states_set.get()), ([2.0, 0.0], 2));
     }
 }

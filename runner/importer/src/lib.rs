@@ -740,6 +740,19 @@ impl Instance<'_> {
         }
     }
 
+    /// For tests/bench/jacobian only: see `ModelExchange::bench_solver_jacobian`.
+    #[doc(hidden)]
+    pub fn bench_solver_jacobian(&mut self, x: &[f64], directional: bool, jacobian: &mut [f64], work: &mut [f64]) -> Result<(), String> {
+        match self {
+            Instance::Fmi2Me(i) => i.bench_solver_jacobian(x, directional, jacobian, work),
+            Instance::Fmi1Me(i) => i.bench_solver_jacobian(x, directional, jacobian, work),
+            Instance::Fmi3Me(i) => i.bench_solver_jacobian(x, directional, jacobian, work),
+            Instance::Fmi2Cs(_) | Instance::Fmi1Cs(_) | Instance::Fmi3Cs(_) => {
+                Err("the runner's integrator needs Model Exchange".to_owned())
+            }
+        }
+    }
+
     /// The linearization at the instance's current time and states over `ports` (see
     /// [`exchange::Jacobians`]): a Model Exchange instance only.
     pub fn linearize(&mut self, ports: exchange::Ports, prefer: exchange::JacobianSource) -> Result<exchange::Jacobians, String> {

@@ -272,6 +272,8 @@ impl Exchange for Exchange2<'_> {
         self.directional.is_some()
     }
 
+    // Inlined as the derivatives are: a linearization makes one call per state and input.
+    #[inline(always)]
     fn directional_derivative(&self, unknowns: &[u32], knowns: &[u32], seed: &[f64], out: &mut [f64]) -> c_int {
         let Some(f) = self.directional else { return crate::exchange::ERROR };
         let entered = call_log::enter("fmi2GetDirectionalDerivative", || {

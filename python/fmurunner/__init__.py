@@ -255,6 +255,10 @@ def sweep(
     worker_memory: int | None = None,
     out: str | os.PathLike[str] | None = None,
     resume: bool = False,
+    interface: str | None = None,
+    solver: str | None = None,
+    fixed_step: float | None = None,
+    abs_tolerance: float | None = None,
 ) -> pd.DataFrame:
     """Runs the FMU at every point of a parameter space, as ``runner sweep`` does.
 
@@ -263,7 +267,10 @@ def sweep(
     metric's name to its expression over a run (``{"amplitude": "max(x)"}``, the runner's
     ``--metric`` language), or is a list of ``"NAME=EXPR"`` texts. ``stop_time``,
     ``output_interval``, ``tolerance`` and ``start_values`` are as in :func:`simulate` (for a
-    model name, its experiment's ``[sweep]`` section gives the defaults).
+    model name, its experiment's ``[sweep]`` section gives the defaults). ``interface``,
+    ``solver``, ``fixed_step`` and ``abs_tolerance`` are as in :func:`simulate`, as ``runner
+    sweep --interface --solver --fixed-step --abs-tolerance`` takes them: a stiff FMU is swept
+    through Model Exchange with ``interface="model-exchange", solver="bdf"``.
 
     Locally the points run in ``threads`` worker processes (default: one per core) of the
     runner's sandbox, as on the command line: a point whose FMU crashes, runs longer than
@@ -296,6 +303,7 @@ def sweep(
     if worker_memory is not None and (not isinstance(worker_memory, int) or worker_memory < 1):
         raise RunnerError(f"worker_memory must be a whole number of MiB, not {worker_memory!r}")
     timeout = _number("point_timeout", point_timeout)
+    integrator = (solver, _number("fixed_step", fixed_step), _number("abs_tolerance", abs_tolerance))
     if client is not None:
         if threads is not None:
             raise RunnerError("threads is for a local sweep; on a cluster each Dask worker thread runs one chunk at a time")
@@ -304,7 +312,8 @@ def sweep(
         from ._dask import sweep_on_cluster
 
         frame = sweep_on_cluster(
-            client, path, grid_sources, sets, ranges, metric_texts, chunk_size, in_process, timeout, worker_memory
+            client, path, grid_sources, sets, ranges, metric_texts, chunk_size, in_process, timeout, worker_memory,
+            interface, integrator,
         )
     else:
         if chunk_size is not None:
@@ -313,9 +322,10 @@ def sweep(
             threads = os.cpu_count() or 1
         if not isinstance(threads, int) or threads < 1:
             raise RunnerError(f"threads must be a whole number of at least 1, not {threads!r}")
-        spec, n, metric_names = _engine.plan_sweep(path, grid_sources, sets, ranges, metric_texts)
+        # `interface` becomes the one planned (None chosen): every process that loads the FMU uses it.
+        spec, n, metric_names, interface = _engine.plan_sweep(path, grid_sources, sets, ranges, metric_texts, interface, *integrator)
         if in_process:
-            model = _engine.Model(path)
+            model = _engine.Model(path, interface)
 
             def run(start: int, on_rows: Any) -> tuple[bytes, list[tuple[int, str]], float]:
                 return model.run_points(spec, start, n, threads, on_rows)
@@ -325,7 +335,8 @@ def sweep(
 
             def run(start: int, on_rows: Any) -> tuple[bytes, list[tuple[int, str]], float]:
                 return _engine.run_points_isolated(
-                    path, spec, start, n, threads, worker, point_timeout=timeout, worker_memory=worker_memory, on_rows=on_rows
+                    path, spec, start, n, threads, worker, point_timeout=timeout, worker_memory=worker_memory, on_rows=on_rows,
+                    interface=interface,
                 )
 
         if out is None:
@@ -340,7 +351,7 @@ def sweep(
         else:
             from ._files import sweep_to_file
 
-            frame = sweep_to_file(os.fspath(out), resume, path, spec, n, ranges, metric_names, run)
+            frame = sweep_to_file(os.fspath(out), resume, path, interface, spec, n, ranges, metric_names, run)
     units = _engine.column_units(path, [name for name, _ in ranges])
     _attach_units(frame, info(path)["model_name"], units)
     return frame

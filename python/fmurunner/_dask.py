@@ -61,20 +61,22 @@ RESCATTERS = 3
 #: How many times one scatter of the FMU is tried while the scheduler catches up with lost workers.
 SCATTER_ATTEMPTS = 5
 
-_models: OrderedDict[str, _engine.Model] = OrderedDict()
+_models: OrderedDict[tuple[str, str | None], _engine.Model] = OrderedDict()
 _models_lock = threading.Lock()
 
 
-def _loaded(digest: str, data: bytes, name: str) -> _engine.Model:
-    """The FMU whose sha256 is ``digest``, loaded once per worker process (the last 4 kept)."""
+def _loaded(digest: str, data: bytes, name: str, interface: str | None = None) -> _engine.Model:
+    """The FMU whose sha256 is ``digest`` through ``interface``, loaded once per worker process
+    (the last 4 kept)."""
+    key = (digest, interface)
     with _models_lock:
-        model = _models.get(digest)
+        model = _models.get(key)
         if model is None:
-            model = _engine.Model.from_bytes(data, name)
-            _models[digest] = model
+            model = _engine.Model.from_bytes(data, name, interface)
+            _models[key] = model
             while len(_models) > 4:
                 _models.popitem(last=False)
-        _models.move_to_end(digest)
+        _models.move_to_end(key)
         return model
 
 
@@ -110,16 +112,18 @@ def _run_chunk(
     in_process: bool = False,
     timeout: float | None = None,
     worker_memory: int | None = None,
+    interface: str | None = None,
 ) -> tuple[int, int, bytes, list[tuple[int, str]], float]:
     """A task: the points ``start..stop``, in a sandbox worker process (or on this worker thread
-    with ``in_process``), the GIL released while they run."""
+    with ``in_process``) through ``interface``, the GIL released while they run."""
     if in_process:
-        model = _loaded(digest, data, name)
+        model = _loaded(digest, data, name, interface)
         values, failures, seconds = model.run_points(spec, start, stop, 1)
     else:
         path = _written(digest, data, name)
         values, failures, seconds = _engine.run_points_isolated(
-            path, spec, start, stop, 1, _worker.command("sweep"), point_timeout=timeout, worker_memory=worker_memory
+            path, spec, start, stop, 1, _worker.command("sweep"), point_timeout=timeout, worker_memory=worker_memory,
+            interface=interface,
         )
     return start, stop, values, failures, seconds
 
@@ -190,14 +194,17 @@ def sweep_on_cluster(
     in_process: bool = False,
     timeout: float | None = None,
     worker_memory: int | None = None,
+    interface: str | None = None,
+    integrator: tuple[str | None, float | None, float | None] = (None, None, None),
 ) -> pd.DataFrame:
-    """``sweep(..., client=client)``: see :func:`fmurunner.sweep`."""
+    """``sweep(..., client=client)``: see :func:`fmurunner.sweep`; ``integrator`` is its
+    ``(solver, fixed_step, abs_tolerance)``."""
     from distributed import as_completed
 
     if chunk_size is not None and (not isinstance(chunk_size, int) or chunk_size < 1):
         raise RunnerError(f"chunk_size must be a whole number of points, at least 1, not {chunk_size!r}")
     # Checked here first, from the description alone: a typo costs nothing on the cluster.
-    spec, n, metric_names = _engine.plan_sweep(path, grid_sources, sets, ranges, metric_texts)
+    spec, n, metric_names, interface = _engine.plan_sweep(path, grid_sources, sets, ranges, metric_texts, interface, *integrator)
     with open(path, "rb") as f:
         data = f.read()
     digest = hashlib.sha256(data).hexdigest()
@@ -246,7 +253,7 @@ def sweep_on_cluster(
         key = f"fmurunner-sweep-{sweep_id}-{start}" + (f"-again{sent[start]}" if sent[start] > 1 else "")
         bounds[key] = (start, stop)
         return client.submit(
-            _run_chunk, fmu, digest, name, spec, start, stop, in_process, timeout, worker_memory, key=key, retries=0
+            _run_chunk, fmu, digest, name, spec, start, stop, in_process, timeout, worker_memory, interface, key=key, retries=0
         )
 
     def submit() -> Future[Any]:

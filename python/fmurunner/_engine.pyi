@@ -20,9 +20,19 @@ class RunnerError(Exception):
 
 def locate(fmu: str, command: str) -> tuple[str, list[str], GridArgs]: ...
 def describe(path: str) -> dict[str, Any]: ...
+Plan = tuple[str, int, list[str], str]
+
 def plan_sweep(
-    path: str, grid_sources: list[GridArgs], sets: list[str], ranges: list[tuple[str, list[float]]], metrics: list[str]
-) -> tuple[str, int, list[str]]: ...
+    path: str,
+    grid_sources: list[GridArgs],
+    sets: list[str],
+    ranges: list[tuple[str, list[float]]],
+    metrics: list[str],
+    interface: str | None = None,
+    solver: str | None = None,
+    fixed_step: float | None = None,
+    abs_tolerance: float | None = None,
+) -> Plan: ...
 def reference_values(path: str, values: list[tuple[str, float]]) -> dict[str, float | list[list[float]]]: ...
 def column_units(path: str, names: list[str]) -> dict[str, UnitInfo]: ...
 def run_points_isolated(
@@ -35,6 +45,7 @@ def run_points_isolated(
     point_timeout: float | None = None,
     worker_memory: int | None = None,
     on_rows: OnRows | None = None,
+    interface: str | None = None,
 ) -> Points: ...
 def serve_worker(kind: str) -> None: ...
 
@@ -45,7 +56,7 @@ class Model:
     model_name: str
     def __init__(self, path: str, interface: str | None = None) -> None: ...
     @staticmethod
-    def from_bytes(data: bytes, name: str) -> Model: ...
+    def from_bytes(data: bytes, name: str, interface: str | None = None) -> Model: ...
     def simulate(
         self,
         grid_sources: list[GridArgs],
@@ -56,8 +67,15 @@ class Model:
         abs_tolerance: float | None = None,
     ) -> tuple[list[str], list[str], bytes, int, dict[str, list[str]], str | None]: ...
     def plan_sweep(
-        self, grid_sources: list[GridArgs], sets: list[str], ranges: list[tuple[str, list[float]]], metrics: list[str]
-    ) -> tuple[str, int, list[str]]: ...
+        self,
+        grid_sources: list[GridArgs],
+        sets: list[str],
+        ranges: list[tuple[str, list[float]]],
+        metrics: list[str],
+        solver: str | None = None,
+        fixed_step: float | None = None,
+        abs_tolerance: float | None = None,
+    ) -> Plan: ...
     def run_points(self, spec_json: str, start: int, stop: int, threads: int, on_rows: OnRows | None = None) -> Points: ...
     def units(self, names: list[str]) -> dict[str, UnitInfo]: ...
 

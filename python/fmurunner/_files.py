@@ -1,7 +1,8 @@
 """A local sweep to a file, as ``runner sweep --out FILE.csv [--resume]`` keeps it: the rows
 written in point order to ``<out>.partial`` as the points finish (flushed and synced as they
 come, so a killed process loses nothing it had handed over), a record of what the sweep is
-beside it (``<out>.sweep``: the FMU's sha256 and the sweep as the engine runs it), and the file
+beside it (``<out>.sweep``: the FMU's sha256, the interface it runs through and the sweep as the
+engine runs it, the integrator's settings included), and the file
 renamed to ``<out>`` when complete. ``resume=True`` continues from the partial file when its
 record is this sweep's.
 """
@@ -33,14 +34,14 @@ def _sha256(path: str) -> str:
     return digest.hexdigest()
 
 
-def _record(path: str, spec: str, n: int) -> dict[str, Any]:
-    return {"fmu": path, "fmu_sha256": _sha256(path), "points": n, "sweep": json.loads(spec)}
+def _record(path: str, interface: str, spec: str, n: int) -> dict[str, Any]:
+    return {"fmu": path, "fmu_sha256": _sha256(path), "interface": interface, "points": n, "sweep": json.loads(spec)}
 
 
 def _difference(earlier: dict[str, Any], current: dict[str, Any]) -> str | None:
     """What differs between two records (the FMU's path is informational), or None."""
     lines = []
-    for key in ("fmu_sha256", "points", "sweep"):
+    for key in ("fmu_sha256", "interface", "points", "sweep"):
         if earlier.get(key) != current.get(key):
             what = "the FMU's content" if key == "fmu_sha256" else key
             lines.append(f"  {what}: {earlier.get(key)!r} then, {current.get(key)!r} now")
@@ -55,6 +56,7 @@ def sweep_to_file(
     out: str,
     resume: bool,
     path: str,
+    interface: str,
     spec: str,
     n: int,
     ranges: list[tuple[str, list[float]]],
@@ -66,7 +68,7 @@ def sweep_to_file(
     from . import _frame, _points
 
     partial, record_path = out + ".partial", out + ".sweep"
-    current = _record(path, spec, n)
+    current = _record(path, interface, spec, n)
     header = [name for name, _ in ranges] + metric_names + ["status"]
     m = len(metric_names)
 

@@ -11,7 +11,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use fmi_importer::model::Dimension;
-use fmi_importer::{Description, Fmu, Interface, Kind, Unpacked, Variable};
+use fmi_importer::{Description, Fmu, Interface, Kind, Solver, Unpacked, Variable};
 use formulas::References;
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
@@ -37,6 +37,10 @@ pub(crate) fn err(message: String) -> PyErr {
 /// Points' results as Python receives them: row-major metric bytes, (point, status) of the
 /// failed ones, seconds.
 type Points<'py> = (Bound<'py, PyBytes>, Vec<(usize, String)>, f64);
+
+/// A planned sweep as Python receives it: (the sweep as JSON, points, metric names, the name of
+/// the interface it runs through).
+type Plan = (String, usize, Vec<String>, &'static str);
 
 /// A grid source as Python passes it: (stop_time, output_interval, tolerance).
 type GridArgs = (Option<f64>, Option<f64>, Option<f64>);
@@ -214,20 +218,44 @@ fn check_once_per_process(d: &Description, interface: Interface, points: usize) 
     Ok(())
 }
 
-/// Checks a sweep of the FMU `d` and returns it as data (JSON) that any process holding this
-/// FMU runs the same way: the grid from `grid_sources`, the common `sets`, the swept `ranges`
-/// (their cartesian product, the last varying fastest) and the `NAME=EXPR` `metrics`. Also
-/// returns the number of points and the metric names.
+/// The runner's integrator for Model Exchange as `simulate` and `sweep` take it: the options
+/// checked, and whether any was given (they are refused for a Co-Simulation run).
+struct Integrator {
+    solver: Solver,
+    named: bool,
+}
+
+impl Integrator {
+    fn new(solver: Option<&str>, fixed_step: Option<f64>, abs_tolerance: Option<f64>) -> PyResult<Integrator> {
+        let named = solver.is_some() || fixed_step.is_some() || abs_tolerance.is_some();
+        Ok(Integrator { solver: stepping::solver_of(solver, fixed_step, abs_tolerance)?, named })
+    }
+
+    /// Refuses the options for an FMU that runs as Co-Simulation, where they would do nothing.
+    fn check(&self, d: &Description, identifier: &str, interface: Interface) -> PyResult<()> {
+        stepping::check_solver(d, identifier, interface, self.named).map_err(err)
+    }
+}
+
+/// Checks a sweep of the FMU `d` run through `interface` and returns it as data (JSON) that any
+/// process holding this FMU through that interface runs the same way: the grid from
+/// `grid_sources` with the `integrator`, the common `sets`, the swept `ranges` (their cartesian
+/// product, the last varying fastest) and the `NAME=EXPR` `metrics`. Also returns the number of
+/// points, the metric names and the interface's name.
+#[allow(clippy::too_many_arguments)]
 fn plan(
     d: &Description,
     identifier: &str,
     interface: Interface,
     grid_sources: &[GridArgs],
+    integrator: &Integrator,
     sets: Vec<String>,
     ranges: Vec<(String, Vec<f64>)>,
     metrics: Vec<String>,
-) -> PyResult<(String, usize, Vec<String>)> {
-    let grid = Grid::choose(d, &grid_settings(grid_sources)).map_err(err)?;
+) -> PyResult<Plan> {
+    integrator.check(d, identifier, interface)?;
+    let mut grid = Grid::choose(d, &grid_settings(grid_sources)).map_err(err)?;
+    grid.solver = integrator.solver;
     if ranges.is_empty() {
         return Err(err("nothing to sweep: give params, a dict of parameter name to its values".to_owned()));
     }
@@ -244,12 +272,16 @@ fn plan(
     check_once_per_process(d, interface, plan.space.len).map_err(err)?;
     let names = plan.metrics.metrics.iter().map(|(n, _)| n.clone()).collect();
     let json = serde_json::to_string(&spec).map_err(|e| err(format!("cannot encode the sweep: {e}")))?;
-    Ok((json, plan.space.len, names))
+    Ok((json, plan.space.len, names, interface.name()))
 }
 
-/// [`plan`] for the FMU at `path`, from its description alone (its binary is not loaded: a
-/// Dask client plans a sweep that only the workers run).
+/// [`plan`] for the FMU at `path` through `interface` (as [`Model::new`] takes it) with the
+/// integrator `solver`, `fixed_step`, `abs_tolerance` (as [`Model::simulate`]), from its
+/// description alone (its binary is not loaded: a Dask client plans a sweep that only the
+/// workers run).
 #[pyfunction]
+#[pyo3(signature = (path, grid_sources, sets, ranges, metrics, interface=None, solver=None, fixed_step=None, abs_tolerance=None))]
+#[allow(clippy::too_many_arguments)]
 fn plan_sweep(
     py: Python<'_>,
     path: &str,
@@ -257,9 +289,15 @@ fn plan_sweep(
     sets: Vec<String>,
     ranges: Vec<(String, Vec<f64>)>,
     metrics: Vec<String>,
-) -> PyResult<(String, usize, Vec<String>)> {
-    let unpacked = py.detach(|| Unpacked::open(Path::new(path))).map_err(err)?;
-    plan(&unpacked.description, &unpacked.identifier, unpacked.interface, &grid_sources, sets, ranges, metrics)
+    interface: Option<&str>,
+    solver: Option<&str>,
+    fixed_step: Option<f64>,
+    abs_tolerance: Option<f64>,
+) -> PyResult<Plan> {
+    let interface = stepping::interface_of(interface)?;
+    let integrator = Integrator::new(solver, fixed_step, abs_tolerance)?;
+    let unpacked = py.detach(|| Unpacked::open_as(Path::new(path), interface)).map_err(err)?;
+    plan(&unpacked.description, &unpacked.identifier, unpacked.interface, &grid_sources, &integrator, sets, ranges, metrics)
 }
 
 #[pymethods]
@@ -274,9 +312,12 @@ impl Model {
         Ok(Model { fmu, _copy: None })
     }
 
-    /// Loads an FMU from its bytes (as a Dask worker receives it); `name` is its file name.
+    /// Loads an FMU from its bytes (as a Dask worker receives it) through `interface` (as
+    /// [`Model::new`]); `name` is its file name.
     #[staticmethod]
-    fn from_bytes(py: Python<'_>, data: Vec<u8>, name: &str) -> PyResult<Model> {
+    #[pyo3(signature = (data, name, interface=None))]
+    fn from_bytes(py: Python<'_>, data: Vec<u8>, name: &str, interface: Option<&str>) -> PyResult<Model> {
+        let interface = stepping::interface_of(interface)?;
         py.detach(|| {
             let dir = tempfile::Builder::new()
                 .prefix("fmurunner-")
@@ -285,7 +326,7 @@ impl Model {
             let file_name = Path::new(name).file_name().map_or_else(|| PathBuf::from("model.fmu"), PathBuf::from);
             let path = dir.path().join(file_name);
             std::fs::write(&path, &data).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-            let fmu = Fmu::load_as(&path, None)?;
+            let fmu = Fmu::load_as(&path, interface)?;
             // The FMU is unpacked elsewhere: its archive is no longer needed.
             let _ = std::fs::remove_file(&path);
             Ok(Model { fmu, _copy: Some(dir) })
@@ -318,25 +359,12 @@ impl Model {
         abs_tolerance: Option<f64>,
     ) -> PyResult<(Vec<String>, Vec<&'static str>, Bound<'py, PyBytes>, usize, Bound<'py, PyDict>, Option<String>)> {
         let md = &self.fmu.description;
-        let named = solver.is_some() || fixed_step.is_some() || abs_tolerance.is_some();
-        let mut integrator = stepping::solver_of(solver)?;
-        if let Some(h) = fixed_step {
-            if !(h.is_finite() && h > 0.0) {
-                return Err(err(format!("fixed_step={h} must be a positive number (seconds)")));
-            }
-            integrator.fixed_step = h;
-        }
-        if let Some(a) = abs_tolerance {
-            if !(a.is_finite() && a >= 0.0) {
-                return Err(err(format!("abs_tolerance={a} must be a number, zero or greater")));
-            }
-            integrator.abs_tol = a;
-        }
-        stepping::check_solver(md, &self.fmu.identifier, self.fmu.interface, named).map_err(err)?;
+        let integrator = Integrator::new(solver, fixed_step, abs_tolerance)?;
+        integrator.check(md, &self.fmu.identifier, self.fmu.interface)?;
         let (names, kinds, data, rows, texts, ended_early) = py
             .detach(|| -> Result<_, String> {
                 let mut grid = self.grid(&grid_sources)?;
-                grid.solver = integrator;
+                grid.solver = integrator.solver;
                 let assignments = variables::parse_sets(md, &sets)?;
                 let inputs = match input {
                     Some((names, time, values)) => Some(InputTable::from_columns(names, time, values)?),
@@ -394,16 +422,22 @@ impl Model {
         &self.fmu.description.model_name
     }
 
-    /// [`plan_sweep`] for this FMU.
+    /// [`plan_sweep`] for this FMU, through the interface it was loaded for.
+    #[pyo3(signature = (grid_sources, sets, ranges, metrics, solver=None, fixed_step=None, abs_tolerance=None))]
+    #[allow(clippy::too_many_arguments)]
     fn plan_sweep(
         &self,
         grid_sources: Vec<GridArgs>,
         sets: Vec<String>,
         ranges: Vec<(String, Vec<f64>)>,
         metrics: Vec<String>,
-    ) -> PyResult<(String, usize, Vec<String>)> {
+        solver: Option<&str>,
+        fixed_step: Option<f64>,
+        abs_tolerance: Option<f64>,
+    ) -> PyResult<Plan> {
         let f = &self.fmu;
-        plan(&f.description, &f.identifier, f.interface, &grid_sources, sets, ranges, metrics)
+        let integrator = Integrator::new(solver, fixed_step, abs_tolerance)?;
+        plan(&f.description, &f.identifier, f.interface, &grid_sources, &integrator, sets, ranges, metrics)
     }
 
     /// Runs the points `start..stop` of the sweep `spec_json` (from [`Model::plan_sweep`]) on
@@ -548,13 +582,13 @@ impl Collected {
 }
 
 /// Runs the points `start..stop` of the sweep `spec_json` (from [`plan_sweep`]) of the FMU at
-/// `path` in `workers` worker processes of the sandbox, started by `worker` (program,
+/// `path`, through `interface` (the one it was planned for), in `workers` worker processes of the sandbox, started by `worker` (program,
 /// arguments): a point that crashes its worker, hangs past `point_timeout` seconds or grows past
 /// `worker_memory` MiB is a row whose status says so, and the other points go on. The FMU's
 /// binary is never loaded in this process. Returns what [`Model::run_points`] returns, and how
 /// many points were delivered (fewer when Ctrl-C stopped the sweep: its exception is raised).
 #[pyfunction]
-#[pyo3(signature = (path, spec_json, start, stop, workers, worker, point_timeout=None, worker_memory=None, on_rows=None))]
+#[pyo3(signature = (path, spec_json, start, stop, workers, worker, point_timeout=None, worker_memory=None, on_rows=None, interface=None))]
 #[allow(clippy::too_many_arguments)]
 fn run_points_isolated<'py>(
     py: Python<'py>,
@@ -567,7 +601,9 @@ fn run_points_isolated<'py>(
     point_timeout: Option<f64>,
     worker_memory: Option<u64>,
     on_rows: Option<Py<PyAny>>,
+    interface: Option<&str>,
 ) -> PyResult<Points<'py>> {
+    let interface = stepping::interface_of(interface)?;
     let spec: SweepRequest = serde_json::from_str(spec_json).map_err(|e| err(format!("not a sweep of this version of fmurunner: {e}")))?;
     if workers == 0 {
         return Err(err("workers must be at least 1".to_owned()));
@@ -582,7 +618,7 @@ fn run_points_isolated<'py>(
         let count = workers.min(stop.saturating_sub(start)).max(1);
         // Workers start while the FMU is unpacked here, then load this copy.
         let mut pool = exec::start_workers(config, count)?;
-        let (held, source) = Held::open(&FmuSource::new(Path::new(path), None), false)?;
+        let (held, source) = Held::open(&FmuSource::new(Path::new(path), interface), false)?;
         exec::load(&mut pool, &source, held.once_per_process());
         let plan = spec.plan(held.description(), held.identifier(), held.interface())?;
         if start > stop || stop > plan.space.len {

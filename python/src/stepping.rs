@@ -10,13 +10,14 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64};
 use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
 use std::time::{Duration, Instant};
 
-use fmi_importer::{Description, Interface, Method, Solver, Unpacked};
+use fmi_importer::{Description, Interface, Solver, Unpacked};
 use numpy::npyffi::{NPY_ARRAY_C_CONTIGUOUS, NPY_ARRAY_OWNDATA, NPY_ARRAY_WRITEABLE, NPY_TYPES};
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyByteArray, PyBytes, PyFloat, PyInt, PyList, PyString, PyTuple};
 use runner_engine::isolated;
 use runner_engine::request::{FmuSource, WireValue};
+use runner_engine::run::SolverOptionNames;
 use runner_engine::stepping::{Given, IsolatedStepper, Pacing, Selection, StepSettings, Stepped, ValueKind, Values};
 use runner_engine::variables;
 use runner_sandbox::WorkerCommand;
@@ -176,15 +177,11 @@ pub struct Stepper {
     backend: Mutex<Backend>,
 }
 
-pub(crate) fn solver_of(name: Option<&str>) -> PyResult<Solver> {
-    let mut solver = Solver::default();
-    if let Some(name) = name {
-        solver.method = Method::from_name(name).ok_or_else(|| {
-            let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
-            err(format!("unknown solver '{name}': use {}", names.join(", ")))
-        })?;
-    }
-    Ok(solver)
+/// The runner's integrator from the options `solver`, `fixed_step` and `abs_tolerance` of
+/// `simulate`, `sweep` and `Simulation`, checked by the engine and refused by their names.
+pub(crate) fn solver_of(name: Option<&str>, fixed_step: Option<f64>, abs_tolerance: Option<f64>) -> PyResult<Solver> {
+    let names = SolverOptionNames { fixed_step: "fixed_step=", abs_tolerance: "abs_tolerance=" };
+    runner_engine::run::solver_of(name, fixed_step, abs_tolerance, names).map_err(err)
 }
 
 pub(crate) fn interface_of(name: Option<&str>) -> PyResult<Option<Interface>> {
@@ -431,7 +428,7 @@ impl Stepper {
     ) -> PyResult<Stepper> {
         let interface = interface_of(interface)?;
         let solver_named = solver.is_some();
-        let solver = solver_of(solver)?;
+        let solver = solver_of(solver, None, None)?;
         let pacing = realtime.map(Pacing::new).transpose().map_err(err)?;
         let mut settings = StepSettings::new(name.as_deref().unwrap_or("fmurunner"));
         settings.start_time = start_time;

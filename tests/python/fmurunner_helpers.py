@@ -56,6 +56,17 @@ EX4_SPEEDS = [1.0 + i * 0.5 for i in range(99)]
 EX4_METRICS = {"transmissibility": "max(z_s)/max(z_r)", "steady_state": "amplitude(z_s, 5, 2*pi*speed/road_wavelength)/amplitude(z_r, 5, 2*pi*speed/road_wavelength)"}
 
 
+# A stiff sweep: Reference VanDerPol (FMI 3.0) up to mu = 1000 through Model Exchange and the
+# runner's BDF, as `sweep` takes it (STIFF_SWEEP) and as `runner sweep` does (STIFF_SWEEP_CLI).
+STIFF_FMU = REFERENCE / "fmi3" / "VanDerPol.fmu"
+STIFF_SWEEP = dict(params={"mu": [1.0, 10.0, 100.0, 1000.0]}, metrics={"x0_end": "final(x0)", "x1_peak": "max(x1)"},
+                   stop_time=1000.0, output_interval=1.0, tolerance=1e-8, interface="model-exchange", solver="bdf",
+                   abs_tolerance=1e-10)
+STIFF_SWEEP_CLI = ["--param", "mu=1,10,100,1000", "--metric", "x0_end=final(x0)", "--metric", "x1_peak=max(x1)",
+                   "--stop-time", "1000", "--output-interval", "1", "--tolerance", "1e-8", "--interface", "model-exchange",
+                   "--solver", "bdf", "--abs-tolerance", "1e-10"]
+
+
 def faulty_fmu(directory: pathlib.Path, name: str = "faulty.fmu") -> pathlib.Path:
     """Builds tests/c_fmu/faulty.c (an FMU that crashes, hangs or fails on request: its `fault`
     parameter) with the system C compiler into `directory/name`, as the runner's tests do."""

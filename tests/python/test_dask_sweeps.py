@@ -17,7 +17,8 @@ import pytest
 
 import fmurunner
 from fmurunner import _dask
-from fmurunner_helpers import EX4_METRICS, EX4_SPEEDS, assert_same_as_cli, runner_sweep_csv
+from fmurunner_helpers import (EX4_METRICS, EX4_SPEEDS, STIFF_FMU, STIFF_SWEEP, STIFF_SWEEP_CLI, assert_same_as_cli,
+                               runner_sweep_csv)
 
 
 @pytest.fixture(scope="module")
@@ -53,6 +54,16 @@ def test_chunks_of_any_size_give_the_local_table(client):
     for chunk_size in [1, 5, 12, 100]:
         remote = fmurunner.sweep("quarter_car", params, ["peak=max(z_s)"], client=client, chunk_size=chunk_size, **kwargs)
         pd.testing.assert_frame_equal(remote, local)
+
+
+def test_a_stiff_sweep_with_bdf_on_the_cluster_is_the_clis_bit_for_bit(client, tmp_path):
+    """The interface and the solver reach the Dask workers, in their sandbox workers and on their
+    own threads (in_process): the same bits as `runner sweep --interface model-exchange --solver
+    bdf` (see test_package's local test of the same sweep, which checks the comparison can fail)."""
+    cli = runner_sweep_csv(tmp_path, str(STIFF_FMU), *STIFF_SWEEP_CLI)
+    for in_process in (False, True):
+        frame = fmurunner.sweep(STIFF_FMU, client=client, chunk_size=2, in_process=in_process, **STIFF_SWEEP)
+        assert_same_as_cli(frame, cli)
 
 
 def test_a_failed_point_is_a_row_not_a_failed_task(client):
@@ -91,7 +102,7 @@ def test_an_error_on_a_worker_reaches_the_client_as_the_runners_error(client):
     """RunnerError pickles (it is fmurunner.RunnerError), so a chunk whose FMU cannot be loaded
     on a worker raises it on the client with the runner's message."""
     path, grid, sets = fmurunner._resolve("quarter_car", "sweep", None, None, None, None)
-    spec, _, _ = fmurunner._engine.plan_sweep(path, grid, sets, [("speed", [1.0])], ["p=max(z_s)"])
+    spec, _, _, _ = fmurunner._engine.plan_sweep(path, grid, sets, [("speed", [1.0])], ["p=max(z_s)"])
     future = client.submit(_dask._run_chunk, b"not a zip archive", "0" * 64, "broken.fmu", spec, 0, 1)
     with pytest.raises(fmurunner.RunnerError, match="broken.fmu"):
         future.result()

@@ -154,7 +154,7 @@ def test_rows_are_not_handed_again_after_writing_them_failed(in_process):
 
     # Long enough (a second or more) that the writer is first called while points still run.
     path, grid, sets = fmurunner._resolve("quarter_car", "sweep", 1.0, 0.01, None, None)
-    spec, n, _ = _engine.plan_sweep(path, grid, sets, [("speed", [1.0 + 0.02 * s for s in range(2000)])], ["p=max(z_s)"])
+    spec, n, _, _ = _engine.plan_sweep(path, grid, sets, [("speed", [1.0 + 0.02 * s for s in range(2000)])], ["p=max(z_s)"])
     calls = []
 
     def on_rows(first, data, failures):

@@ -9,7 +9,8 @@ import pytest
 from fmpy import simulate_fmu
 
 import fmurunner
-from fmurunner_helpers import EX4_METRICS, EX4_SPEEDS, REFERENCE, assert_same_as_cli, fmu_path, runner_sweep_csv
+from fmurunner_helpers import (EX4_METRICS, EX4_SPEEDS, REFERENCE, STIFF_FMU, STIFF_SWEEP, STIFF_SWEEP_CLI, assert_same_as_cli,
+                               fmu_path, runner_sweep_csv)
 
 
 def test_info_lists_the_variables_and_capabilities():
@@ -217,6 +218,66 @@ def test_solver_options_are_checked():
         fmurunner.simulate(fmu, interface="model-exchange", solver="rk4", fixed_step=-1.0)
     with pytest.raises(fmurunner.RunnerError, match="'me' is not an interface"):
         fmurunner.simulate(fmu, interface="me")
+
+
+def test_a_stiff_sweep_with_bdf_is_the_clis_bit_for_bit_in_workers_and_in_process(tmp_path):
+    """`sweep(interface="model-exchange", solver="bdf", ...)` is `runner sweep --interface
+    model-exchange --solver bdf ...`: the same engine, so the same bits, whether the points run
+    in worker processes or on threads of this process. Were the solver or the interface lost on
+    the way to the points, the FMU would be integrated by DOPRI5 or by itself, whose numbers
+    differ from BDF's in their last digits at least (checked below, so the comparison can fail)."""
+    cli = runner_sweep_csv(tmp_path, str(STIFF_FMU), *STIFF_SWEEP_CLI)
+    workers = fmurunner.sweep(STIFF_FMU, threads=2, **STIFF_SWEEP)
+    assert_same_as_cli(workers, cli)
+    threads = fmurunner.sweep(STIFF_FMU, threads=2, in_process=True, **STIFF_SWEEP)
+    assert_same_as_cli(threads, cli)
+    assert (workers["status"] == "ok").all()
+    others = {**STIFF_SWEEP, "params": {"mu": [1.0, 10.0]}, "solver": None, "abs_tolerance": None}
+    dopri5 = fmurunner.sweep(STIFF_FMU, threads=2, **others)
+    cosimulation = fmurunner.sweep(STIFF_FMU, threads=2, **{**others, "interface": None})
+    for other in (dopri5, cosimulation):
+        assert other["x0_end"].tolist() != workers["x0_end"][:2].tolist()
+
+
+def test_sweep_solver_options_are_checked():
+    fmu = REFERENCE / "fmi2" / "VanDerPol.fmu"
+    params, metrics = {"mu": [1.0, 2.0]}, {"x0_end": "final(x0)"}
+    with pytest.raises(fmurunner.RunnerError, match="only Model Exchange uses.*interface='model-exchange'"):
+        fmurunner.sweep(fmu, params, metrics, solver="bdf")
+    with pytest.raises(fmurunner.RunnerError, match="only Model Exchange uses"):
+        fmurunner.sweep(fmu, params, metrics, interface="co-simulation", abs_tolerance=1e-9, in_process=True)
+    with pytest.raises(fmurunner.RunnerError, match="unknown solver 'cvode'"):
+        fmurunner.sweep(fmu, params, metrics, interface="model-exchange", solver="cvode")
+    with pytest.raises(fmurunner.RunnerError, match="fixed_step=0 must be a positive number"):
+        fmurunner.sweep(fmu, params, metrics, interface="model-exchange", solver="rk4", fixed_step=0.0)
+    with pytest.raises(fmurunner.RunnerError, match="abs_tolerance=-1 must be a number, zero or greater"):
+        fmurunner.sweep(fmu, params, metrics, interface="model-exchange", abs_tolerance=-1.0)
+    with pytest.raises(fmurunner.RunnerError, match="fixed_step 'small' is not a number"):
+        fmurunner.sweep(fmu, params, metrics, interface="model-exchange", fixed_step="small")
+    with pytest.raises(fmurunner.RunnerError, match="'me' is not an interface"):
+        fmurunner.sweep(fmu, params, metrics, interface="me")
+
+
+def test_a_sweep_to_a_file_is_not_resumed_with_other_solver_settings_or_interface(tmp_path):
+    """The record beside the CSV holds the interface and the integrator's settings (in the
+    sweep), so a resume that changes either is another sweep and is refused, while the same
+    settings resume (here: find the file complete and return its rows)."""
+    out = tmp_path / "stiff.csv"
+    fmu, params, metrics = REFERENCE / "fmi2" / "VanDerPol.fmu", {"mu": [1.0, 2.0]}, {"x0_end": "final(x0)"}
+    bdf = dict(interface="model-exchange", solver="bdf", stop_time=5.0)
+    first = fmurunner.sweep(fmu, params, metrics, out=out, threads=1, **bdf)
+    with pytest.raises(fmurunner.RunnerError, match="is not from this sweep(.|\n)*'method': 'Esdirk'"):
+        fmurunner.sweep(fmu, params, metrics, out=out, resume=True, **{**bdf, "solver": "esdirk"})
+    with pytest.raises(fmurunner.RunnerError, match="is not from this sweep(.|\n)*1e-12"):
+        fmurunner.sweep(fmu, params, metrics, out=out, resume=True, **{**bdf, "abs_tolerance": 1e-12})
+    again = fmurunner.sweep(fmu, params, metrics, out=out, resume=True, **bdf)
+    pd.testing.assert_frame_equal(again, first, check_exact=True)
+    # Without solver options the spec is the same through either interface: the record's
+    # interface tells the sweeps apart.
+    other = tmp_path / "interface.csv"
+    fmurunner.sweep(fmu, params, metrics, out=other, threads=1, interface="model-exchange", stop_time=5.0)
+    with pytest.raises(fmurunner.RunnerError, match="is not from this sweep(.|\n)*interface: 'model-exchange' then, 'co-simulation' now"):
+        fmurunner.sweep(fmu, params, metrics, out=other, resume=True, stop_time=5.0)
 
 
 def test_every_public_name_has_a_docstring():

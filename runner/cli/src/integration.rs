@@ -6,6 +6,7 @@ use std::path::Path;
 
 use fmi_importer::exchange::Counters;
 use fmi_importer::{Description, Fmu, Interface, Method, Solver};
+use runner_engine::run::{solver_of, SolverOptionNames};
 
 /// The interface and integrator options of `simulate`, `sweep` and `compare`.
 #[derive(Debug, Clone, Default)]
@@ -24,14 +25,6 @@ pub struct Integration {
 /// The interface for its command-line spelling, or a message listing both.
 pub fn parse_interface(text: &str) -> Result<Interface, String> {
     Interface::from_name(text).ok_or_else(|| format!("'{text}' is not an interface: use model-exchange or co-simulation"))
-}
-
-/// The method called `name`, or a message listing every method.
-pub fn parse_method(name: &str) -> Result<Method, String> {
-    Method::from_name(name).ok_or_else(|| {
-        let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
-        format!("unknown solver '{name}': use {}", names.join(", "))
-    })
 }
 
 impl Integration {
@@ -67,23 +60,8 @@ impl Integration {
     /// The runner's integrator from the options, checked (defaults: the toolkit's FMUs' own
     /// solver controls, DOPRI5 with a 1 ms fixed step and abs_tol 1e-9).
     pub fn solver(&self) -> Result<Solver, String> {
-        let mut solver = Solver::default();
-        if let Some(name) = &self.solver {
-            solver.method = parse_method(name)?;
-        }
-        if let Some(h) = self.fixed_step {
-            if !(h.is_finite() && h > 0.0) {
-                return Err(format!("--fixed-step {h} must be a positive number (seconds)"));
-            }
-            solver.fixed_step = h;
-        }
-        if let Some(a) = self.abs_tolerance {
-            if !(a.is_finite() && a >= 0.0) {
-                return Err(format!("--abs-tolerance {a} must be a number, zero or greater"));
-            }
-            solver.abs_tol = a;
-        }
-        Ok(solver)
+        let names = SolverOptionNames { fixed_step: "--fixed-step ", abs_tolerance: "--abs-tolerance " };
+        solver_of(self.solver.as_deref(), self.fixed_step, self.abs_tolerance, names)
     }
 }
 
@@ -110,7 +88,8 @@ mod tests {
     fn options_are_checked_with_their_names() {
         assert_eq!(parse_interface("model-exchange").unwrap(), Interface::ModelExchange);
         assert!(parse_interface("me").unwrap_err().contains("use model-exchange or co-simulation"));
-        assert!(parse_method("ode45").unwrap_err().contains("use euler, rk4, dopri5, bs23, dop853"));
+        let bad = Integration { solver: Some("ode45".into()), ..Default::default() };
+        assert!(bad.solver().unwrap_err().contains("unknown solver 'ode45': use euler, rk4, dopri5, bs23, dop853"));
         let bad = Integration { fixed_step: Some(0.0), ..Default::default() };
         assert!(bad.solver().unwrap_err().contains("--fixed-step 0 must be a positive number"));
         let bad = Integration { abs_tolerance: Some(-1.0), ..Default::default() };

@@ -3,7 +3,7 @@
 //! solver; a Co-Simulation FMU integrates itself.
 
 use fmi_importer::state::SavedState;
-use fmi_importer::{Description, Fmu, Instance, Reader, Solver, Step, Value, Variable};
+use fmi_importer::{Description, Fmu, Instance, Method, Reader, Solver, Step, Value, Variable};
 
 use crate::input::Inputs;
 
@@ -29,6 +29,45 @@ pub struct Grid {
     /// `i` is `start * interval^i`, `interval` then a factor above 1 and `start` above 0.
     #[serde(default)]
     pub logarithmic: bool,
+}
+
+/// How a caller's users write the integrator's options, up to their value, for the messages of
+/// [`solver_of`]: `--fixed-step ` on the command line, `fixed_step=` in Python.
+#[derive(Debug, Clone, Copy)]
+pub struct SolverOptionNames {
+    pub fixed_step: &'static str,
+    pub abs_tolerance: &'static str,
+}
+
+/// The runner's integrator for Model Exchange from a caller's options, checked: the method
+/// called `method`, `fixed_step` (s) and `abs_tolerance`, each the toolkit's default when not
+/// given (DOPRI5, 1 ms, 1e-9). A bad option is refused by its name as the caller spells it.
+pub fn solver_of(
+    method: Option<&str>,
+    fixed_step: Option<f64>,
+    abs_tolerance: Option<f64>,
+    names: SolverOptionNames,
+) -> Result<Solver, String> {
+    let mut solver = Solver::default();
+    if let Some(name) = method {
+        solver.method = Method::from_name(name).ok_or_else(|| {
+            let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+            format!("unknown solver '{name}': use {}", names.join(", "))
+        })?;
+    }
+    if let Some(h) = fixed_step {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(format!("{}{h} must be a positive number (seconds)", names.fixed_step));
+        }
+        solver.fixed_step = h;
+    }
+    if let Some(a) = abs_tolerance {
+        if !(a.is_finite() && a >= 0.0) {
+            return Err(format!("{}{a} must be a number, zero or greater", names.abs_tolerance));
+        }
+        solver.abs_tol = a;
+    }
+    Ok(solver)
 }
 
 /// Grid settings from one source (the command line, an experiment file); `None` leaves the
@@ -415,6 +454,18 @@ mod tests {
     use super::*;
     use fmi_importer::model::{Dimension, FmiVersion, Start};
     use fmi_importer::{Causality, Kind, Variability};
+
+    #[test]
+    fn solver_options_are_checked_by_the_callers_names() {
+        let names = SolverOptionNames { fixed_step: "fixed_step=", abs_tolerance: "abs_tolerance=" };
+        assert_eq!(solver_of(None, None, None, names).unwrap(), Solver::default());
+        let bdf = solver_of(Some("BDF"), Some(1e-4), Some(0.0), names).unwrap();
+        assert_eq!((bdf.method, bdf.fixed_step, bdf.abs_tol), (Method::Bdf, 1e-4, 0.0));
+        assert!(solver_of(Some("cvode"), None, None, names).unwrap_err().starts_with("unknown solver 'cvode': use euler, rk4"));
+        assert_eq!(solver_of(None, Some(-1.0), None, names).unwrap_err(), "fixed_step=-1 must be a positive number (seconds)");
+        assert_eq!(solver_of(None, Some(f64::NAN), None, names).unwrap_err(), "fixed_step=NaN must be a positive number (seconds)");
+        assert_eq!(solver_of(None, None, Some(-1e-9), names).unwrap_err(), "abs_tolerance=-0.000000001 must be a number, zero or greater");
+    }
 
     fn variable(name: &str, vr: u32, kind: Kind, causality: Causality, start: Option<Start>, dimensions: Vec<Dimension>) -> Variable {
         Variable {

@@ -323,6 +323,7 @@ def sweep(
         if not isinstance(threads, int) or threads < 1:
             raise RunnerError(f"threads must be a whole number of at least 1, not {threads!r}")
         # `interface` becomes the one planned (None chosen): every process that loads the FMU uses it.
+        interface_defaulted = interface is None
         spec, n, metric_names, interface = _engine.plan_sweep(path, grid_sources, sets, ranges, metric_texts, interface, *integrator)
         if in_process:
             model = _engine.Model(path, interface)
@@ -351,7 +352,7 @@ def sweep(
         else:
             from ._files import sweep_to_file
 
-            frame = sweep_to_file(os.fspath(out), resume, path, interface, spec, n, ranges, metric_names, run)
+            frame = sweep_to_file(os.fspath(out), resume, path, interface, interface_defaulted, spec, n, ranges, metric_names, run)
     units = _engine.column_units(path, [name for name, _ in ranges])
     _attach_units(frame, info(path)["model_name"], units)
     return frame

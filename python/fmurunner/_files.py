@@ -57,6 +57,7 @@ def sweep_to_file(
     resume: bool,
     path: str,
     interface: str,
+    interface_defaulted: bool,
     spec: str,
     n: int,
     ranges: list[tuple[str, list[float]]],
@@ -79,6 +80,10 @@ def sweep_to_file(
             record = json.loads("".join(lines))
         except (OSError, ValueError) as e:
             raise RunnerError(f"cannot read {record_path}, the record of the sweep that wrote {partial}: {e}") from None
+        # A record from before the interface was recorded ran through the default one: the same
+        # sweep when this one takes the default too (its rows are not lost to an upgrade).
+        if interface_defaulted and "interface" not in record:
+            record["interface"] = current["interface"]
         diff = _difference(record, current)
         if diff is not None:
             raise RunnerError(

@@ -1,6 +1,7 @@
 """fmurunner on this machine: info, simulate (against fmpy on the same FMU, with and without
 inputs), sweep (against the CLI's CSV, bit for bit), and errors with the runner's messages."""
 
+import json
 import math
 
 import numpy as np
@@ -278,6 +279,23 @@ def test_a_sweep_to_a_file_is_not_resumed_with_other_solver_settings_or_interfac
     fmurunner.sweep(fmu, params, metrics, out=other, threads=1, interface="model-exchange", stop_time=5.0)
     with pytest.raises(fmurunner.RunnerError, match="is not from this sweep(.|\n)*interface: 'model-exchange' then, 'co-simulation' now"):
         fmurunner.sweep(fmu, params, metrics, out=other, resume=True, stop_time=5.0)
+
+
+def test_a_sweep_recorded_before_interfaces_were_recorded_resumes_through_the_default(tmp_path):
+    """A `.sweep` record written by an fmurunner that did not record the interface ran through
+    the default one: a resume that takes the default too is the same sweep (its rows are kept),
+    one that names an interface is refused, as the record cannot tell."""
+    out = tmp_path / "old.csv"
+    fmu, params, metrics = REFERENCE / "fmi2" / "VanDerPol.fmu", {"mu": [1.0, 2.0]}, {"x0_end": "final(x0)"}
+    first = fmurunner.sweep(fmu, params, metrics, out=out, threads=1, stop_time=5.0)
+    record_path = tmp_path / "old.csv.sweep"
+    record = json.loads("".join(line for line in record_path.read_text().splitlines(True) if not line.startswith("#")))
+    del record["interface"]
+    record_path.write_text(json.dumps(record))
+    again = fmurunner.sweep(fmu, params, metrics, out=out, resume=True, stop_time=5.0)
+    pd.testing.assert_frame_equal(again, first, check_exact=True)
+    with pytest.raises(fmurunner.RunnerError, match="is not from this sweep(.|\n)*interface: None then, 'co-simulation' now"):
+        fmurunner.sweep(fmu, params, metrics, out=out, resume=True, stop_time=5.0, interface="co-simulation")
 
 
 def test_every_public_name_has_a_docstring():

@@ -556,8 +556,17 @@ function buildSweepPanel() {
   select.textContent = "";
   const params = settable().filter((v) => v.kind === "Real" || v.kind === "Integer");
   for (const v of params) select.add(new Option(v.name, v.name));
-  // The experiment's sweep when it has one: NAME=START:STOP:STEP.
-  const given = (lab.model.sweep.param[0] || "").match(/^\s*([^=]+)=\s*([^:]+):([^:]+):(.+)$/);
+  // The experiment's sweep when it has one: NAME=START:STOP:STEP, or NAME=V1,V2,... (the panel
+  // then spans the values in 20 steps).
+  let given = (lab.model.sweep.param[0] || "").match(/^\s*([^=]+)=\s*([^:]+):([^:]+):(.+)$/);
+  const listed = given ? null : (lab.model.sweep.param[0] || "").match(/^\s*([^=]+)=(.+)$/);
+  if (listed) {
+    const values = listed[2].split(",").map(Number);
+    if (values.length > 1 && values.every(isFinite)) {
+      const [lo, hi] = [Math.min(...values), Math.max(...values)];
+      given = [null, listed[1], fieldText(lo), fieldText(hi), fieldText((hi - lo) / 20)];
+    }
+  }
   const setRange = (name) => {
     const v = variable(name);
     if (!v) return;
@@ -672,7 +681,7 @@ function drawSweep() {
         ctx.fillStyle = "#b5410f";
         ctx.beginPath(); ctx.arc(x, y, 5 * devicePixelRatio, 0, 2 * Math.PI); ctx.fill();
         ctx.font = `${12 * devicePixelRatio}px sans-serif`;
-        const text = `peak ${Number(lab.sweep.peak.y.toPrecision(5))} at ${name} = ${lab.sweep.peak.x}`;
+        const text = `peak ${Number(lab.sweep.peak.y.toPrecision(5))} at ${name} = ${Number(lab.sweep.peak.x.toPrecision(6))}`;
         // uPlot leaves the alignment of its last axis label on the context.
         ctx.textAlign = "left";
         ctx.textBaseline = "alphabetic";

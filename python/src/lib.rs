@@ -222,18 +222,18 @@ fn check_once_per_process(d: &Description, interface: Interface, points: usize) 
 /// checked, and whether any was given (they are refused for a Co-Simulation run).
 struct Integrator {
     solver: Solver,
-    named: bool,
+    given: bool,
 }
 
 impl Integrator {
     fn new(solver: Option<&str>, fixed_step: Option<f64>, abs_tolerance: Option<f64>) -> PyResult<Integrator> {
-        let named = solver.is_some() || fixed_step.is_some() || abs_tolerance.is_some();
-        Ok(Integrator { solver: stepping::solver_of(solver, fixed_step, abs_tolerance)?, named })
+        let given = solver.is_some() || fixed_step.is_some() || abs_tolerance.is_some();
+        Ok(Integrator { solver: stepping::solver_of(solver, fixed_step, abs_tolerance)?, given })
     }
 
     /// Refuses the options for an FMU that runs as Co-Simulation, where they would do nothing.
     fn check(&self, d: &Description, identifier: &str, interface: Interface) -> PyResult<()> {
-        stepping::check_solver(d, identifier, interface, self.named).map_err(err)
+        stepping::check_solver(d, identifier, interface, self.given).map_err(err)
     }
 }
 

@@ -177,11 +177,18 @@ pub struct Stepper {
     backend: Mutex<Backend>,
 }
 
+/// The integrator's options as `simulate`, `sweep` and `Simulation` spell them.
+const OPTION_NAMES: SolverOptionNames = SolverOptionNames {
+    fixed_step: "fixed_step=",
+    abs_tolerance: "abs_tolerance=",
+    all: "the solver options (solver=, fixed_step=, abs_tolerance=)",
+    to_model_exchange: "give interface='model-exchange'",
+};
+
 /// The runner's integrator from the options `solver`, `fixed_step` and `abs_tolerance` of
 /// `simulate`, `sweep` and `Simulation`, checked by the engine and refused by their names.
 pub(crate) fn solver_of(name: Option<&str>, fixed_step: Option<f64>, abs_tolerance: Option<f64>) -> PyResult<Solver> {
-    let names = SolverOptionNames { fixed_step: "fixed_step=", abs_tolerance: "abs_tolerance=" };
-    runner_engine::run::solver_of(name, fixed_step, abs_tolerance, names).map_err(err)
+    runner_engine::run::solver_of(name, fixed_step, abs_tolerance, OPTION_NAMES).map_err(err)
 }
 
 pub(crate) fn interface_of(name: Option<&str>) -> PyResult<Option<Interface>> {
@@ -427,7 +434,7 @@ impl Stepper {
         name: Option<String>,
     ) -> PyResult<Stepper> {
         let interface = interface_of(interface)?;
-        let solver_named = solver.is_some();
+        let solver_given = solver.is_some();
         let solver = solver_of(solver, None, None)?;
         let pacing = realtime.map(Pacing::new).transpose().map_err(err)?;
         let mut settings = StepSettings::new(name.as_deref().unwrap_or("fmurunner"));
@@ -444,7 +451,7 @@ impl Stepper {
                 let stepper = py
                     .detach(|| -> Result<_, String> {
                         let fmu = source.load()?;
-                        check_solver(&fmu.description, &fmu.identifier, fmu.interface, solver_named)?;
+                        check_solver(&fmu.description, &fmu.identifier, fmu.interface, solver_given)?;
                         settings.start_values = start_values(&fmu.description, &sets).map_err(|e| e.to_string())?;
                         let mut stepper = runner_engine::stepping::Stepper::open(Arc::new(fmu), settings)?;
                         stepper.pacing = pacing;
@@ -461,7 +468,7 @@ impl Stepper {
                 let (stepper, unpacked) = py
                     .detach(|| -> Result<_, String> {
                         let (unpacked, for_worker) = source.open()?;
-                        check_solver(&unpacked.description, &unpacked.identifier, unpacked.interface, solver_named)?;
+                        check_solver(&unpacked.description, &unpacked.identifier, unpacked.interface, solver_given)?;
                         settings.start_values = start_values(&unpacked.description, &sets).map_err(|e| e.to_string())?;
                         let mut stepper = IsolatedStepper::open(config, for_worker, settings)?;
                         stepper.pacing = pacing;
@@ -633,15 +640,10 @@ impl Stepper {
     }
 }
 
-/// Refuses a named solver for an FMU that runs as Co-Simulation, where it would do nothing.
-pub(crate) fn check_solver(description: &Description, identifier: &str, interface: Interface, named: bool) -> Result<(), String> {
-    if named && interface == Interface::CoSimulation {
-        return Err(format!(
-            "solver= sets the runner's integrator, which only Model Exchange uses; {identifier} runs as Co-Simulation here, where the FMU integrates itself{}",
-            if description.model_exchange.is_some() { " (give interface='model-exchange')" } else { "" }
-        ));
-    }
-    Ok(())
+/// Refuses the integrator's options (`given`: one of them was) for an FMU that runs as
+/// Co-Simulation, where they would do nothing.
+pub(crate) fn check_solver(description: &Description, identifier: &str, interface: Interface, given: bool) -> Result<(), String> {
+    runner_engine::run::refuse_solver_under_co_simulation(given, description, identifier, interface, OPTION_NAMES)
 }
 
 /// Serves a worker process of the sandbox: `kind` is `sweep` (runs and sweep points) or `step`

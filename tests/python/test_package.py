@@ -213,6 +213,12 @@ def test_solver_options_are_checked():
     fmu = REFERENCE / "fmi2" / "VanDerPol.fmu"
     with pytest.raises(fmurunner.RunnerError, match="only Model Exchange uses.*interface='model-exchange'"):
         fmurunner.simulate(fmu, solver="bdf")
+    # Any of the options, not only solver=, is refused under Co-Simulation, by the names
+    # Python spells them (the stepped Simulation's refusal is the same engine check).
+    with pytest.raises(fmurunner.RunnerError, match=r"\(solver=, fixed_step=, abs_tolerance=\) set the .* only Model Exchange uses"):
+        fmurunner.simulate(fmu, fixed_step=1e-3)
+    with pytest.raises(fmurunner.RunnerError, match="only Model Exchange uses.*interface='model-exchange'"):
+        fmurunner.Simulation(fmu, solver="bdf")
     with pytest.raises(fmurunner.RunnerError, match="unknown solver 'cvode'"):
         fmurunner.simulate(fmu, interface="model-exchange", solver="cvode")
     with pytest.raises(fmurunner.RunnerError, match="fixed_step=-1 must be a positive number"):

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use fmi_importer::exchange::Counters;
 use fmi_importer::{Description, Fmu, Interface, Method, Solver};
-use runner_engine::run::{solver_of, SolverOptionNames};
+use runner_engine::run::{refuse_solver_under_co_simulation, solver_of, SolverOptionNames};
 
 /// The interface and integrator options of `simulate`, `sweep` and `compare`.
 #[derive(Debug, Clone, Default)]
@@ -21,6 +21,14 @@ pub struct Integration {
     /// DOPRI5's absolute tolerance.
     pub abs_tolerance: Option<f64>,
 }
+
+/// The integrator's options as the command line spells them.
+const OPTION_NAMES: SolverOptionNames = SolverOptionNames {
+    fixed_step: "--fixed-step ",
+    abs_tolerance: "--abs-tolerance ",
+    all: "--solver, --fixed-step and --abs-tolerance",
+    to_model_exchange: "add --interface model-exchange, or for this toolkit's FMUs set their own solver with --set solver=N",
+};
 
 /// The interface for its command-line spelling, or a message listing both.
 pub fn parse_interface(text: &str) -> Result<Interface, String> {
@@ -44,24 +52,13 @@ impl Integration {
     /// Refuses the integrator's options for an FMU that runs as Co-Simulation (`interface`),
     /// where they would silently do nothing.
     pub fn check(&self, description: &Description, identifier: &str, interface: Interface) -> Result<(), String> {
-        if interface == Interface::CoSimulation && self.sets_solver() {
-            return Err(format!(
-                "--solver, --fixed-step and --abs-tolerance set the runner's integrator, which only Model Exchange uses; {identifier} runs as Co-Simulation here, where the FMU integrates itself ({})",
-                if description.model_exchange.is_some() {
-                    "add --interface model-exchange, or for this toolkit's FMUs set their own solver with --set solver=N"
-                } else {
-                    "it offers no Model Exchange interface"
-                }
-            ));
-        }
-        Ok(())
+        refuse_solver_under_co_simulation(self.sets_solver(), description, identifier, interface, OPTION_NAMES)
     }
 
     /// The runner's integrator from the options, checked (defaults: the toolkit's FMUs' own
     /// solver controls, DOPRI5 with a 1 ms fixed step and abs_tol 1e-9).
     pub fn solver(&self) -> Result<Solver, String> {
-        let names = SolverOptionNames { fixed_step: "--fixed-step ", abs_tolerance: "--abs-tolerance " };
-        solver_of(self.solver.as_deref(), self.fixed_step, self.abs_tolerance, names)
+        solver_of(self.solver.as_deref(), self.fixed_step, self.abs_tolerance, OPTION_NAMES)
     }
 }
 

@@ -3,7 +3,7 @@
 //! solver; a Co-Simulation FMU integrates itself.
 
 use fmi_importer::state::SavedState;
-use fmi_importer::{Description, Fmu, Instance, Method, Reader, Solver, Step, Value, Variable};
+use fmi_importer::{Description, Fmu, Instance, Interface, Method, Reader, Solver, Step, Value, Variable};
 
 use crate::input::Inputs;
 
@@ -31,12 +31,38 @@ pub struct Grid {
     pub logarithmic: bool,
 }
 
-/// How a caller's users write the integrator's options, up to their value, for the messages of
-/// [`solver_of`]: `--fixed-step ` on the command line, `fixed_step=` in Python.
+/// How a caller's users write the integrator's options, for the messages of [`solver_of`] and
+/// [`refuse_solver_under_co_simulation`]: `--fixed-step ` on the command line, `fixed_step=`
+/// in Python.
 #[derive(Debug, Clone, Copy)]
 pub struct SolverOptionNames {
+    /// The fixed step's option up to its value.
     pub fixed_step: &'static str,
+    /// The absolute tolerance's option up to its value.
     pub abs_tolerance: &'static str,
+    /// All the integrator's options, as a list in a sentence.
+    pub all: &'static str,
+    /// How to choose Model Exchange instead, for an FMU that offers it.
+    pub to_model_exchange: &'static str,
+}
+
+/// Refuses the integrator's options (`given`: one of them was) for an FMU that runs as
+/// Co-Simulation (`interface`), where they would silently do nothing.
+pub fn refuse_solver_under_co_simulation(
+    given: bool,
+    description: &Description,
+    identifier: &str,
+    interface: Interface,
+    names: SolverOptionNames,
+) -> Result<(), String> {
+    if given && interface == Interface::CoSimulation {
+        return Err(format!(
+            "{} set the runner's integrator, which only Model Exchange uses; {identifier} runs as Co-Simulation here, where the FMU integrates itself ({})",
+            names.all,
+            if description.model_exchange.is_some() { names.to_model_exchange } else { "it offers no Model Exchange interface" }
+        ));
+    }
+    Ok(())
 }
 
 /// The runner's integrator for Model Exchange from a caller's options, checked: the method
@@ -457,7 +483,7 @@ mod tests {
 
     #[test]
     fn solver_options_are_checked_by_the_callers_names() {
-        let names = SolverOptionNames { fixed_step: "fixed_step=", abs_tolerance: "abs_tolerance=" };
+        let names = SolverOptionNames { fixed_step: "fixed_step=", abs_tolerance: "abs_tolerance=", all: "", to_model_exchange: "" };
         assert_eq!(solver_of(None, None, None, names).unwrap(), Solver::default());
         let bdf = solver_of(Some("BDF"), Some(1e-4), Some(0.0), names).unwrap();
         assert_eq!((bdf.method, bdf.fixed_step, bdf.abs_tol), (Method::Bdf, 1e-4, 0.0));
@@ -465,6 +491,24 @@ mod tests {
         assert_eq!(solver_of(None, Some(-1.0), None, names).unwrap_err(), "fixed_step=-1 must be a positive number (seconds)");
         assert_eq!(solver_of(None, Some(f64::NAN), None, names).unwrap_err(), "fixed_step=NaN must be a positive number (seconds)");
         assert_eq!(solver_of(None, None, Some(-1e-9), names).unwrap_err(), "abs_tolerance=-0.000000001 must be a number, zero or greater");
+    }
+
+    /// The integrator's options are refused under Co-Simulation only, and only when given; the
+    /// message names the caller's options and says how to reach Model Exchange when the FMU
+    /// offers it.
+    #[test]
+    fn solver_options_are_refused_under_co_simulation() {
+        let names = SolverOptionNames { fixed_step: "", abs_tolerance: "", all: "the options", to_model_exchange: "switch" };
+        let cs_only = description(vec![]);
+        let both = Description { model_exchange: Some(Default::default()), ..description(vec![]) };
+        let refuse = |given, d: &Description, interface| refuse_solver_under_co_simulation(given, d, "m", interface, names);
+        assert_eq!(refuse(false, &both, Interface::CoSimulation), Ok(()));
+        assert_eq!(refuse(true, &both, Interface::ModelExchange), Ok(()));
+        assert_eq!(
+            refuse(true, &both, Interface::CoSimulation).unwrap_err(),
+            "the options set the runner's integrator, which only Model Exchange uses; m runs as Co-Simulation here, where the FMU integrates itself (switch)"
+        );
+        assert!(refuse(true, &cs_only, Interface::CoSimulation).unwrap_err().ends_with("(it offers no Model Exchange interface)"));
     }
 
     fn variable(name: &str, vr: u32, kind: Kind, causality: Causality, start: Option<Start>, dimensions: Vec<Dimension>) -> Variable {

@@ -442,9 +442,6 @@ pub struct ModelExchange<C> {
     t: f64,
     x: Vec<f64>,
     next_event_time: Option<f64>,
-    /// A linearization's directional derivatives, column after column, kept for the next one
-    /// (an implicit solver's importer asks for a Jacobian again and again).
-    columns: Vec<f64>,
     /// What the runner's implicit methods' Jacobians reuse between calls, lent to each
     /// [`System`].
     jacobian_scratch: JacobianScratch,
@@ -544,7 +541,6 @@ impl<C: Exchange> ModelExchange<C> {
             t: 0.0,
             x: vec![0.0; nx],
             next_event_time: None,
-            columns: Vec::new(),
             jacobian_scratch: JacobianScratch::default(),
         }
     }

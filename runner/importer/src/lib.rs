@@ -740,8 +740,9 @@ impl Instance<'_> {
         }
     }
 
-    /// For tests/bench/jacobian only: see `ModelExchange::bench_solver_jacobian`.
-    #[doc(hidden)]
+    /// For tests/bench/jacobian only (the `bench-hooks` feature): see
+    /// `ModelExchange::bench_solver_jacobian`.
+    #[cfg(feature = "bench-hooks")]
     pub fn bench_solver_jacobian(&mut self, x: &[f64], directional: bool, jacobian: &mut [f64], work: &mut [f64]) -> Result<(), String> {
         match self {
             Instance::Fmi2Me(i) => i.bench_solver_jacobian(x, directional, jacobian, work),

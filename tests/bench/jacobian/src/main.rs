@@ -3,8 +3,9 @@
 //! pay). Its motivation is the implicit solver, which otherwise pays an extra evaluation per
 //! state for every Jacobian; so the target is judged (the exit code) where the runner's own BDF
 //! and ESDIRK take their Jacobian: through the importer's view of the FMU as an ODE system
-//! (`System`, `impl OdeSystem` in runner/importer/src/exchange.rs, reached through the hidden
-//! hook `Instance::bench_solver_jacobian`), n `directional_derivative` calls with unit seeds
+//! (`System`, `impl OdeSystem` in runner/importer/src/exchange.rs, reached through
+//! `Instance::bench_solver_jacobian`, which the importer compiles only with its `bench-hooks`
+//! feature, enabled by this benchmark alone), n `directional_derivative` calls with unit seeds
 //! against n + 1 `rhs` calls (at x, then one forward difference per state). Both pay the same
 //! per-point costs: the time set once, the states set once for all the directional columns
 //! and once per evaluation for differences. Each Jacobian is at a new point: every state moved

@@ -318,6 +318,18 @@ fn accepted(status: c_int) -> bool {
     status == OK || status == WARNING
 }
 
+/// Every value finite, tested without a branch per value (the hot path's check).
+#[inline(always)]
+fn all_finite(values: &[f64]) -> bool {
+    values.iter().fold(true, |ok, v| ok & v.is_finite())
+}
+
+/// The same values bit for bit (-0 is not 0, a NaN is itself), as many as `a` has.
+#[inline(always)]
+fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.iter().zip(b).fold(true, |same, (a, b)| same & (a.to_bits() == b.to_bits()))
+}
+
 impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
     #[inline(always)]
     fn dim(&self) -> usize {
@@ -340,7 +352,7 @@ impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
         if !accepted(status) {
             self.trouble(C::NAMES.get_derivatives.1, t, status, false);
             dx.fill(f64::NAN);
-        } else if !dx[..nx].iter().fold(true, |ok, v| ok & v.is_finite()) {
+        } else if !all_finite(&dx[..nx]) {
             self.non_finite(C::NAMES.get_derivatives.1, t, "derivatives", dx, false);
         }
     }
@@ -362,49 +374,55 @@ impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
     /// The time and states are set unless the FMU still holds them from the previous call (the
     /// previous column of the same Jacobian), bit for bit.
     fn directional_derivative(&self, t: f64, x: &[f64], v: &[f64], out: &mut [f64]) {
-        let Some(structure) = self.structure.filter(|_| self.directional) else {
-            out.fill(f64::NAN);
-            return;
+        let nx = self.dim();
+        let structure = match self.structure {
+            Some(s) if self.directional && x.len() >= nx && v.len() >= nx && out.len() >= nx => s,
+            _ => {
+                out.fill(f64::NAN);
+                return;
+            }
         };
+        // Slices of the states' length (a constant with `N`): the loops below unroll.
+        let (x, v, column) = (&x[..nx], &v[..nx], &mut out[..nx]);
         let mut scratch = self.scratch.borrow_mut();
         let scratch = &mut **scratch;
-        let nx = self.dim();
-        let held = self.jacobian_point.get()
-            && t == self.time_set.get()
-            && scratch.x.len() == nx
-            && scratch.x.iter().zip(&x[..nx]).all(|(held, x)| held.to_bits() == x.to_bits());
+        let held = self.jacobian_point.get() && t == self.time_set.get() && scratch.x.len() == nx && same_bits(&scratch.x, x);
         if !held {
             if !self.place(t, x) {
                 out.fill(f64::NAN);
                 return;
             }
             scratch.x.clear();
-            scratch.x.extend_from_slice(&x[..nx]);
+            scratch.x.extend_from_slice(x);
             self.jacobian_point.set(true);
         }
         // The seeded states: a unit seed (one column, the implicit methods' usual call) as
-        // slices of the state and of `v`, a group through the kept buffers.
-        let v = &v[..v.len().min(structure.states.len())];
-        let first = v.iter().position(|s| *s != 0.0);
-        let (knowns, seed): (&[u32], &[f64]) = match first {
-            Some(j) if v[j + 1..].iter().all(|s| *s == 0.0) => (&structure.states[j..=j], &v[j..=j]),
-            _ => {
-                scratch.knowns.clear();
-                scratch.seed.clear();
-                for (vr, s) in structure.states.iter().zip(v).filter(|(_, s)| **s != 0.0) {
-                    scratch.knowns.push(*vr);
-                    scratch.seed.push(*s);
-                }
-                (&scratch.knowns, &scratch.seed)
+        // slices of the states and of `v`, a group through the kept buffers. One pass without
+        // branches counts the seeded states and finds the first.
+        let (mut seeded, mut first) = (0, 0);
+        for (j, s) in v.iter().enumerate().rev() {
+            let on = *s != 0.0;
+            seeded += usize::from(on);
+            first = if on { j } else { first };
+        }
+        let (knowns, seed): (&[u32], &[f64]) = if seeded == 1 {
+            (&structure.states[first..=first], &v[first..=first])
+        } else {
+            scratch.knowns.clear();
+            scratch.seed.clear();
+            for (vr, s) in structure.states.iter().zip(v).filter(|(_, s)| **s != 0.0) {
+                scratch.knowns.push(*vr);
+                scratch.seed.push(*s);
             }
+            (&scratch.knowns, &scratch.seed)
         };
         trace::enter(C::NAMES.get_directional_derivative.0, t);
-        let status = self.calls.directional_derivative(&structure.derivatives, knowns, seed, out);
+        let status = self.calls.directional_derivative(&structure.derivatives, knowns, seed, column);
         if !accepted(status) {
             self.trouble(C::NAMES.get_directional_derivative.1, t, status, false);
             out.fill(f64::NAN);
-        } else if !out.iter().all(|v| v.is_finite()) {
-            self.non_finite(C::NAMES.get_directional_derivative.1, t, "sensitivity", out, false);
+        } else if !all_finite(column) {
+            self.non_finite(C::NAMES.get_directional_derivative.1, t, "sensitivity", column, false);
         }
     }
 
@@ -864,6 +882,8 @@ mod tests {
         knowns: RefCell<Vec<u32>>,
         /// Directional derivatives return Discard.
         refuse: Cell<bool>,
+        /// Directional derivatives return OK with a NaN for the second derivative.
+        nan: Cell<bool>,
         log: LogContext,
     }
 
@@ -969,6 +989,9 @@ mod tests {
             for (row, o) in jacobian.iter().zip(out.iter_mut()) {
                 *o = knowns.iter().zip(seed).map(|(vr, s)| row[STATES.iter().position(|k| k == vr).unwrap()] * s).sum();
             }
+            if self.nan.get() {
+                out[1] = f64::NAN;
+            }
             OK
         }
     }
@@ -1037,5 +1060,22 @@ mod tests {
         fmu.refuse.set(false);
         sys.directional_derivative(0.0, &[2.0, 3.0], &[0.0, 1.0], &mut column);
         assert_eq!((column, fmu.states_set.get()), ([2.0, 0.0], 2));
+    }
+
+    /// A directional derivative that is not finite is recorded naming the value (the
+    /// integrator may retry a smaller step, as for derivatives), and does not stop the run.
+    #[test]
+    fn a_non_finite_sensitivity_is_named() {
+        let fmu = Quadratic::default();
+        let structure = StateStructure { states: STATES.to_vec(), derivatives: DERIVATIVES.to_vec(), pattern: None };
+        let mut scratch = JacobianScratch::default();
+        let sys = System::<Quadratic, 2>::new(&fmu, (2, 1), Some(&structure), &mut scratch);
+        let mut column = [0.0; 2];
+        fmu.nan.set(true);
+        sys.directional_derivative(0.5, &[2.0, 3.0], &[0.0, 1.0], &mut column);
+        assert!(column[0] == 2.0 && column[1].is_nan(), "{column:?}");
+        let discard = sys.last_discard.borrow().clone().expect("the value is recorded");
+        assert_eq!(discard.message, "fmi2GetDirectionalDerivative at t = 0.5 returned sensitivity[1] = NaN");
+        assert!(sys.poisoned.borrow().is_none());
     }
 }

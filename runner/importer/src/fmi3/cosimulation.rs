@@ -152,9 +152,10 @@ impl<'a> CoSimulation<'a> {
 
     /// fmi3GetOutputDerivatives: `out[k]` = the `orders[k]`-th time derivative of the Float64
     /// output `vrs[k]` (FMUs with `maxOutputDerivativeOrder` > 0).
+    #[inline(always)]
     pub fn get_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], out: &mut [f64]) -> Result<(), String> {
         let Some(get) = self.component.binary.api.functions.get_output_derivatives else {
-            return Err(format!("{}: the FMU does not export fmi3GetOutputDerivatives", self.component.name));
+            return Err(crate::not_exported(&self.component.name, "fmi3GetOutputDerivatives"));
         };
         let n = vrs.len().min(orders.len()).min(out.len());
         trace::enter(Call::Fmi3Get, f64::NAN);

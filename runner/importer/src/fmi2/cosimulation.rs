@@ -175,9 +175,9 @@ pub(crate) fn set_real_input_derivatives(
     let n = vrs.len().min(orders.len()).min(values.len());
     call_log::call(
         name,
-        || format!("vr={}, nvr={n}, order={}, value={}", list(&vrs[..n]), list(&orders[..n]), list(&values[..n])),
+        move || format!("vr={}, nvr={n}, order={}, value={}", list(&vrs[..n]), list(&orders[..n]), list(&values[..n])),
         // SAFETY: `n` value references, orders and values, valid for the call.
-        || unsafe { set(raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) },
+        move || unsafe { set(raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) },
         status_name,
         |_| String::new(),
     )
@@ -198,11 +198,11 @@ pub(crate) fn get_real_output_derivatives(
     let (n, values) = (vrs.len().min(orders.len()).min(out.len()), out.as_mut_ptr());
     call_log::call(
         name,
-        || format!("vr={}, nvr={n}, order={}", list(&vrs[..n]), list(&orders[..n])),
+        move || format!("vr={}, nvr={n}, order={}", list(&vrs[..n]), list(&orders[..n])),
         // SAFETY: `n` value references and orders, room for `n` values, valid for the call.
-        || unsafe { get(raw, vrs.as_ptr(), n, orders.as_ptr(), values) },
+        move || unsafe { get(raw, vrs.as_ptr(), n, orders.as_ptr(), values) },
         status_name,
         // SAFETY: the `n` values the call just wrote.
-        |_| format!("value={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        move |_| format!("value={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
     )
 }

@@ -318,6 +318,18 @@ fn accepted(status: c_int) -> bool {
     status == OK || status == WARNING
 }
 
+/// Every value finite, tested without a branch per value (the hot path's check).
+#[inline(always)]
+fn all_finite(values: &[f64]) -> bool {
+    values.iter().fold(true, |ok, v| ok & v.is_finite())
+}
+
+/// The same values bit for bit (-0 is not 0, a NaN is itself), as many as `a` has.
+#[inline(always)]
+fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.iter().zip(b).fold(true, |same, (a, b)| same & (a.to_bits() == b.to_bits()))
+}
+
 impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
     #[inline(always)]
     fn dim(&self) -> usize {
@@ -340,7 +352,7 @@ impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
         if !accepted(status) {
             self.trouble(C::NAMES.get_derivatives.1, t, status, false);
             dx.fill(f64::NAN);
-        } else if !dx[..nx].iter().fold(true, |ok, v| ok & v.is_finite()) {
+        } else if !all_finite(&dx[..nx]) {
             self.non_finite(C::NAMES.get_derivatives.1, t, "derivatives", dx, false);
         }
     }
@@ -362,49 +374,55 @@ impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
     /// The time and states are set unless the FMU still holds them from the previous call (the
     /// previous column of the same Jacobian), bit for bit.
     fn directional_derivative(&self, t: f64, x: &[f64], v: &[f64], out: &mut [f64]) {
-        let Some(structure) = self.structure.filter(|_| self.directional) else {
-            out.fill(f64::NAN);
-            return;
+        let nx = self.dim();
+        let structure = match self.structure {
+            Some(s) if self.directional && x.len() >= nx && v.len() >= nx && out.len() >= nx => s,
+            _ => {
+                out.fill(f64::NAN);
+                return;
+            }
         };
+        // Slices of the states' length (a constant with `N`): the loops below unroll.
+        let (x, v, column) = (&x[..nx], &v[..nx], &mut out[..nx]);
         let mut scratch = self.scratch.borrow_mut();
         let scratch = &mut **scratch;
-        let nx = self.dim();
-        let held = self.jacobian_point.get()
-            && t == self.time_set.get()
-            && scratch.x.len() == nx
-            && scratch.x.iter().zip(&x[..nx]).all(|(held, x)| held.to_bits() == x.to_bits());
+        let held = self.jacobian_point.get() && t == self.time_set.get() && scratch.x.len() == nx && same_bits(&scratch.x, x);
         if !held {
             if !self.place(t, x) {
                 out.fill(f64::NAN);
                 return;
             }
             scratch.x.clear();
-            scratch.x.extend_from_slice(&x[..nx]);
+            scratch.x.extend_from_slice(x);
             self.jacobian_point.set(true);
         }
         // The seeded states: a unit seed (one column, the implicit methods' usual call) as
-        // slices of the state and of `v`, a group through the kept buffers.
-        let v = &v[..v.len().min(structure.states.len())];
-        let first = v.iter().position(|s| *s != 0.0);
-        let (knowns, seed): (&[u32], &[f64]) = match first {
-            Some(j) if v[j + 1..].iter().all(|s| *s == 0.0) => (&structure.states[j..=j], &v[j..=j]),
-            _ => {
-                scratch.knowns.clear();
-                scratch.seed.clear();
-                for (vr, s) in structure.states.iter().zip(v).filter(|(_, s)| **s != 0.0) {
-                    scratch.knowns.push(*vr);
-                    scratch.seed.push(*s);
-                }
-                (&scratch.knowns, &scratch.seed)
+        // slices of the states and of `v`, a group through the kept buffers. One pass without
+        // branches counts the seeded states and finds the first.
+        let (mut seeded, mut first) = (0, 0);
+        for (j, s) in v.iter().enumerate().rev() {
+            let on = *s != 0.0;
+            seeded += usize::from(on);
+            first = if on { j } else { first };
+        }
+        let (knowns, seed): (&[u32], &[f64]) = if seeded == 1 {
+            (&structure.states[first..=first], &v[first..=first])
+        } else {
+            scratch.knowns.clear();
+            scratch.seed.clear();
+            for (vr, s) in structure.states.iter().zip(v).filter(|(_, s)| **s != 0.0) {
+                scratch.knowns.push(*vr);
+                scratch.seed.push(*s);
             }
+            (&scratch.knowns, &scratch.seed)
         };
         trace::enter(C::NAMES.get_directional_derivative.0, t);
-        let status = self.calls.directional_derivative(&structure.derivatives, knowns, seed, out);
+        let status = self.calls.directional_derivative(&structure.derivatives, knowns, seed, column);
         if !accepted(status) {
             self.trouble(C::NAMES.get_directional_derivative.1, t, status, false);
             out.fill(f64::NAN);
-        } else if !out.iter().all(|v| v.is_finite()) {
-            self.non_finite(C::NAMES.get_directional_derivative.1, t, "sensitivity", out, false);
+        } else if !all_finite(column) {
+            self.non_finite(C::NAMES.get_directional_derivative.1, t, "sensitivity", column, false);
         }
     }
 
@@ -442,9 +460,6 @@ pub struct ModelExchange<C> {
     t: f64,
     x: Vec<f64>,
     next_event_time: Option<f64>,
-    /// A linearization's directional derivatives, column after column, kept for the next one
-    /// (an implicit solver's importer asks for a Jacobian again and again).
-    columns: Vec<f64>,
     /// What the runner's implicit methods' Jacobians reuse between calls, lent to each
     /// [`System`].
     jacobian_scratch: JacobianScratch,
@@ -467,45 +482,9 @@ macro_rules! by_state_count {
     };
 }
 
-/// One Jacobian df/dx at (`t`, `x`) through a [`System`] of `N` states as the runner's implicit
-/// methods take it without a sparsity pattern, into `jacobian` (row-major): n
-/// `directional_derivative` calls with unit seeds, or, with `directional` false, n + 1 `rhs`
-/// calls (at x, then one forward difference per state). `work` holds 3 n values. What went
-/// wrong in the FMU's calls, if anything.
-fn solver_jacobian<C: Exchange, const N: usize>(
-    calls: &C,
-    (nz, structure, scratch): (usize, Option<&StateStructure>, &mut JacobianScratch),
-    (t, x): (f64, &[f64]),
-    directional: bool,
-    (jacobian, work): (&mut [f64], &mut [f64]),
-) -> Option<Trouble> {
-    let n = x.len();
-    let system = System::<C, N>::new(calls, (n, nz), structure, scratch);
-    let (f, rest) = work.split_at_mut(n);
-    let (xs, fs) = rest.split_at_mut(n);
-    if directional {
-        for j in 0..n {
-            xs.fill(0.0);
-            xs[j] = 1.0;
-            system.directional_derivative(t, x, xs, fs);
-            for i in 0..n {
-                jacobian[i * n + j] = fs[i];
-            }
-        }
-    } else {
-        system.rhs(t, x, f);
-        for j in 0..n {
-            xs.copy_from_slice(x);
-            xs[j] = x[j] + f64::EPSILON.sqrt() * x[j].abs().max(1.0);
-            let increment = xs[j] - x[j];
-            system.rhs(t, xs, fs);
-            for i in 0..n {
-                jacobian[i * n + j] = (fs[i] - f[i]) / increment;
-            }
-        }
-    }
-    system.poisoned.into_inner().or(system.last_discard.into_inner())
-}
+// After `by_state_count`, which it uses.
+#[cfg(feature = "bench-hooks")]
+mod bench_hooks;
 
 /// The integrator from `t` towards `target` on the FMU as a [`System`] of `N` states (0: any
 /// number); the outcome and what went wrong in the FMU's calls, if anything.
@@ -544,7 +523,6 @@ impl<C: Exchange> ModelExchange<C> {
             t: 0.0,
             x: vec![0.0; nx],
             next_event_time: None,
-            columns: Vec::new(),
             jacobian_scratch: JacobianScratch::default(),
         }
     }
@@ -875,35 +853,6 @@ impl<C: Exchange> ModelExchange<C> {
         Ok(outcome)
     }
 
-    /// For tests/bench/jacobian only: one Jacobian df/dx at the current time and states `x`
-    /// through the integrator's view of the FMU, as the runner's implicit methods take one (n
-    /// directional derivatives with unit seeds, or with `directional` false n + 1 derivative
-    /// evaluations), into `jacobian` (n x n, row-major), with `work` (3 n values) as scratch.
-    /// The FMU is left at the last point evaluated: the next step or linearization sets the
-    /// instance's own time and states again, as they always do.
-    #[doc(hidden)]
-    pub fn bench_solver_jacobian(&mut self, x: &[f64], directional: bool, jacobian: &mut [f64], work: &mut [f64]) -> Result<(), String> {
-        let name = self.component.name();
-        let n = self.nx;
-        if self.integrator.is_none() {
-            return Err(format!("{name}: the run was not initialized"));
-        }
-        if x.len() != n || jacobian.len() != n * n || work.len() != 3 * n {
-            return Err(format!("{name}: {} states, a {} matrix and {} work values for {n} states", x.len(), jacobian.len(), work.len()));
-        }
-        if directional
-            && !(self.component.provides_directional_derivative() && self.structure.as_ref().is_some_and(|s| s.states.len() == n))
-        {
-            return Err(format!("{name}: no directional derivatives of the states' derivatives"));
-        }
-        let layout = (self.nz, self.structure.as_ref(), &mut self.jacobian_scratch);
-        let trouble = by_state_count!(n, solver_jacobian::<C>(&self.component, layout, (self.t, x), directional, (jacobian, work)));
-        match trouble {
-            Some(trouble) => Err(format!("{name}: {}", trouble.message)),
-            None => Ok(()),
-        }
-    }
-
     /// `CompletedIntegratorStep`, where the FMU needs it: (enterEventMode, terminateSimulation).
     fn completed_step(&mut self) -> Result<(bool, bool), String> {
         if !self.component.needs_completed_integrator_step() {
@@ -933,6 +882,8 @@ mod tests {
         knowns: RefCell<Vec<u32>>,
         /// Directional derivatives return Discard.
         refuse: Cell<bool>,
+        /// Directional derivatives return OK with a NaN for the second derivative.
+        nan: Cell<bool>,
         log: LogContext,
     }
 
@@ -1038,6 +989,9 @@ mod tests {
             for (row, o) in jacobian.iter().zip(out.iter_mut()) {
                 *o = knowns.iter().zip(seed).map(|(vr, s)| row[STATES.iter().position(|k| k == vr).unwrap()] * s).sum();
             }
+            if self.nan.get() {
+                out[1] = f64::NAN;
+            }
             OK
         }
     }
@@ -1106,5 +1060,22 @@ mod tests {
         fmu.refuse.set(false);
         sys.directional_derivative(0.0, &[2.0, 3.0], &[0.0, 1.0], &mut column);
         assert_eq!((column, fmu.states_set.get()), ([2.0, 0.0], 2));
+    }
+
+    /// A directional derivative that is not finite is recorded naming the value (the
+    /// integrator may retry a smaller step, as for derivatives), and does not stop the run.
+    #[test]
+    fn a_non_finite_sensitivity_is_named() {
+        let fmu = Quadratic::default();
+        let structure = StateStructure { states: STATES.to_vec(), derivatives: DERIVATIVES.to_vec(), pattern: None };
+        let mut scratch = JacobianScratch::default();
+        let sys = System::<Quadratic, 2>::new(&fmu, (2, 1), Some(&structure), &mut scratch);
+        let mut column = [0.0; 2];
+        fmu.nan.set(true);
+        sys.directional_derivative(0.5, &[2.0, 3.0], &[0.0, 1.0], &mut column);
+        assert!(column[0] == 2.0 && column[1].is_nan(), "{column:?}");
+        let discard = sys.last_discard.borrow().clone().expect("the value is recorded");
+        assert_eq!(discard.message, "fmi2GetDirectionalDerivative at t = 0.5 returned sensitivity[1] = NaN");
+        assert!(sys.poisoned.borrow().is_none());
     }
 }

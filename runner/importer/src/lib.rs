@@ -121,6 +121,14 @@ pub fn model_ended(when: &str, reason: &str) -> String {
         format!("the model ended the simulation at {when}: {reason}")
     }
 }
+/// The error for an optional FMI function `function` that instance `instance`'s binary does not
+/// export; out of line, so the calls that check for it stay small enough to inline.
+#[cold]
+#[inline(never)]
+pub(crate) fn not_exported(instance: &str, function: &str) -> String {
+    format!("{instance}: the FMU does not export {function}")
+}
+
 pub use reader::Reader;
 pub use solvers::Method;
 
@@ -599,6 +607,8 @@ impl Instance<'_> {
 
     /// Sets time derivatives of Real inputs, `values[k]` the `orders[k]`-th of `vrs[k]` (FMI 2.0
     /// Co-Simulation FMUs that declare `canInterpolateInputs`; FMI 3.0 has no such call).
+    /// Inlined, as [`Instance::read`]: a system's master calls it at every communication step.
+    #[inline(always)]
     pub fn set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64]) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.set_input_derivatives(vrs, orders, values),
@@ -610,7 +620,9 @@ impl Instance<'_> {
     }
 
     /// Reads time derivatives of Real outputs, `out[k]` the `orders[k]`-th of `vrs[k]`
-    /// (Co-Simulation FMUs that declare `maxOutputDerivativeOrder`).
+    /// (Co-Simulation FMUs that declare `maxOutputDerivativeOrder`). Inlined, as
+    /// [`Instance::read`]: a system's master calls it at every communication step.
+    #[inline(always)]
     pub fn get_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], out: &mut [f64]) -> Result<(), String> {
         match self {
             Instance::Fmi2Cs(i) => i.get_output_derivatives(vrs, orders, out),
@@ -740,8 +752,9 @@ impl Instance<'_> {
         }
     }
 
-    /// For tests/bench/jacobian only: see `ModelExchange::bench_solver_jacobian`.
-    #[doc(hidden)]
+    /// For tests/bench/jacobian only (the `bench-hooks` feature): see
+    /// `ModelExchange::bench_solver_jacobian`.
+    #[cfg(feature = "bench-hooks")]
     pub fn bench_solver_jacobian(&mut self, x: &[f64], directional: bool, jacobian: &mut [f64], work: &mut [f64]) -> Result<(), String> {
         match self {
             Instance::Fmi2Me(i) => i.bench_solver_jacobian(x, directional, jacobian, work),

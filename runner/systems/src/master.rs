@@ -1029,7 +1029,9 @@ struct Start<'s> {
 }
 
 /// Reads component `c`'s output derivatives that polynomial connections pass (none: nothing).
-/// The test is inlined into the loops, so that a component without any costs no call.
+/// Inlined into the loops with the importer's call: out of line, the frames cost about 100
+/// instructions a communication step on quarter_car_road (tests/bench/systems), a fifth of the
+/// master's share of the polynomial coupling, and the hold's loops did not gain from them.
 #[inline(always)]
 fn read_rates(
     plan: &Plan,
@@ -1040,25 +1042,11 @@ fn read_rates(
     rates: &mut [Rates],
     t: f64,
 ) -> Result<(), Failure> {
-    if plan.rates[c].call_vrs.is_empty() {
+    let r = &plan.rates[c];
+    if r.call_vrs.is_empty() {
         return Ok(());
     }
-    read_rates_of(plan, components, c, instance, scratch, rates, t)
-}
-
-/// [`read_rates`] for a component that has output derivatives to read.
-#[inline(never)]
-fn read_rates_of(
-    plan: &Plan,
-    components: &[Component],
-    c: usize,
-    instance: &mut Instance,
-    scratch: &mut [f64],
-    rates: &mut [Rates],
-    t: f64,
-) -> Result<(), Failure> {
     driving(c);
-    let r = &plan.rates[c];
     instance.get_output_derivatives(&r.call_vrs, &r.call_orders, scratch).map_err(|e| failure(components, c, t, e))?;
     for (&x, &(slot, k)) in scratch.iter().zip(&r.call_slots) {
         rates[slot][k] = x;
@@ -1068,8 +1056,8 @@ fn read_rates_of(
 
 /// Sets component `c`'s polynomial inputs' derivatives for the step from `t` (none: nothing).
 /// Their values were set by [`transfer`]; an interpolating input's value is its source's at the
-/// step's start instead (Gauss-Seidel: the source is at the step's end already). The test is
-/// inlined into the loops, so that a component without any costs no call.
+/// step's start instead (Gauss-Seidel: the source is at the step's end already). Inlined into
+/// the loops, as [`read_rates`].
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn pass_rates(
@@ -1083,28 +1071,11 @@ fn pass_rates(
     start: &Start,
     t: f64,
 ) -> Result<(), Failure> {
-    if plan.inputs[c].rates.is_empty() {
+    let inputs = &plan.inputs[c];
+    if inputs.rates.is_empty() {
         return Ok(());
     }
-    pass_rates_of(plan, components, c, instance, passed, values, rates, start, t)
-}
-
-/// [`pass_rates`] for a component with polynomial inputs.
-#[inline(never)]
-#[allow(clippy::too_many_arguments)]
-fn pass_rates_of(
-    plan: &Plan,
-    components: &[Component],
-    c: usize,
-    instance: &mut Instance,
-    passed: &mut [f64],
-    values: &[f64],
-    rates: &[Rates],
-    start: &Start,
-    t: f64,
-) -> Result<(), Failure> {
     driving(c);
-    let inputs = &plan.inputs[c];
     let fail = |e: String| failure(components, c, t, format!("{e} (setting {} with their derivatives)", inputs.rate_names.join(", ")));
     let (derivatives, interpolated) = passed.split_at_mut(inputs.rate_vrs.len());
     if !inputs.interpolated.is_empty() {

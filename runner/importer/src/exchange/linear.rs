@@ -54,11 +54,7 @@ pub struct Matrix {
 impl Matrix {
     /// `rows` x `columns` zeros.
     pub fn zeros(rows: usize, columns: usize) -> Matrix {
-        // Allocated then zeroed rather than by `vec![0.0; n]`, whose calloc skips glibc's
-        // per-thread cache: 180 instructions against 50 for a small model's A.
-        let mut values = Vec::with_capacity(rows * columns);
-        values.resize(rows * columns, 0.0);
-        Matrix { rows, columns, values }
+        Matrix { rows, columns, values: vec![0.0; rows * columns] }
     }
 
     /// The number of rows.
@@ -82,13 +78,6 @@ impl Matrix {
         );
         for (row, v) in self.values.chunks_exact_mut(self.columns).zip(values) {
             row[column] = *v;
-        }
-    }
-
-    /// Sets every entry (row, column) to `f(row, column)`.
-    fn fill_with(&mut self, f: impl Fn(usize, usize) -> f64) {
-        for (r, row) in self.values.chunks_exact_mut(self.columns.max(1)).enumerate() {
-            row.iter_mut().enumerate().for_each(|(c, v)| *v = f(r, c));
         }
     }
 
@@ -209,10 +198,8 @@ impl<C: Exchange> ModelExchange<C> {
     }
 
     /// Every column by one directional derivative of the derivatives and the outputs that
-    /// are not states, seeded with the one state or input. Each call writes its column into
-    /// a buffer kept from one linearization to the next, scattered into the matrices at the
-    /// end: for a small model, a per-column copy into the row-major matrices and a buffer
-    /// allocated per linearization cost as much as the FMU's calls (tests/bench/jacobian).
+    /// are not states, seeded with the one state or input: the states' columns go into A and
+    /// C, the inputs' into B and D.
     fn directional_columns(
         &mut self,
         derivatives: &[u32],
@@ -222,56 +209,38 @@ impl<C: Exchange> ModelExchange<C> {
     ) -> Result<(), String> {
         let nx = self.nx;
         let computed: Vec<usize> = (0..ports.outputs.len()).filter(|&r| state_of[r].is_none()).collect();
-        let unknowns: std::borrow::Cow<[u32]> = if computed.is_empty() {
-            derivatives.into()
-        } else {
-            derivatives.iter().copied().chain(computed.iter().map(|&r| ports.outputs[r])).collect::<Vec<_>>().into()
-        };
-        let (height, nu) = (unknowns.len(), ports.inputs.len());
-        let mut columns = std::mem::take(&mut self.columns);
-        columns.resize(height * (nx + nu), 0.0);
-        let result = self.directional_calls(&unknowns, j.states.iter().chain(ports.inputs), &mut columns);
-        if result.is_ok() {
-            // Column `c` of the unknowns is columns[c * height..][..height], the derivatives'
-            // rows then the computed outputs': A and C take the states' columns, B and D the
-            // inputs'. Each matrix filled row by row, as it is laid out.
-            let entry = |column: usize, row: usize| columns[column * height + row];
-            j.a.fill_with(|r, c| entry(c, r));
-            j.b.fill_with(|r, c| entry(nx + c, r));
-            for (k, &row) in computed.iter().enumerate() {
-                j.c[row].iter_mut().enumerate().for_each(|(c, v)| *v = entry(c, nx + k));
-                j.d[row].iter_mut().enumerate().for_each(|(c, v)| *v = entry(nx + c, nx + k));
+        let unknowns: Vec<u32> = derivatives.iter().copied().chain(computed.iter().map(|&r| ports.outputs[r])).collect();
+        if unknowns.is_empty() {
+            return Ok(());
+        }
+        let mut column = vec![0.0; unknowns.len()];
+        for (k, &known) in j.states.iter().chain(ports.inputs).enumerate() {
+            self.directional_column(&unknowns, known, &mut column)?;
+            let (f, y) = column.split_at(nx);
+            let (upper, lower, c) = if k < nx { (&mut j.a, &mut j.c, k) } else { (&mut j.b, &mut j.d, k - nx) };
+            upper.set_column(c, f);
+            for (&row, &v) in computed.iter().zip(y) {
+                lower[row][c] = v;
             }
         }
-        self.columns = columns;
-        result
+        Ok(())
     }
 
-    /// One directional derivative of `unknowns` per known of `knowns`, seeded 1, into
-    /// consecutive columns of `columns`; refused when the FMU refuses or returns a value that
-    /// is not finite.
-    fn directional_calls<'k>(
-        &mut self,
-        unknowns: &[u32],
-        knowns: impl Iterator<Item = &'k u32>,
-        columns: &mut [f64],
-    ) -> Result<(), String> {
+    /// The directional derivative of `unknowns` with respect to `known`, seeded 1, into
+    /// `column`; refused when the FMU refuses or returns a value that is not finite.
+    fn directional_column(&mut self, unknowns: &[u32], known: u32, column: &mut [f64]) -> Result<(), String> {
         let call = C::NAMES.get_directional_derivative.1;
-        for (&known, out) in knowns.zip(columns.chunks_exact_mut(unknowns.len().max(1))) {
-            let out = &mut out[..unknowns.len()];
-            trace::enter(C::NAMES.get_directional_derivative.0, self.t);
-            let status = self.component.directional_derivative(unknowns, &[known], &[1.0], out);
-            self.component.check(call, status)?;
-            if !out.iter().all(|v| v.is_finite()) {
-                let k = out.iter().position(|v| !v.is_finite()).unwrap_or_default();
-                return Err(format!(
-                    "{}: {call} of value reference {} with respect to {known} at t = {} returned {}",
-                    self.component.name(),
-                    unknowns[k],
-                    self.t,
-                    out[k]
-                ));
-            }
+        trace::enter(C::NAMES.get_directional_derivative.0, self.t);
+        let status = self.component.directional_derivative(unknowns, &[known], &[1.0], column);
+        self.component.check(call, status)?;
+        if let Some(k) = column.iter().position(|v| !v.is_finite()) {
+            return Err(format!(
+                "{}: {call} of value reference {} with respect to {known} at t = {} returned {}",
+                self.component.name(),
+                unknowns[k],
+                self.t,
+                column[k]
+            ));
         }
         Ok(())
     }

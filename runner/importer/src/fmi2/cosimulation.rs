@@ -73,9 +73,10 @@ impl<'a> CoSimulation<'a> {
 
     /// fmi2SetRealInputDerivatives: the `orders[k]`-th time derivative of the Real input
     /// `vrs[k]` is `values[k]`, for an FMU that interpolates inputs (`canInterpolateInputs`).
+    #[inline(always)]
     pub fn set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64]) -> Result<(), String> {
         let Some(set) = self.component.binary.api.functions.set_real_input_derivatives else {
-            return Err(format!("{}: the FMU does not export fmi2SetRealInputDerivatives", self.component.name));
+            return Err(crate::not_exported(&self.component.name, "fmi2SetRealInputDerivatives"));
         };
         trace::enter(Call::SetReal, self.component.time);
         let status =
@@ -85,9 +86,10 @@ impl<'a> CoSimulation<'a> {
 
     /// fmi2GetRealOutputDerivatives: `out[k]` = the `orders[k]`-th time derivative of the Real
     /// output `vrs[k]` (FMUs with `maxOutputDerivativeOrder` > 0).
+    #[inline(always)]
     pub fn get_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], out: &mut [f64]) -> Result<(), String> {
         let Some(get) = self.component.binary.api.functions.get_real_output_derivatives else {
-            return Err(format!("{}: the FMU does not export fmi2GetRealOutputDerivatives", self.component.name));
+            return Err(crate::not_exported(&self.component.name, "fmi2GetRealOutputDerivatives"));
         };
         trace::enter(Call::GetReal, self.component.time);
         let status = get_real_output_derivatives("fmi2GetRealOutputDerivatives", get, self.component.raw, vrs, orders, out, c::status_name);
@@ -160,6 +162,7 @@ impl<'a> CoSimulation<'a> {
 
 /// `SetRealInputDerivatives` of FMI 2.0 or 1.0 (`name`; the same C signature in both), logged:
 /// the `orders[k]`-th time derivative of input `vrs[k]` is `values[k]`. Returns the status.
+#[inline(always)]
 pub(crate) fn set_real_input_derivatives(
     name: &'static str,
     set: c::SetRealInputDerivatives,
@@ -170,16 +173,19 @@ pub(crate) fn set_real_input_derivatives(
     status_name: fn(c_int) -> &'static str,
 ) -> c_int {
     let n = vrs.len().min(orders.len()).min(values.len());
-    let entered =
-        call_log::enter(name, || format!("vr={}, nvr={n}, order={}, value={}", list(&vrs[..n]), list(&orders[..n]), list(&values[..n])));
-    // SAFETY: `n` value references, orders and values, valid for the call.
-    let status = unsafe { set(raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) };
-    call_log::returned(entered, || status_name(status));
-    status
+    call_log::call(
+        name,
+        move || format!("vr={}, nvr={n}, order={}, value={}", list(&vrs[..n]), list(&orders[..n]), list(&values[..n])),
+        // SAFETY: `n` value references, orders and values, valid for the call.
+        move || unsafe { set(raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) },
+        status_name,
+        |_| String::new(),
+    )
 }
 
 /// `GetRealOutputDerivatives` of FMI 2.0 or 1.0 (`name`; the same C signature in both), logged:
 /// `out[k]` = the `orders[k]`-th time derivative of output `vrs[k]`. Returns the status.
+#[inline(always)]
 pub(crate) fn get_real_output_derivatives(
     name: &'static str,
     get: c::GetRealOutputDerivatives,
@@ -189,10 +195,14 @@ pub(crate) fn get_real_output_derivatives(
     out: &mut [f64],
     status_name: fn(c_int) -> &'static str,
 ) -> c_int {
-    let n = vrs.len().min(orders.len()).min(out.len());
-    let entered = call_log::enter(name, || format!("vr={}, nvr={n}, order={}", list(&vrs[..n]), list(&orders[..n])));
-    // SAFETY: `n` value references and orders, room for `n` values, valid for the call.
-    let status = unsafe { get(raw, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr()) };
-    call_log::returned_with(entered, || status_name(status), || format!("value={}", list(&out[..n])));
-    status
+    let (n, values) = (vrs.len().min(orders.len()).min(out.len()), out.as_mut_ptr());
+    call_log::call(
+        name,
+        move || format!("vr={}, nvr={n}, order={}", list(&vrs[..n]), list(&orders[..n])),
+        // SAFETY: `n` value references and orders, room for `n` values, valid for the call.
+        move || unsafe { get(raw, vrs.as_ptr(), n, orders.as_ptr(), values) },
+        status_name,
+        // SAFETY: the `n` values the call just wrote.
+        move |_| format!("value={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+    )
 }

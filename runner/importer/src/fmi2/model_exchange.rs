@@ -276,14 +276,17 @@ impl Exchange for Exchange2<'_> {
     #[inline(always)]
     fn directional_derivative(&self, unknowns: &[u32], knowns: &[u32], seed: &[f64], out: &mut [f64]) -> c_int {
         let Some(f) = self.directional else { return crate::exchange::ERROR };
-        let entered = call_log::enter("fmi2GetDirectionalDerivative", || {
-            format!("vUnknown_ref={}, vKnown_ref={}, dvKnown={}", list(unknowns), list(knowns), list(seed))
-        });
-        // SAFETY: arrays of the lengths passed (out as long as unknowns, seed as knowns).
-        let status = unsafe {
-            f(self.component.raw, unknowns.as_ptr(), unknowns.len(), knowns.as_ptr(), knowns.len(), seed.as_ptr(), out.as_mut_ptr())
-        };
-        call_log::returned_with(entered, || c::status_name(status), || format!("dvUnknown={}", list(out)));
-        status
+        let (raw, values, n) = (self.component.raw, out.as_mut_ptr(), out.len());
+        // The closures take their values by copy (`move`): nothing is stored for the log unless
+        // it is on.
+        call_log::call(
+            "fmi2GetDirectionalDerivative",
+            move || format!("vUnknown_ref={}, vKnown_ref={}, dvKnown={}", list(unknowns), list(knowns), list(seed)),
+            // SAFETY: arrays of the lengths passed (out as long as unknowns, seed as knowns).
+            move || unsafe { f(raw, unknowns.as_ptr(), unknowns.len(), knowns.as_ptr(), knowns.len(), seed.as_ptr(), values) },
+            c::status_name,
+            // SAFETY: the `n` values of `out`, which the call just wrote.
+            move |_| format!("dvUnknown={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 }

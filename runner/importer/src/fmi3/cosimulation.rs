@@ -152,18 +152,22 @@ impl<'a> CoSimulation<'a> {
 
     /// fmi3GetOutputDerivatives: `out[k]` = the `orders[k]`-th time derivative of the Float64
     /// output `vrs[k]` (FMUs with `maxOutputDerivativeOrder` > 0).
+    #[inline(always)]
     pub fn get_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], out: &mut [f64]) -> Result<(), String> {
         let Some(get) = self.component.binary.api.functions.get_output_derivatives else {
-            return Err(format!("{}: the FMU does not export fmi3GetOutputDerivatives", self.component.name));
+            return Err(crate::not_exported(&self.component.name, "fmi3GetOutputDerivatives"));
         };
-        let n = vrs.len().min(orders.len()).min(out.len());
+        let (instance, n, values) = (self.component.instance, vrs.len().min(orders.len()).min(out.len()), out.as_mut_ptr());
         trace::enter(Call::Fmi3Get, f64::NAN);
-        // SAFETY: `n` value references of scalars and orders, room for `n` values.
-        let entered = call_log::enter("fmi3GetOutputDerivatives", || {
-            format!("valueReferences={}, nValueReferences={n}, orders={}, nValues={n}", list(&vrs[..n]), list(&orders[..n]))
-        });
-        let status = unsafe { get(self.component.instance, vrs.as_ptr(), n, orders.as_ptr(), out.as_mut_ptr(), n) };
-        call_log::returned_with(entered, || c::status_name(status), || format!("values={}", list(&out[..n])));
+        let status = call_log::call(
+            "fmi3GetOutputDerivatives",
+            move || format!("valueReferences={}, nValueReferences={n}, orders={}, nValues={n}", list(&vrs[..n]), list(&orders[..n])),
+            // SAFETY: `n` value references of scalars and orders, room for `n` values.
+            move || unsafe { get(instance, vrs.as_ptr(), n, orders.as_ptr(), values, n) },
+            c::status_name,
+            // SAFETY: the `n` values the call just wrote.
+            move |_| format!("values={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        );
         self.component.check("fmi3GetOutputDerivatives", status)
     }
 

@@ -284,25 +284,20 @@ impl Exchange for Exchange3<'_> {
     #[inline(always)]
     fn directional_derivative(&self, unknowns: &[u32], knowns: &[u32], seed: &[f64], out: &mut [f64]) -> c_int {
         let Some(f) = self.directional else { return crate::exchange::ERROR };
-        let entered = call_log::enter("fmi3GetDirectionalDerivative", || {
-            format!("unknowns={}, knowns={}, seed={}", list(unknowns), list(knowns), list(seed))
-        });
-        // SAFETY: arrays of the lengths passed (scalar unknowns and knowns: one value each).
-        let status = unsafe {
-            f(
-                self.component.instance,
-                unknowns.as_ptr(),
-                unknowns.len(),
-                knowns.as_ptr(),
-                knowns.len(),
-                seed.as_ptr(),
-                seed.len(),
-                out.as_mut_ptr(),
-                out.len(),
-            )
-        };
-        call_log::returned_with(entered, || c::status_name(status), || format!("sensitivity={}", list(out)));
-        status
+        let (instance, values, n) = (self.component.instance, out.as_mut_ptr(), out.len());
+        // The closures take their values by copy (`move`): nothing is stored for the log unless
+        // it is on.
+        call_log::call(
+            "fmi3GetDirectionalDerivative",
+            move || format!("unknowns={}, knowns={}, seed={}", list(unknowns), list(knowns), list(seed)),
+            // SAFETY: arrays of the lengths passed (scalar unknowns and knowns: one value each).
+            move || unsafe {
+                f(instance, unknowns.as_ptr(), unknowns.len(), knowns.as_ptr(), knowns.len(), seed.as_ptr(), seed.len(), values, n)
+            },
+            c::status_name,
+            // SAFETY: the `n` values of `out`, which the call just wrote.
+            move |_| format!("sensitivity={}", list(unsafe { std::slice::from_raw_parts(values, n) })),
+        )
     }
 
     /// fmi3GetNumberOfContinuousStates and fmi3GetNumberOfEventIndicators (allowed in Event

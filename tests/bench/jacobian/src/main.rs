@@ -3,8 +3,9 @@
 //! pay). Its motivation is the implicit solver, which otherwise pays an extra evaluation per
 //! state for every Jacobian; so the target is judged (the exit code) where the runner's own BDF
 //! and ESDIRK take their Jacobian: through the importer's view of the FMU as an ODE system
-//! (`System`, `impl OdeSystem` in runner/importer/src/exchange.rs, reached through the hidden
-//! hook `Instance::bench_solver_jacobian`), n `directional_derivative` calls with unit seeds
+//! (`System`, `impl OdeSystem` in runner/importer/src/exchange.rs, reached through
+//! `Instance::bench_solver_jacobian`, which the importer compiles only with its `bench-hooks`
+//! feature, enabled by this benchmark alone), n `directional_derivative` calls with unit seeds
 //! against n + 1 `rhs` calls (at x, then one forward difference per state). Both pay the same
 //! per-point costs: the time set once, the states set once for all the directional columns
 //! and once per evaluation for differences. Each Jacobian is at a new point: every state moved
@@ -47,6 +48,25 @@
 //! (fmu/export) is where it is decided. Instructions are not time: in the quiet run the
 //! directional Jacobian ran about 19 instructions per nanosecond (quarter_car, 4,343 in 0.227
 //! us), the evaluations 11 (2,113 in 0.200 us), so the time ratio is the smaller.
+//!
+//! Measured again 2026-12-06 at d03a038, after the System's column was made leaner (3ab2586:
+//! states, seed and column sliced to the states' count, the held point and the finiteness
+//! compared without a branch per value, the unit seed found in one pass; ca014c4: the call's
+//! log arguments built only when the log is on), in instructions per Jacobian at a new point
+//! (FMI 2.0): quarter_car 4,070 against 2,108 for n + 1 evaluations (1.93; FMI 3.0 4,129
+//! against 2,107), second_order 1,821 against 939 (1.94), mass_spring_damper 1,851 against 834
+//! (2.22), pendulum 1,956 against 1,089 (1.80): missed for every FMU. The importer's share of
+//! quarter_car's (the hook's loop included) 1,510 -> 1,237, against 1,081 for the evaluations:
+//! about 200 per Jacobian fixed (the hook's checks and System, the time and states set), then
+//! per column about 115 in the System (the held point compared, the seed found, the call with
+//! its status and finiteness checks) and 35 in the hook (the column copied into the matrix).
+//! The FMU's own 2,833 per Jacobian did not change (fmu/export's). In time, one run at load
+//! average 3: 1.22-1.57 (quarter_car 1.23 and 1.27): missed. `runner linearize`'s Jacobian was
+//! made plainer at 4089dfa (each column copied into A, B, C and D as it comes, no buffer kept
+//! between linearizations, the matrices allocated by `vec!`): at a new point quarter_car 4,887
+//! -> 5,738 instructions, second_order 2,740 -> 3,384, mass_spring_damper 2,770 -> 3,617,
+//! pendulum 2,875 -> 3,519 (allocations a one-off command pays once; the implicit solver's path
+//! does not go through it); in time at a new point 1.03-1.35 in that run.
 //!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0
 //! FMUs of second_order, mass_spring_damper, quarter_car and pendulum in target/, built by

@@ -246,6 +246,31 @@ fn a_killed_system_sweep_resumes_to_the_uninterrupted_csv() {
     assert!(err.contains("is not from this sweep") && err.contains("system_sha256"), "{err}");
 }
 
+/// A sweep of an `.ssp` archive resumes: its record names the system by the archive's bytes, not
+/// by the paths its FMUs were extracted to (a fresh temporary folder per run, which once made
+/// every resume of an archive refused as "not from this sweep"). The first row of a finished
+/// sweep is kept as the partial file; `--resume` runs the other points and ends with the same
+/// bytes.
+#[test]
+fn a_sweep_of_an_ssp_archive_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = faulty_system(dir.path(), "folder", "");
+    let ssd = std::fs::read(root.join("SystemStructure.ssd")).unwrap();
+    let fmu = std::fs::read(root.join("resources").join("faulty.fmu")).unwrap();
+    let ssp = dir.path().join("faulty.ssp");
+    write_zip(&ssp, &[ZipItem::File("SystemStructure.ssd", &ssd), ZipItem::File("resources/faulty.fmu", &fmu)]);
+    let o = sweep(dir.path(), &ssp, &["good.k=0.5,0.75,1"], "a.csv", &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let complete = std::fs::read(dir.path().join("a.csv")).unwrap();
+    let first_row = complete.iter().enumerate().filter(|(_, &b)| b == b'\n').nth(1).unwrap().0 + 1;
+    std::fs::write(dir.path().join("a.csv.partial"), &complete[..first_row]).unwrap();
+    std::fs::remove_file(dir.path().join("a.csv")).unwrap();
+    let o = sweep(dir.path(), &ssp, &["good.k=0.5,0.75,1"], "a.csv", &["--resume"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("resuming: 1 of 3 points"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(dir.path().join("a.csv")).unwrap(), complete);
+}
+
 /// systems/quarter_car_road (built by `runner build`): the Ex. 4 sweep and a run in worker
 /// processes write exactly the bytes of the same in-process; `--plot` draws both.
 #[test]

@@ -128,6 +128,12 @@ impl System {
         Ok(System { path: path.to_path_buf(), ssd, archive_root, structure, components, _archive: archive })
     }
 
+    /// The folder an `.ssp` archive was extracted to (a fresh temporary folder for every
+    /// [`System::open`]); `None` for a system read from a folder or an `.ssd`.
+    pub fn archive_root(&self) -> Option<&Path> {
+        self.archive_root.as_deref()
+    }
+
     /// Loads every component's binary into this process, to run the system here.
     pub fn load_binaries(&mut self) -> Result<(), String> {
         for (c, (component, spec)) in self.components.iter_mut().zip(&self.structure.components).enumerate() {

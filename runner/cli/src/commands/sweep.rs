@@ -159,7 +159,8 @@ fn system_record(sweep: &system::Sweep, timeout: Option<f64>) -> Result<Record, 
 
 /// The sha256 of a system's files: an archive's bytes; for a folder (or the folder of an
 /// `.ssd`), each structure, parameter, mapping and FMU file under it by name; then each
-/// component's FMU.
+/// component's FMU that is not in the archive (those are in its bytes, and their extracted
+/// paths differ from run to run, which would refuse every resume).
 fn system_sha256(system: &System) -> Result<String, String> {
     let path = &system.path;
     let mut files: Vec<PathBuf> = Vec::new();
@@ -181,7 +182,8 @@ fn system_sha256(system: &System) -> Result<String, String> {
         }
         files.sort();
     }
-    files.extend(system.structure.components.iter().map(|c| c.source.clone()));
+    let in_archive = |source: &Path| system.archive_root().is_some_and(|root| source.starts_with(root));
+    files.extend(system.structure.components.iter().map(|c| c.source.clone()).filter(|source| !in_archive(source)));
     let mut hash = Sha256::new();
     for file in &files {
         hash.update(file.display().to_string().as_bytes());

@@ -553,20 +553,45 @@ impl<M: Model> Core<M> {
         if !pass.request.is(vrs, orders) {
             pass.plan(rows, vrs, orders, function)?;
         }
+        if self.planned_output_derivatives(lifting, orders, values).map_err(|e| Failure::error(format!("{function}: {e}")))? {
+            Ok(())
+        } else {
+            Err(self.not_differentiable(values, vrs, true, function))
+        }
+    }
+
+    /// [`Core::output_derivatives`] when its checks are known to pass: the request of the last
+    /// call (checked then), as a master makes it at every communication point. `None`
+    /// otherwise, and when computing fails or a value is not finite (the full call computes
+    /// again and explains). Else true, the values written.
+    #[inline(always)]
+    pub fn try_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &mut [f64]) -> Option<bool> {
+        let lifting = M::lifting()?;
+        if values.len() != vrs.len() || !self.trajectory.request.is(vrs, orders) {
+            return None;
+        }
+        self.planned_output_derivatives(lifting, orders, values).ok().filter(|&finite| finite)
+    }
+
+    /// The output derivatives of the kept plan (`self.trajectory`, made for `orders`) into
+    /// `values`: whether they are all finite.
+    #[inline(always)]
+    fn planned_output_derivatives(
+        &mut self,
+        lifting: crate::model::Lifting<M>,
+        orders: &[i32],
+        values: &mut [f64],
+    ) -> Result<bool, ModelError> {
         self.input_derivatives();
         let pass = &mut self.trajectory;
         (pass.t, pass.version) = (self.state.t, self.version);
-        (lifting.trajectory)(&self.state.model, &self.state.x, pass).map_err(|e| Failure::error(format!("{function}: {e}")))?;
+        (lifting.trajectory)(&self.state.model, &self.state.x, pass)?;
         let mut finite = true;
         for ((value, &at), &order) in values.iter_mut().zip(&pass.at).zip(orders) {
             *value = pass.rates[at as usize][order as usize - 1];
             finite &= value.is_finite();
         }
-        if finite {
-            Ok(())
-        } else {
-            Err(self.not_differentiable(values, vrs, true, function))
-        }
+        Ok(finite)
     }
 }
 

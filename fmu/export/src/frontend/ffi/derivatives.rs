@@ -90,8 +90,36 @@ pub unsafe fn get_sensitivity<V: Version, M: Model>(
 }
 
 /// `fmi2GetRealOutputDerivatives`, `fmi3GetOutputDerivatives` (FMI 2.0 passes `n` for
-/// `n_values`).
+/// `n_values`). The usual call, the last call's request again (a master's at every
+/// communication point), is answered in place; anything else, and any problem, takes the
+/// general path (out of line), which checks the call again and explains a refusal.
+#[inline(always)]
 pub unsafe fn get_output_derivatives<V: Version, M: Model>(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    orders: *const i32,
+    values: *mut f64,
+    n_values: usize,
+) -> c_int {
+    if n_values == n && !vr.is_null() && !orders.is_null() && !values.is_null() {
+        if let Some(inst) = instance_mut::<V, M>(c) {
+            // SAFETY: FMI's contract: vr and orders point at n entries, values at n_values (= n).
+            let (vrs, orders) = (std::slice::from_raw_parts(vr, n), std::slice::from_raw_parts(orders, n));
+            let out = std::slice::from_raw_parts_mut(values, n);
+            // The model's equations run here: a panic goes to the general path, which runs them
+            // again and reports it.
+            if let Ok(Some(true)) = catch_unwind(AssertUnwindSafe(|| inst.try_get_output_derivatives(vrs, orders, out))) {
+                return Status::Ok as c_int;
+            }
+        }
+    }
+    get_output_derivatives_in_full::<V, M>(c, vr, n, orders, values, n_values)
+}
+
+#[cold]
+#[inline(never)]
+unsafe fn get_output_derivatives_in_full<V: Version, M: Model>(
     c: *mut c_void,
     vr: *const u32,
     n: usize,
@@ -107,8 +135,35 @@ pub unsafe fn get_output_derivatives<V: Version, M: Model>(
     })
 }
 
-/// `fmi2SetRealInputDerivatives`.
+/// `fmi2SetRealInputDerivatives`. The usual call, the last call's inputs and orders with new
+/// values (a master's at every communication point), is answered in place; anything else, and
+/// any problem, takes the general path (out of line), which checks the call again and explains
+/// a refusal.
+#[inline(always)]
 pub unsafe fn set_input_derivatives<V: Version, M: Model>(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    orders: *const i32,
+    values: *const f64,
+) -> c_int {
+    if !vr.is_null() && !orders.is_null() && !values.is_null() {
+        if let Some(inst) = instance_mut::<V, M>(c) {
+            // SAFETY: FMI's contract: each array has n entries.
+            let (vrs, orders, values) =
+                (std::slice::from_raw_parts(vr, n), std::slice::from_raw_parts(orders, n), std::slice::from_raw_parts(values, n));
+            // No model code runs here (the table's setters and getters of the inputs' fields).
+            if let Ok(true) = catch_unwind(AssertUnwindSafe(|| inst.try_set_input_derivatives(vrs, orders, values))) {
+                return Status::Ok as c_int;
+            }
+        }
+    }
+    set_input_derivatives_in_full::<V, M>(c, vr, n, orders, values)
+}
+
+#[cold]
+#[inline(never)]
+unsafe fn set_input_derivatives_in_full<V: Version, M: Model>(
     c: *mut c_void,
     vr: *const u32,
     n: usize,

@@ -31,6 +31,7 @@ use super::interpolation::MAX_ORDER;
 use super::{CallResult, Core, Failure};
 use crate::model::{Access, BaseType, Causality, Equations, Initial, Lift, Model, ModelError, Variability};
 use crate::table::{Row, Slot};
+use crate::taylor3::Taylor3;
 
 /// The mode whose equations are differentiated (FMI 2.0 section 2.1.9).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -686,7 +687,7 @@ pub struct Trajectory {
 /// and inputs become dual numbers in the one direction of time (time's derivative 1, the
 /// inputs' theirs), with as many derivative parts as the highest order asked for
 /// (`pass.order`: [`Dual64`] for first derivatives, [`Dual2_64`] for second, third-order
-/// [`Dual3_64`] otherwise; the rates above it are 0). The states' derivatives come from the
+/// [`Taylor3`] otherwise, whose constants cost less; the rates above it are 0). The states' derivatives come from the
 /// right-hand side itself, one order per pass: x' = f(x, u, t); the k-th derivative of f
 /// along the trajectory needs the states' derivatives up to k only, so the pass with those
 /// known gives x^(k+1) as f's k-th derivative part. The outputs, evaluated on the completed
@@ -696,12 +697,12 @@ pub fn trajectory<M: Model + Lift>(model: &M, x: &[f64], pass: &mut Trajectory) 
 where
     M::Over<Dual64>: Send + 'static,
     M::Over<Dual2_64>: Send + 'static,
-    M::Over<Dual3_64>: Send + 'static,
+    M::Over<Taylor3>: Send + 'static,
 {
     match pass.order {
         0 | 1 => trajectory_in::<M, Dual64>(model, x, pass),
         2 => trajectory_in::<M, Dual2_64>(model, x, pass),
-        _ => trajectory_in::<M, Dual3_64>(model, x, pass),
+        _ => trajectory_in::<M, Taylor3>(model, x, pass),
     }
 }
 
@@ -799,6 +800,25 @@ impl Taylor for Dual2_64 {
     }
     fn rates(&self) -> Rates {
         [self.v1, self.v2, 0.0]
+    }
+}
+
+/// The parameters and literals constants: their products with the trajectory's numbers cost a
+/// quarter (see [`crate::taylor3`]).
+impl Taylor for Taylor3 {
+    const ORDER: usize = 3;
+    fn taylor(value: f64, d: &Rates) -> Self {
+        Taylor3::varying(Dual3_64::taylor(value, d))
+    }
+    fn part(&self, k: usize) -> f64 {
+        self.dual.part(k)
+    }
+    fn set_part(&mut self, k: usize, value: f64) {
+        self.dual.set_part(k, value);
+        self.constant = false;
+    }
+    fn rates(&self) -> Rates {
+        self.dual.rates()
     }
 }
 

@@ -275,9 +275,7 @@ pub fn jacobian<M: Model>(model: &M, t: f64, x: &[f64], equations: Stage) -> Jac
     };
     let mut flat = vec![0.0; knowns.len() * unknowns.len()];
     (lifting.forward)(model, &pass, &mut KeptLift::default(), &mut flat).expect("the model's equations evaluate at this point");
-    // `forward` writes a known's column of every unknown together.
-    let height = unknowns.len();
-    let values = (0..height).map(|i| (0..knowns.len()).map(|k| flat[k * height + i]).collect()).collect();
+    let values = flat.chunks(knowns.len().max(1)).take(unknowns.len()).map(<[f64]>::to_vec).collect();
     let name = |i: &usize| table.rows[*i].name;
     Jacobian { unknowns: unknowns.iter().map(name).collect(), knowns: knowns.iter().map(name).collect(), values }
 }

@@ -144,8 +144,7 @@ pub(crate) struct Jacobians {
     /// (version, bits of t) and the bits of x the values were computed at.
     point: Option<(u64, u64)>,
     x: Vec<u64>,
-    /// Column-major, a known's column of every unknown together (an importer asks for a
-    /// Jacobian column by column): `values[column * unknowns.len() + place]`.
+    /// Row-major: unknowns x knowns.
     values: Vec<f64>,
     /// Per known: an input's or parameter's value at the point (read at every new point: a
     /// driven input moves without a set), else 0.
@@ -159,10 +158,6 @@ pub(crate) struct Jacobians {
     /// importer asks for every column with the same unknowns, which are checked once.
     asked: Vec<u32>,
     asked_at: Vec<u32>,
-    /// `asked_at[0]` when the places are consecutive (an implicit solver's state
-    /// derivatives, which come first among the unknowns): a column's answer is then a slice
-    /// of it times the seed. [`ABSENT`] otherwise.
-    asked_start: u32,
     asked_blocks: Blocks,
 }
 
@@ -186,31 +181,17 @@ impl Jacobians {
     /// Whether the values are all finite.
     #[inline(always)]
     fn column_times(&self, column: usize, seed: f64, sensitivity: &mut [f64]) -> bool {
-        let height = self.unknowns.len();
-        // The column's values: a slice in registers, not the Vec read again after every store
-        // to `sensitivity` (which may alias it, for all the compiler knows).
-        let values = self.values.get(column * height..).unwrap_or_default();
-        // Adding to 0.0 as the general sum does keeps its results to the bit (-0.0 too).
-        let times = |a: f64| 0.0 + a * seed;
+        let width = self.knowns.len();
+        // The column's values from the start: a slice in registers, not the Vec read again
+        // after every store to `sensitivity` (which may alias it, for all the compiler knows).
+        let values = self.values.get(column..).unwrap_or_default();
         let mut finite = true;
-        let start = self.asked_start as usize;
-        match values.get(start..start + sensitivity.len()) {
-            // Consecutive places: one pass over a slice, which the compiler vectorizes
-            // (quarter_car's call about 70 instructions less than with a place per value).
-            Some(column) if self.asked_start != ABSENT => {
-                for (out, &a) in sensitivity.iter_mut().zip(column) {
-                    let v = times(a);
-                    finite &= v.is_finite();
-                    *out = v;
-                }
-            }
-            _ => {
-                for (out, &place) in sensitivity.iter_mut().zip(&self.asked_at) {
-                    let v = times(values[place as usize]);
-                    finite &= v.is_finite();
-                    *out = v;
-                }
-            }
+        for (out, &place) in sensitivity.iter_mut().zip(&self.asked_at) {
+            // Adding to 0.0 as the general sum does keeps its results to the bit (-0.0 too).
+            let mut v = 0.0;
+            v += values[place as usize * width] * seed;
+            finite &= v.is_finite();
+            *out = v;
         }
         finite
     }
@@ -228,7 +209,6 @@ impl<M: Model> Core<M> {
         j.point = None;
         j.asked.clear();
         j.asked_at.clear();
-        j.asked_start = ABSENT;
         j.asked_blocks = Blocks::default();
         j.knowns = (0..rows.len()).filter(|&i| is_known(&rows[i], mode)).collect();
         // The states first: their columns are a block of their own when the other knowns
@@ -239,12 +219,6 @@ impl<M: Model> Core<M> {
         let is_state = |i: usize| matches!(rows[i].slot, Slot::Model(Access::State(_)));
         j.knowns.sort_by_key(|&i| !is_state(i));
         j.unknowns = (0..rows.len()).filter(|&i| is_unknown(&rows[i], mode)).collect();
-        // The state derivatives first, in the states' order: an implicit solver asks for
-        // them, whose column is then one slice of `values` ([`Jacobians::column_times`]).
-        j.unknowns.sort_by_key(|&i| match rows[i].slot {
-            Slot::Derivative(k) => (false, k),
-            _ => (true, 0),
-        });
         j.seeds = j
             .knowns
             .iter()
@@ -302,11 +276,6 @@ impl<M: Model> Core<M> {
             j.asked.extend_from_slice(unknowns);
             j.asked_at.clear();
             j.asked_at.extend(unknowns.iter().map(|&vr| j.unknown_at[vr as usize]));
-            let consecutive = j.asked_at.windows(2).all(|w| w[1] == w[0] + 1);
-            j.asked_start = match j.asked_at.first() {
-                Some(&first) if consecutive => first,
-                _ => ABSENT,
-            };
             j.asked_blocks = blocks;
         }
         let j = &self.jacobians;
@@ -364,15 +333,16 @@ impl<M: Model> Core<M> {
         let rows = self.check_derivative_call(unknowns, knowns, mode, function)?;
         self.jacobian_blocks(rows, self.column_blocks(knowns), mode)?;
         let j = &self.jacobians;
-        let height = j.unknowns.len();
+        let width = j.knowns.len();
         let mut finite = true;
         if let ([k], [s]) = (knowns, seed) {
             finite = j.column_times(j.known_at[*k as usize] as usize, *s, sensitivity);
         } else {
             for (out, &place) in sensitivity.iter_mut().zip(&j.asked_at) {
+                let row = &j.values[place as usize * width..][..width];
                 let mut sum = 0.0;
                 for (&k, &s) in knowns.iter().zip(seed) {
-                    sum += j.values[j.known_at[k as usize] as usize * height + place as usize] * s;
+                    sum += row[j.known_at[k as usize] as usize] * s;
                 }
                 finite &= sum.is_finite();
                 *out = sum;
@@ -455,13 +425,13 @@ impl<M: Model> Core<M> {
         let rows = self.check_derivative_call(unknowns, knowns, mode, function)?;
         self.jacobian_blocks(rows, self.column_blocks(knowns), mode)?;
         let j = &self.jacobians;
-        let height = j.unknowns.len();
+        let width = j.knowns.len();
         let mut finite = true;
         for (out, &k) in sensitivity.iter_mut().zip(knowns) {
-            let column = &j.values[j.known_at[k as usize] as usize * height..][..height];
+            let column = j.known_at[k as usize] as usize;
             let mut sum = 0.0;
             for (&place, &s) in j.asked_at.iter().zip(seed) {
-                sum += column[place as usize] * s;
+                sum += j.values[place as usize * width + column] * s;
             }
             finite &= sum.is_finite();
             *out = sum;
@@ -988,8 +958,8 @@ fn holds<const N: usize>(number: &DualSVec64<N>, value: f64, lane: Option<usize>
         }
 }
 
-/// The Jacobian of `model`'s equations at the pass's point: `out` (column-major, a known's
-/// column of every unknown together, `out[known * unknowns + unknown]`) gets the derivative of each unknown with respect to each known, by forward passes
+/// The Jacobian of `model`'s equations at the pass's point: `out` (row-major, unknowns x
+/// knowns) gets the derivative of each unknown with respect to each known, by forward passes
 /// in vector dual numbers of up to [`LANES`] knowns each. The model's lift is kept in `kept`
 /// between calls (lifted afresh at initialization, whose `initial_state` may change it); each
 /// pass seeds the knowns, computes the seeded parameters' derived fields again, and evaluates
@@ -1024,7 +994,7 @@ where
     } else {
         kept.get::<M, DualSVec64<N>>(model, pass.version)
     };
-    let height = out.len() / pass.knowns.len().max(1);
+    let width = pass.knowns.len();
     let Evaluates { derivatives, outputs } = pass.evaluates;
     dx.resize(pass.x.len(), DualSVec64::from(0.0));
     let first = pass.seeded.start;
@@ -1077,10 +1047,10 @@ where
                 Unknown::Field(f) => M::field(lifted, f).eps.0.as_ref(),
                 Unknown::Zero => None,
             };
-            let columns = out[lanes.start * height..].chunks_mut(height);
+            let row = &mut out[i * width + lanes.start..][..knowns.len()];
             match eps {
-                Some(e) => columns.zip(e.iter()).take(knowns.len()).for_each(|(column, &v)| column[i] = v),
-                None => columns.take(knowns.len()).for_each(|column| column[i] = 0.0),
+                Some(e) => row.copy_from_slice(&e.as_slice()[..knowns.len()]),
+                None => row.fill(0.0),
             }
         }
     }

@@ -48,6 +48,11 @@
 //! directional Jacobian ran about 19 instructions per nanosecond (quarter_car, 4,343 in 0.227
 //! us), the evaluations 11 (2,113 in 0.200 us), so the time ratio is the smaller.
 //!
+//! Rechecked 2026-12-06 at 5432eb1, unchanged (quarter_car 4,343): the fast
+//! fmi2GetDirectionalDerivative's 250 instructions per call are about 190 of straight-line
+//! checks and 60 for the column; a column-major block (one slice per column) saved 70 in the
+//! calls and cost 296 in the dual pass, and was reverted (docs/benchmarks.md, fifth round).
+//!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0
 //! FMUs of second_order, mass_spring_damper, quarter_car and pendulum in target/, built by
 //! `runner build`). For a profiler: `jacobian_bench --one SOURCE FMU` takes one batch of

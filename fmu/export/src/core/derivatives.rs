@@ -606,6 +606,7 @@ impl Trajectory {
             self.at.push(at as u32);
         }
         self.request.keep(vrs, orders);
+        self.reads_fields = self.outputs.iter().any(|u| matches!(u, Unknown::Field(_)));
         self.order = orders.iter().map(|&o| o as usize).max().unwrap_or(0);
         Ok(())
     }
@@ -630,6 +631,8 @@ pub struct Trajectory {
     /// The outputs of the request, each once (a master asks for several orders of one): a
     /// state, a model field, or `Zero`.
     pub outputs: Vec<Unknown>,
+    /// Some of `outputs` are model fields: the outputs are evaluated (found with the plan).
+    pub reads_fields: bool,
     /// Per value of the request: its output's place in `outputs` (and in `rates`).
     at: Vec<u32>,
     /// The highest order asked for: the pass evaluates in dual numbers of that order (one
@@ -704,7 +707,7 @@ where
             x.set_part(order + 1, r[order]);
         }
     }
-    if pass.outputs.iter().any(|u| matches!(u, Unknown::Field(_))) {
+    if pass.reads_fields {
         lifted.outputs(t, xs);
     }
     pass.rates.clear();
@@ -827,7 +830,7 @@ pub struct Lifted<L, D> {
 /// Lifting afresh (converting every field, cloning the model's strings and tables, dropping
 /// them again) cost more than the derivatives.
 #[derive(Default)]
-pub struct KeptLift(Vec<(u64, Box<dyn std::any::Any + Send>)>);
+pub struct KeptLift(Vec<(std::any::TypeId, u64, Box<dyn std::any::Any + Send>)>);
 
 impl KeptLift {
     /// `model` lifted into `D`: the kept one when lifted into `D` at `version`, else afresh.
@@ -835,11 +838,15 @@ impl KeptLift {
     where
         M::Over<D>: Send + 'static,
     {
+        // Found by its type's id, a constant here: asking each kept one for its type is a
+        // dynamic call per entry.
+        let kind = std::any::TypeId::of::<Lifted<M::Over<D>, D>>();
         let lift = || {
-            (version, Box::new(Lifted { model: model.lift::<D>(), x: Vec::<D>::new(), dx: Vec::new() }) as Box<dyn std::any::Any + Send>)
+            let lifted = Lifted { model: model.lift::<D>(), x: Vec::<D>::new(), dx: Vec::new() };
+            (kind, version, Box::new(lifted) as Box<dyn std::any::Any + Send>)
         };
-        let at = match self.0.iter().position(|(_, m)| m.is::<Lifted<M::Over<D>, D>>()) {
-            Some(at) if self.0[at].0 == version => at,
+        let at = match self.0.iter().position(|(k, ..)| *k == kind) {
+            Some(at) if self.0[at].1 == version => at,
             Some(at) => {
                 self.0[at] = lift();
                 at
@@ -849,7 +856,7 @@ impl KeptLift {
                 self.0.len() - 1
             }
         };
-        self.0[at].1.downcast_mut().expect("lifted into D above")
+        self.0[at].2.downcast_mut().expect("lifted into D above")
     }
 }
 
@@ -1313,6 +1320,7 @@ pub(crate) mod tests {
                 version: core.version,
                 inputs: kept.inputs.clone(),
                 outputs: kept.outputs.clone(),
+                reads_fields: kept.reads_fields,
                 order: kept.order,
                 ..Default::default()
             };

@@ -48,7 +48,9 @@
 //! directional Jacobian ran about 19 instructions per nanosecond (quarter_car, 4,343 in 0.227
 //! us), the evaluations 11 (2,113 in 0.200 us), so the time ratio is the smaller.
 //!
-//! Rechecked 2026-12-06 at 5432eb1, unchanged (quarter_car 4,343): the fast
+//! Rechecked 2026-12-06 at 0140e71 (FMI 2.0, instructions per Jacobian at a new point):
+//! quarter_car 4,337 (2.05x the n + 1 evaluations), second_order 1,849 (1.96x),
+//! mass_spring_damper 1,873 (2.24x), pendulum 1,977 (1.81x): still missed. The fast
 //! fmi2GetDirectionalDerivative's 250 instructions per call are about 190 of straight-line
 //! checks and 60 for the column; a column-major block (one slice per column) saved 70 in the
 //! calls and cost 296 in the dual pass, and was reverted (docs/benchmarks.md, fifth round).

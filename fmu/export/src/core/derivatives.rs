@@ -1348,6 +1348,95 @@ pub(crate) mod tests {
         assert_eq!(core.trajectory.rates, fresh(&core));
     }
 
+    /// x' = a cos(x / w) + u a / w, y = a sin(2 pi x / w) / w + x u: parameters in products,
+    /// quotients (both ways) and sums with the trajectory's numbers and with each other, under
+    /// a sine and a cosine.
+    #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+    #[variables(states = S)]
+    struct Wave<T = f64> {
+        /// Amplitude
+        #[parameter]
+        a: T,
+        /// Wavelength
+        #[parameter]
+        w: T,
+        /// Input
+        #[input]
+        u: T,
+        /// Output
+        #[output]
+        y: T,
+    }
+
+    impl Default for Wave {
+        fn default() -> Self {
+            Wave { a: 0.3, w: 1.7, u: -0.45, y: 0.0 }
+        }
+    }
+
+    impl<T: Scalar> Equations<T> for Wave<T> {
+        fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError> {
+            S { x: T::from(0.7) }.store(x);
+            Ok(())
+        }
+
+        fn derivatives(&self, _t: T, x: &[T], dx: &mut [T]) {
+            let S { x } = S::load(x);
+            S { x: self.a * (x / self.w).cos() + self.u * self.a / self.w }.store(dx);
+        }
+
+        fn outputs(&mut self, _t: T, x: &[T]) {
+            let S { x } = S::load(x);
+            let k = T::from(2.0 * std::f64::consts::PI) / self.w;
+            self.y = self.a * (k * x).sin() / self.w + x * self.u;
+        }
+    }
+
+    impl Model for Wave {
+        const N_STATES: usize = 1;
+
+        fn info() -> ModelInfo {
+            ModelInfo { identifier: "wave", description: "", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
+        }
+    }
+
+    /// The output derivatives of order 3, in `Taylor3` (whose constants skip num-dual's zero
+    /// parts), are those num-dual's `Dual3_64` gives for the same pass, to the bit but for the
+    /// sign of a zero; the input held, then driven (u' = 0.25, u'' = -0.5, u''' = 1.5). None
+    /// of the numbers is exact in binary, so an operation in another order would show.
+    #[test]
+    fn third_order_output_derivatives_are_num_duals() {
+        let mut core = Core::<Wave>::new("wave", Logger::new(None, false), NAMES);
+        core.setup(Some(1e-12), 0.0, None).unwrap();
+        core.start().unwrap();
+        let vr = |core: &Core<Wave>, name: &str| core.table().rows.iter().position(|r| r.name == name).unwrap() as u32;
+        let (x, y, u) = (vr(&core, "x"), vr(&core, "y"), vr(&core, "u"));
+        let zero_as_zero =
+            |rates: &[super::Rates]| -> Vec<[u64; 3]> { rates.iter().map(|r| r.map(|v| if v == 0.0 { 0 } else { v.to_bits() })).collect() };
+        for driven in [false, true] {
+            if driven {
+                core.set_input_derivatives(&[u, u, u], &[1, 2, 3], &[0.25, -0.5, 1.5], "test").unwrap();
+            }
+            core.do_step(core.time(), 0.125).unwrap();
+            let mut out = [0.0; 6];
+            core.output_derivatives(&[x, x, x, y, y, y], &[1, 2, 3, 1, 2, 3], &mut out, "test").unwrap();
+            assert_eq!(core.trajectory.order, 3);
+            let kept = &core.trajectory;
+            let mut dual = super::Trajectory {
+                t: kept.t,
+                version: kept.version,
+                inputs: kept.inputs.clone(),
+                outputs: kept.outputs.clone(),
+                reads_fields: kept.reads_fields,
+                order: kept.order,
+                ..Default::default()
+            };
+            super::trajectory_in::<Wave, num_dual::Dual3_64>(&core.state.model, &core.state.x, &mut dual).unwrap();
+            assert_eq!(zero_as_zero(&core.trajectory.rates), zero_as_zero(&dual.rates), "driven: {driven}");
+            assert!(out.iter().all(|v| *v != 0.0 && v.is_finite()), "{out:?}");
+        }
+    }
+
     /// Decay whose communication points double k: a model's own communication-point work
     /// changes its fields.
     #[derive(Debug, Clone, Serialize, Deserialize, Variables)]

@@ -106,6 +106,7 @@ pub mod phase_cosine;
 pub mod scalar;
 pub mod structure;
 pub mod table;
+pub mod taylor3;
 pub mod units;
 
 // The derive macros' generated code names this crate `::fmu_export`, also from inside it.
@@ -120,3 +121,4 @@ pub use nalgebra;
 pub use phase_cosine::{Harmonic, PhaseCosine};
 pub use scalar::{Dual2_64, Dual3_64, Dual64, DualSVec64, Scalar};
 pub use solvers;
+pub use taylor3::Taylor3;

@@ -31,6 +31,7 @@ use super::interpolation::MAX_ORDER;
 use super::{CallResult, Core, Failure};
 use crate::model::{Access, BaseType, Causality, Equations, Initial, Lift, Model, ModelError, Variability};
 use crate::table::{Row, Slot};
+use crate::taylor3::Taylor3;
 
 /// The mode whose equations are differentiated (FMI 2.0 section 2.1.9).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -523,20 +524,45 @@ impl<M: Model> Core<M> {
         if !pass.request.is(vrs, orders) {
             pass.plan(rows, vrs, orders, function)?;
         }
+        if self.planned_output_derivatives(lifting, orders, values).map_err(|e| Failure::error(format!("{function}: {e}")))? {
+            Ok(())
+        } else {
+            Err(self.not_differentiable(values, vrs, true, function))
+        }
+    }
+
+    /// [`Core::output_derivatives`] when its checks are known to pass: the request of the last
+    /// call (checked then), as a master makes it at every communication point. `None`
+    /// otherwise, and when computing fails or a value is not finite (the full call computes
+    /// again and explains). Else true, the values written.
+    #[inline(always)]
+    pub fn try_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &mut [f64]) -> Option<bool> {
+        let lifting = M::lifting()?;
+        if values.len() != vrs.len() || !self.trajectory.request.is(vrs, orders) {
+            return None;
+        }
+        self.planned_output_derivatives(lifting, orders, values).ok().filter(|&finite| finite)
+    }
+
+    /// The output derivatives of the kept plan (`self.trajectory`, made for `orders`) into
+    /// `values`: whether they are all finite.
+    #[inline(always)]
+    fn planned_output_derivatives(
+        &mut self,
+        lifting: crate::model::Lifting<M>,
+        orders: &[i32],
+        values: &mut [f64],
+    ) -> Result<bool, ModelError> {
         self.input_derivatives();
         let pass = &mut self.trajectory;
         (pass.t, pass.version) = (self.state.t, self.version);
-        (lifting.trajectory)(&self.state.model, &self.state.x, pass).map_err(|e| Failure::error(format!("{function}: {e}")))?;
+        (lifting.trajectory)(&self.state.model, &self.state.x, pass)?;
         let mut finite = true;
         for ((value, &at), &order) in values.iter_mut().zip(&pass.at).zip(orders) {
             *value = pass.rates[at as usize][order as usize - 1];
             finite &= value.is_finite();
         }
-        if finite {
-            Ok(())
-        } else {
-            Err(self.not_differentiable(values, vrs, true, function))
-        }
+        Ok(finite)
     }
 }
 
@@ -580,6 +606,7 @@ impl Trajectory {
             self.at.push(at as u32);
         }
         self.request.keep(vrs, orders);
+        self.reads_fields = self.outputs.iter().any(|u| matches!(u, Unknown::Field(_)));
         self.order = orders.iter().map(|&o| o as usize).max().unwrap_or(0);
         Ok(())
     }
@@ -604,6 +631,8 @@ pub struct Trajectory {
     /// The outputs of the request, each once (a master asks for several orders of one): a
     /// state, a model field, or `Zero`.
     pub outputs: Vec<Unknown>,
+    /// Some of `outputs` are model fields: the outputs are evaluated (found with the plan).
+    pub reads_fields: bool,
     /// Per value of the request: its output's place in `outputs` (and in `rates`).
     at: Vec<u32>,
     /// The highest order asked for: the pass evaluates in dual numbers of that order (one
@@ -631,7 +660,7 @@ pub struct Trajectory {
 /// and inputs become dual numbers in the one direction of time (time's derivative 1, the
 /// inputs' theirs), with as many derivative parts as the highest order asked for
 /// (`pass.order`: [`Dual64`] for first derivatives, [`Dual2_64`] for second, third-order
-/// [`Dual3_64`] otherwise; the rates above it are 0). The states' derivatives come from the
+/// [`Taylor3`] otherwise, whose constants cost less; the rates above it are 0). The states' derivatives come from the
 /// right-hand side itself, one order per pass: x' = f(x, u, t); the k-th derivative of f
 /// along the trajectory needs the states' derivatives up to k only, so the pass with those
 /// known gives x^(k+1) as f's k-th derivative part. The outputs, evaluated on the completed
@@ -641,12 +670,12 @@ pub fn trajectory<M: Model + Lift>(model: &M, x: &[f64], pass: &mut Trajectory) 
 where
     M::Over<Dual64>: Send + 'static,
     M::Over<Dual2_64>: Send + 'static,
-    M::Over<Dual3_64>: Send + 'static,
+    M::Over<Taylor3>: Send + 'static,
 {
     match pass.order {
         0 | 1 => trajectory_in::<M, Dual64>(model, x, pass),
         2 => trajectory_in::<M, Dual2_64>(model, x, pass),
-        _ => trajectory_in::<M, Dual3_64>(model, x, pass),
+        _ => trajectory_in::<M, Taylor3>(model, x, pass),
     }
 }
 
@@ -678,7 +707,7 @@ where
             x.set_part(order + 1, r[order]);
         }
     }
-    if pass.outputs.iter().any(|u| matches!(u, Unknown::Field(_))) {
+    if pass.reads_fields {
         lifted.outputs(t, xs);
     }
     pass.rates.clear();
@@ -747,6 +776,25 @@ impl Taylor for Dual2_64 {
     }
 }
 
+/// The parameters and literals constants: their products with the trajectory's numbers cost a
+/// quarter (see [`crate::taylor3`]).
+impl Taylor for Taylor3 {
+    const ORDER: usize = 3;
+    fn taylor(value: f64, d: &Rates) -> Self {
+        Taylor3::varying(Dual3_64::taylor(value, d))
+    }
+    fn part(&self, k: usize) -> f64 {
+        self.dual.part(k)
+    }
+    fn set_part(&mut self, k: usize, value: f64) {
+        self.dual.set_part(k, value);
+        self.constant = false;
+    }
+    fn rates(&self) -> Rates {
+        self.dual.rates()
+    }
+}
+
 impl Taylor for Dual3_64 {
     const ORDER: usize = 3;
     fn taylor(value: f64, d: &Rates) -> Self {
@@ -782,7 +830,7 @@ pub struct Lifted<L, D> {
 /// Lifting afresh (converting every field, cloning the model's strings and tables, dropping
 /// them again) cost more than the derivatives.
 #[derive(Default)]
-pub struct KeptLift(Vec<(u64, Box<dyn std::any::Any + Send>)>);
+pub struct KeptLift(Vec<(std::any::TypeId, u64, Box<dyn std::any::Any + Send>)>);
 
 impl KeptLift {
     /// `model` lifted into `D`: the kept one when lifted into `D` at `version`, else afresh.
@@ -790,11 +838,15 @@ impl KeptLift {
     where
         M::Over<D>: Send + 'static,
     {
+        // Found by its type's id, a constant here: asking each kept one for its type is a
+        // dynamic call per entry.
+        let kind = std::any::TypeId::of::<Lifted<M::Over<D>, D>>();
         let lift = || {
-            (version, Box::new(Lifted { model: model.lift::<D>(), x: Vec::<D>::new(), dx: Vec::new() }) as Box<dyn std::any::Any + Send>)
+            let lifted = Lifted { model: model.lift::<D>(), x: Vec::<D>::new(), dx: Vec::new() };
+            (kind, version, Box::new(lifted) as Box<dyn std::any::Any + Send>)
         };
-        let at = match self.0.iter().position(|(_, m)| m.is::<Lifted<M::Over<D>, D>>()) {
-            Some(at) if self.0[at].0 == version => at,
+        let at = match self.0.iter().position(|(k, ..)| *k == kind) {
+            Some(at) if self.0[at].1 == version => at,
             Some(at) => {
                 self.0[at] = lift();
                 at
@@ -804,7 +856,7 @@ impl KeptLift {
                 self.0.len() - 1
             }
         };
-        self.0[at].1.downcast_mut().expect("lifted into D above")
+        self.0[at].2.downcast_mut().expect("lifted into D above")
     }
 }
 
@@ -1268,6 +1320,7 @@ pub(crate) mod tests {
                 version: core.version,
                 inputs: kept.inputs.clone(),
                 outputs: kept.outputs.clone(),
+                reads_fields: kept.reads_fields,
                 order: kept.order,
                 ..Default::default()
             };
@@ -1293,6 +1346,95 @@ pub(crate) mod tests {
         core.set_real(&[u], &[-2.0], Phase::Running, "StepComplete").unwrap();
         core.output_derivatives(&vrs, &orders, &mut out, "test").unwrap();
         assert_eq!(core.trajectory.rates, fresh(&core));
+    }
+
+    /// x' = a cos(x / w) + u a / w, y = a sin(2 pi x / w) / w + x u: parameters in products,
+    /// quotients (both ways) and sums with the trajectory's numbers and with each other, under
+    /// a sine and a cosine.
+    #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+    #[variables(states = S)]
+    struct Wave<T = f64> {
+        /// Amplitude
+        #[parameter]
+        a: T,
+        /// Wavelength
+        #[parameter]
+        w: T,
+        /// Input
+        #[input]
+        u: T,
+        /// Output
+        #[output]
+        y: T,
+    }
+
+    impl Default for Wave {
+        fn default() -> Self {
+            Wave { a: 0.3, w: 1.7, u: -0.45, y: 0.0 }
+        }
+    }
+
+    impl<T: Scalar> Equations<T> for Wave<T> {
+        fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError> {
+            S { x: T::from(0.7) }.store(x);
+            Ok(())
+        }
+
+        fn derivatives(&self, _t: T, x: &[T], dx: &mut [T]) {
+            let S { x } = S::load(x);
+            S { x: self.a * (x / self.w).cos() + self.u * self.a / self.w }.store(dx);
+        }
+
+        fn outputs(&mut self, _t: T, x: &[T]) {
+            let S { x } = S::load(x);
+            let k = T::from(2.0 * std::f64::consts::PI) / self.w;
+            self.y = self.a * (k * x).sin() / self.w + x * self.u;
+        }
+    }
+
+    impl Model for Wave {
+        const N_STATES: usize = 1;
+
+        fn info() -> ModelInfo {
+            ModelInfo { identifier: "wave", description: "", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
+        }
+    }
+
+    /// The output derivatives of order 3, in `Taylor3` (whose constants skip num-dual's zero
+    /// parts), are those num-dual's `Dual3_64` gives for the same pass, to the bit but for the
+    /// sign of a zero; the input held, then driven (u' = 0.25, u'' = -0.5, u''' = 1.5). None
+    /// of the numbers is exact in binary, so an operation in another order would show.
+    #[test]
+    fn third_order_output_derivatives_are_num_duals() {
+        let mut core = Core::<Wave>::new("wave", Logger::new(None, false), NAMES);
+        core.setup(Some(1e-12), 0.0, None).unwrap();
+        core.start().unwrap();
+        let vr = |core: &Core<Wave>, name: &str| core.table().rows.iter().position(|r| r.name == name).unwrap() as u32;
+        let (x, y, u) = (vr(&core, "x"), vr(&core, "y"), vr(&core, "u"));
+        let zero_as_zero =
+            |rates: &[super::Rates]| -> Vec<[u64; 3]> { rates.iter().map(|r| r.map(|v| if v == 0.0 { 0 } else { v.to_bits() })).collect() };
+        for driven in [false, true] {
+            if driven {
+                core.set_input_derivatives(&[u, u, u], &[1, 2, 3], &[0.25, -0.5, 1.5], "test").unwrap();
+            }
+            core.do_step(core.time(), 0.125).unwrap();
+            let mut out = [0.0; 6];
+            core.output_derivatives(&[x, x, x, y, y, y], &[1, 2, 3, 1, 2, 3], &mut out, "test").unwrap();
+            assert_eq!(core.trajectory.order, 3);
+            let kept = &core.trajectory;
+            let mut dual = super::Trajectory {
+                t: kept.t,
+                version: kept.version,
+                inputs: kept.inputs.clone(),
+                outputs: kept.outputs.clone(),
+                reads_fields: kept.reads_fields,
+                order: kept.order,
+                ..Default::default()
+            };
+            super::trajectory_in::<Wave, num_dual::Dual3_64>(&core.state.model, &core.state.x, &mut dual).unwrap();
+            assert_eq!(zero_as_zero(&core.trajectory.rates), zero_as_zero(&dual.rates), "driven: {driven}");
+            assert!(out.iter().all(|v| *v != 0.0 && v.is_finite()), "{out:?}");
+        }
     }
 
     /// Decay whose communication points double k: a model's own communication-point work

@@ -188,6 +188,25 @@ impl<M: Model> Core<M> {
             }
             self.input_request.keep(vrs, orders);
         }
+        self.apply_input_derivatives(vrs, orders, values);
+        Ok(())
+    }
+
+    /// [`Core::set_input_derivatives`] when its checks are known to pass: the inputs and
+    /// orders of the last call (checked then), as a master sets them at every communication
+    /// point, and finite values. False, nothing changed, otherwise (the full call explains).
+    #[inline(always)]
+    pub fn try_set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64]) -> bool {
+        let usable = values.len() == vrs.len() && self.input_request.is(vrs, orders) && values.iter().all(|v| v.is_finite());
+        if usable {
+            self.apply_input_derivatives(vrs, orders, values);
+        }
+        usable
+    }
+
+    /// Sets checked derivatives (see [`Core::set_input_derivatives`]).
+    #[inline(always)]
+    fn apply_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64]) {
         let t = self.state.t;
         let (mut changed, mut zeroed) = (false, false);
         // An input's orders come one after another (a master passes 1 to 3 of the same input):
@@ -217,7 +236,6 @@ impl<M: Model> Core<M> {
                 integrator.invalidate();
             }
         }
-        Ok(())
     }
 
     /// The place in `drives` of the polynomial of input `row` (a new one holding its value if

@@ -81,6 +81,17 @@ impl<V: Version, M: Model> Instance<V, M> {
         self.core.output_derivatives(vrs, orders, values, V::name(call))
     }
 
+    /// [`Instance::get_output_derivatives`] when allowed now and its checks are known to pass
+    /// (the request of the last call), not traced; `None` otherwise, and when computing fails or
+    /// gives a value that is not finite: the full call checks, computes and explains.
+    #[inline(always)]
+    pub fn try_get_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &mut [f64]) -> Option<bool> {
+        if !self.permits(Call::GetOutputDerivatives) || self.core.logger.wants(LOG_CALLS) {
+            return None;
+        }
+        self.core.try_output_derivatives(vrs, orders, values)
+    }
+
     /// `fmi2SetRealInputDerivatives`: input `vrs[i]`'s `orders[i]`-th time derivative at the
     /// current communication point is `values[i]`: the input follows its Taylor polynomial over
     /// the steps from here (`core::interpolation`).
@@ -88,5 +99,15 @@ impl<V: Version, M: Model> Instance<V, M> {
         let call = Call::SetInputDerivatives;
         self.check(call)?;
         self.core.set_input_derivatives(vrs, orders, values, V::name(call))
+    }
+
+    /// [`Instance::set_input_derivatives`] when allowed now and its checks are known to pass
+    /// (the inputs and orders of the last call, finite values), not traced: true when done,
+    /// false (nothing changed) for the full call to check and explain.
+    #[inline(always)]
+    pub fn try_set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64]) -> bool {
+        self.permits(Call::SetInputDerivatives)
+            && !self.core.logger.wants(LOG_CALLS)
+            && self.core.try_set_input_derivatives(vrs, orders, values)
     }
 }

@@ -68,6 +68,13 @@
 //! pendulum 2,875 -> 3,519 (allocations a one-off command pays once; the implicit solver's path
 //! does not go through it); in time at a new point 1.03-1.35 in that run.
 //!
+//! On the FMU's side, without the importer's commits above: rechecked 2026-12-06 at 0140e71 (FMI 2.0, instructions per Jacobian at a new point):
+//! quarter_car 4,337 (2.05x the n + 1 evaluations), second_order 1,849 (1.96x),
+//! mass_spring_damper 1,873 (2.24x), pendulum 1,977 (1.81x): still missed. The fast
+//! fmi2GetDirectionalDerivative's 250 instructions per call are about 190 of straight-line
+//! checks and 60 for the column; a column-major block (one slice per column) saved 70 in the
+//! calls and cost 296 in the dual pass, and was reverted (docs/benchmarks.md, fifth round).
+//!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0
 //! FMUs of second_order, mass_spring_damper, quarter_car and pendulum in target/, built by
 //! `runner build`). For a profiler: `jacobian_bench --one SOURCE FMU` takes one batch of

@@ -90,8 +90,36 @@ pub unsafe fn get_sensitivity<V: Version, M: Model>(
 }
 
 /// `fmi2GetRealOutputDerivatives`, `fmi3GetOutputDerivatives` (FMI 2.0 passes `n` for
-/// `n_values`).
+/// `n_values`). The usual call, the last call's request again (a master's at every
+/// communication point), is answered in place; anything else, and any problem, takes the
+/// general path (out of line), which checks the call again and explains a refusal.
+#[inline(always)]
 pub unsafe fn get_output_derivatives<V: Version, M: Model>(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    orders: *const i32,
+    values: *mut f64,
+    n_values: usize,
+) -> c_int {
+    if n_values == n && !vr.is_null() && !orders.is_null() && !values.is_null() {
+        if let Some(inst) = instance_mut::<V, M>(c) {
+            // SAFETY: FMI's contract: vr and orders point at n entries, values at n_values (= n).
+            let (vrs, orders) = (std::slice::from_raw_parts(vr, n), std::slice::from_raw_parts(orders, n));
+            let out = std::slice::from_raw_parts_mut(values, n);
+            // The model's equations run here: a panic goes to the general path, which runs them
+            // again and reports it.
+            if let Ok(Some(true)) = catch_unwind(AssertUnwindSafe(|| inst.try_get_output_derivatives(vrs, orders, out))) {
+                return Status::Ok as c_int;
+            }
+        }
+    }
+    get_output_derivatives_in_full::<V, M>(c, vr, n, orders, values, n_values)
+}
+
+#[cold]
+#[inline(never)]
+unsafe fn get_output_derivatives_in_full<V: Version, M: Model>(
     c: *mut c_void,
     vr: *const u32,
     n: usize,
@@ -107,8 +135,35 @@ pub unsafe fn get_output_derivatives<V: Version, M: Model>(
     })
 }
 
-/// `fmi2SetRealInputDerivatives`.
+/// `fmi2SetRealInputDerivatives`. The usual call, the last call's inputs and orders with new
+/// values (a master's at every communication point), is answered in place; anything else, and
+/// any problem, takes the general path (out of line), which checks the call again and explains
+/// a refusal.
+#[inline(always)]
 pub unsafe fn set_input_derivatives<V: Version, M: Model>(
+    c: *mut c_void,
+    vr: *const u32,
+    n: usize,
+    orders: *const i32,
+    values: *const f64,
+) -> c_int {
+    if !vr.is_null() && !orders.is_null() && !values.is_null() {
+        if let Some(inst) = instance_mut::<V, M>(c) {
+            // SAFETY: FMI's contract: each array has n entries.
+            let (vrs, orders, values) =
+                (std::slice::from_raw_parts(vr, n), std::slice::from_raw_parts(orders, n), std::slice::from_raw_parts(values, n));
+            // No model code runs here (the table's setters and getters of the inputs' fields).
+            if let Ok(true) = catch_unwind(AssertUnwindSafe(|| inst.try_set_input_derivatives(vrs, orders, values))) {
+                return Status::Ok as c_int;
+            }
+        }
+    }
+    set_input_derivatives_in_full::<V, M>(c, vr, n, orders, values)
+}
+
+#[cold]
+#[inline(never)]
+unsafe fn set_input_derivatives_in_full<V: Version, M: Model>(
     c: *mut c_void,
     vr: *const u32,
     n: usize,
@@ -319,6 +374,94 @@ mod tests {
             let lines = log.lock().unwrap().clone();
             assert!(lines.len() == 1 && lines[0].contains("not allowed in state Instantiated"), "{lines:?}");
             crate::frontend::ffi::free_instance::<Fmi3, Decay>(c);
+        }
+    }
+
+    /// An FMI 2.0 Co-Simulation instance of `Decay` (k = 2, u = 0.5, x0 = 3) after
+    /// initialization at t = 0, through the C functions' generic bodies, its log lines
+    /// collected.
+    unsafe fn stepping() -> (*mut c_void, Arc<Mutex<Vec<String>>>) {
+        use crate::fmi2::Fmi2;
+        let log = Arc::new(Mutex::new(Vec::new()));
+        let sink = log.clone();
+        let logger = Logger::new(Some(Box::new(move |_, _, m: &str| sink.lock().expect("log lock").push(m.to_owned()))), false);
+        let token = crate::table::guid::<Decay>();
+        let c = instantiate::<Fmi2, Decay>(|| {
+            Some(Request {
+                call: "fmi2Instantiate",
+                logger,
+                name: Some("decay"),
+                setup: Ok(Setup::plain(Interface::CoSimulation)),
+                token: Some(token),
+                resources: None,
+            })
+        });
+        assert!(!c.is_null());
+        assert_eq!(simple::<Fmi2, Decay>(c, Call::SetupExperiment, |i| i.setup_experiment(Some(1e-10), 0.0, None)), 0);
+        assert_eq!(simple::<Fmi2, Decay>(c, Call::EnterInitializationMode, |i| i.enter_initialization_mode()), 0);
+        assert_eq!(simple::<Fmi2, Decay>(c, Call::ExitInitializationMode, |i| i.exit_initialization_mode()), 0);
+        (c, log)
+    }
+
+    /// A master's requests, the same at every communication point, are answered in place and
+    /// give what the general path gives (the first call takes it); a request that is not the
+    /// last one, a non-finite input derivative and a state that does not allow the call are
+    /// still refused by name however often the request was made; under logCalls the general
+    /// path answers alike. The values are those by hand (the core's test): at x = 3, u = 0.5
+    /// held, x' = -5.5, y' = 2 x x' = -33; driven by u' = 0.25, u'' = 0.5, u''' = -1,
+    /// x'' = 11.25, y' = -32.75.
+    #[test]
+    fn repeated_output_and_input_derivative_requests_are_answered_in_place_and_refusals_stay() {
+        use crate::fmi2::Fmi2;
+        unsafe {
+            let (c, log) = stepping();
+            let (x, y, u) = (vr("x"), vr("y"), vr("u"));
+            let error = Status::Error as c_int;
+            let rates = |c, vrs: &[u32], orders: &[i32]| {
+                let mut out = vec![f64::NAN; vrs.len()];
+                let status =
+                    get_output_derivatives::<Fmi2, Decay>(c, vrs.as_ptr(), vrs.len(), orders.as_ptr(), out.as_mut_ptr(), vrs.len());
+                (status, out)
+            };
+            let set = |c, orders: &[i32], values: &[f64]| {
+                let vrs = vec![u; orders.len()];
+                set_input_derivatives::<Fmi2, Decay>(c, vrs.as_ptr(), vrs.len(), orders.as_ptr(), values.as_ptr())
+            };
+            assert_eq!(rates(c, &[x, y], &[1, 1]), (0, vec![-5.5, -33.0]), "the general path, which keeps the request");
+            assert_eq!(rates(c, &[x, y], &[1, 1]), (0, vec![-5.5, -33.0]), "in place");
+            assert_eq!(set(c, &[1, 2, 3], &[0.25, 0.5, -1.0]), 0, "the general path");
+            assert_eq!(set(c, &[1, 2, 3], &[0.25, 0.5, -1.0]), 0, "in place");
+            assert_eq!(rates(c, &[x, y, x], &[1, 1, 2]), (0, vec![-5.5, -32.75, 11.25]), "a new request: the general path");
+            assert_eq!(rates(c, &[x, y, x], &[1, 1, 2]), (0, vec![-5.5, -32.75, 11.25]), "in place");
+            // Both in place, the new input derivatives seen: u' = 0.5 gives y' = -32.5, x'' = 11.5.
+            assert_eq!(set(c, &[1, 2, 3], &[0.5, 1.0, -1.0]), 0);
+            assert_eq!(rates(c, &[x, y, x], &[1, 1, 2]), (0, vec![-5.5, -32.5, 11.5]), "in place, the new polynomial");
+            let lines = log.lock().unwrap().clone();
+            assert!(lines.is_empty(), "{lines:?}");
+
+            assert_eq!(set(c, &[1, 2, 3], &[0.25, f64::NAN, -1.0]), error, "the kept request with a NaN");
+            assert_eq!(rates(c, &[x, y, x], &[1, 1, 4]).0, error, "order 4");
+            assert_eq!(rates(c, &[x, u, x], &[1, 1, 2]).0, error, "an input has no output derivatives");
+            let lines = log.lock().unwrap().clone();
+            assert_eq!(lines.len(), 3, "{lines:?}");
+            assert!(lines[0].contains("derivative 2 of 'u' = NaN refused"), "{lines:?}");
+            assert!(lines[1].contains("order 4 of 'x' refused"), "{lines:?}");
+            assert!(lines[2].contains("'u' (value reference") && lines[2].contains("not a Real output"), "{lines:?}");
+
+            // Under logCalls the general path answers, with the same values.
+            assert_eq!(simple::<Fmi2, Decay>(c, Call::SetDebugLogging, |i| i.set_debug_logging(true, &["logCalls"])), 0);
+            assert_eq!(rates(c, &[x, y, x], &[1, 1, 2]), (0, vec![-5.5, -32.5, 11.5]), "the refused NaN changed nothing");
+            assert_eq!(set(c, &[1, 2, 3], &[0.25, 0.5, -1.0]), 0);
+            assert_eq!(simple::<Fmi2, Decay>(c, Call::SetDebugLogging, |i| i.set_debug_logging(false, &[])), 0);
+
+            // After a reset the instance is in Instantiated, where output derivatives are not
+            // allowed.
+            assert_eq!(simple::<Fmi2, Decay>(c, Call::Reset, |i| i.reset()), 0);
+            log.lock().unwrap().clear();
+            assert_eq!(rates(c, &[x, y, x], &[1, 1, 2]).0, error);
+            let lines = log.lock().unwrap().clone();
+            assert!(lines.len() == 1 && lines[0].contains("fmi2GetRealOutputDerivatives"), "{lines:?}");
+            crate::frontend::ffi::free_instance::<Fmi2, Decay>(c);
         }
     }
 }

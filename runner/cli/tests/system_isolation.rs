@@ -271,6 +271,79 @@ fn a_sweep_of_an_ssp_archive_resumes() {
     assert_eq!(std::fs::read(dir.path().join("a.csv")).unwrap(), complete);
 }
 
+/// Cuts the finished sweep `out` (in `dir`) back to its header and first row, as `<out>.partial`:
+/// a sweep killed after its first point.
+fn keep_first_row(dir: &Path, out: &str) -> Vec<u8> {
+    let complete = std::fs::read(dir.join(out)).unwrap();
+    let first_row = complete.iter().enumerate().filter(|(_, &b)| b == b'\n').nth(1).unwrap().0 + 1;
+    std::fs::write(dir.join(format!("{out}.partial")), &complete[..first_row]).unwrap();
+    std::fs::remove_file(dir.join(out)).unwrap();
+    complete
+}
+
+/// The same system named another way resumes the sweep: a folder given relatively, with a
+/// trailing slash, absolutely, by its `.ssd`, or by the bare `SystemStructure.ssd` from inside
+/// it; an `.ssp` relatively, absolutely or through a symbolic link. Each resume runs the two
+/// points missing and ends with the bytes of the uninterrupted sweep. (The record once held the
+/// path as given, and hashed every file with its path, so each of these was refused as "not from
+/// this sweep"; the bare `SystemStructure.ssd` failed with "cannot read : No such file".)
+#[test]
+fn a_system_sweep_resumes_however_the_system_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let root = faulty_system(d, "faulty", "");
+    let params = ["good.k=0.5,0.75,1"];
+    ok(sweep(d, Path::new("faulty"), &params, "a.csv", &[]));
+    let absolute = root.display().to_string();
+    for name in ["./faulty/", absolute.as_str(), "faulty/SystemStructure.ssd"] {
+        let complete = keep_first_row(d, "a.csv");
+        let o = sweep(d, Path::new(name), &params, "a.csv", &["--resume"]);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).contains("resuming: 1 of 3 points"), "{name}: {}", stderr(&o));
+        assert_eq!(std::fs::read(d.join("a.csv")).unwrap(), complete, "{name}");
+    }
+    let complete = keep_first_row(d, "a.csv");
+    let o = sweep(&root, Path::new("SystemStructure.ssd"), &params, "../a.csv", &["--resume"]);
+    assert!(o.status.success(), "SystemStructure.ssd from inside the folder: {}", stderr(&o));
+    assert_eq!(std::fs::read(d.join("a.csv")).unwrap(), complete, "SystemStructure.ssd from inside the folder");
+
+    let ssd = std::fs::read(root.join("SystemStructure.ssd")).unwrap();
+    let fmu = std::fs::read(root.join("resources").join("faulty.fmu")).unwrap();
+    write_zip(&d.join("faulty.ssp"), &[ZipItem::File("SystemStructure.ssd", &ssd), ZipItem::File("resources/faulty.fmu", &fmu)]);
+    std::os::unix::fs::symlink("faulty.ssp", d.join("link.ssp")).unwrap();
+    ok(sweep(d, Path::new("faulty.ssp"), &params, "p.csv", &[]));
+    let absolute = d.join("faulty.ssp").display().to_string();
+    for name in [absolute.as_str(), "link.ssp"] {
+        let complete = keep_first_row(d, "p.csv");
+        let o = sweep(d, Path::new(name), &params, "p.csv", &["--resume"]);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        assert_eq!(std::fs::read(d.join("p.csv")).unwrap(), complete, "{name}");
+    }
+}
+
+/// A folder's SSD may bind a parameter file outside the folder: changing that file changes the
+/// system, so a partial file from before is refused (it was once resumed, its first row from the
+/// old parameter values and the others from the new).
+#[test]
+fn a_changed_parameter_file_outside_the_system_folder_refuses_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fmu = faulty_fmu(d, "faulty.fmu", false, &[]);
+    let ssd = r#"<ssd:System name="s"><ssd:Elements><ssd:Component name="good" source="resources/faulty.fmu"><ssd:ParameterBindings><ssd:ParameterBinding source="../outside.ssv"/></ssd:ParameterBindings></ssd:Component><ssd:Component name="bad" source="resources/faulty.fmu"/></ssd:Elements></ssd:System>"#;
+    let root = system(d, "outside", ssd, &[("faulty.fmu", &fmu)], &[]);
+    let ssv = |x0: &str| {
+        format!(
+            r#"<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="1.0" name="p"><ssv:Parameters><ssv:Parameter name="x0"><ssv:Real value="{x0}"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>"#
+        )
+    };
+    std::fs::write(d.join("outside.ssv"), ssv("1")).unwrap();
+    ok(sweep(d, &root, &["bad.k=0.5,0.75,1"], "a.csv", &[]));
+    keep_first_row(d, "a.csv");
+    std::fs::write(d.join("outside.ssv"), ssv("2")).unwrap();
+    let err = fails(sweep(d, &root, &["bad.k=0.5,0.75,1"], "a.csv", &["--resume"]));
+    assert!(err.contains("is not from this sweep") && err.contains("system_sha256"), "{err}");
+}
+
 /// systems/quarter_car_road (built by `runner build`): the Ex. 4 sweep and a run in worker
 /// processes write exactly the bytes of the same in-process; `--plot` draws both.
 #[test]

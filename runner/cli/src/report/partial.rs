@@ -46,8 +46,9 @@ pub struct Record {
     pub entries: Vec<(String, String)>,
 }
 
-/// Keys that describe but do not identify (the FMU may be moved; its hash decides).
-const INFORMATIONAL: &[&str] = &["fmu"];
+/// Keys that describe but do not identify (the FMU or system may be moved or named another way;
+/// its hash decides).
+const INFORMATIONAL: &[&str] = &["fmu", "system"];
 
 impl Record {
     /// The record's text.

@@ -16,7 +16,12 @@ use common::*;
 /// (index 0), so a crash named `bad` is not merely the last component stepped. `bad` gets the
 /// parameter binding `binding` (SSV parameters inside <ssv:Parameters>).
 fn faulty_system(dir: &Path, name: &str, binding: &str) -> PathBuf {
-    let fmu = faulty_fmu(dir, "faulty.fmu", false, &[]);
+    faulty_system_compiled(dir, name, binding, &[])
+}
+
+/// [`faulty_system`], faulty.c compiled with `flags`.
+fn faulty_system_compiled(dir: &Path, name: &str, binding: &str, flags: &[&str]) -> PathBuf {
+    let fmu = faulty_fmu(dir, "faulty.fmu", false, flags);
     let parameters = |inner: &str| {
         format!(
             r#"<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="p"><ssv:Parameters>{inner}</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>"#
@@ -130,6 +135,29 @@ fn a_hanging_component_times_out_its_point_only() {
     assert!(err.contains("--point-timeout needs worker processes"), "{err}");
     let err = fails(runner(dir.path(), &["simulate", root.to_str().unwrap(), "--in-process", "--timeout", "1"]));
     assert!(err.contains("--timeout needs a worker process"), "{err}");
+}
+
+/// A system's worker that crashes (component `bad`, SIGSEGV in the step from t = 1) after rows
+/// that came slowly (each component 5 ms a step: a second for the 101 rows t = 0 to 1) leaves in
+/// the --out file all but the rows of its last tenth of a second (10 rows at 10 ms a step), not
+/// none as when the worker sent rows only 64 KiB at a time; at least 60 of the 101 are asked for,
+/// room for a loaded machine's slower wake-ups. The rows kept are a clean run's first.
+#[test]
+fn a_system_worker_that_crashes_keeps_all_but_its_last_tenth_of_a_second_of_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = faulty_system_compiled(dir.path(), "slow", "", &["-DSLOW_STEP"]);
+    let r = root.to_str().unwrap();
+    ok(runner(dir.path(), &["simulate", r, "--stop-time", "1", "--out", "clean.csv"]));
+    let (header, clean) = read_csv(&dir.path().join("clean.csv"));
+    assert_eq!(clean.len(), 101);
+    let args = ["simulate", r, "--set", "bad.fault=1", "--set", "bad.fault_time=1", "--stop-time", "2", "--out", "crashed.csv"];
+    let err = fails(runner(dir.path(), &args));
+    assert!(err.contains("crashed: SIGSEGV in fmi2DoStep of component 'bad' at t = 1"), "{err}");
+    let (h, kept) = read_csv(&dir.path().join("crashed.csv"));
+    assert_eq!(h, header);
+    assert!(kept.len() >= 60, "{} of the 101 rows before the crash kept", kept.len());
+    let x: Vec<usize> = header.iter().enumerate().filter(|(_, h)| h.ends_with(".x")).map(|(c, _)| c).collect();
+    assert!(kept.iter().zip(&clean).all(|(k, c)| x.iter().all(|&i| k[i] == c[i])), "the kept rows are the clean run's first");
 }
 
 /// A component whose binary crashes as it loads (an initializer raising SIGSEGV, as a broken

@@ -372,6 +372,29 @@ fn a_changed_parameter_file_outside_the_system_folder_refuses_resume() {
     assert!(err.contains("is not from this sweep") && err.contains("system_sha256"), "{err}");
 }
 
+/// A system folder holding links to itself (two: each level of the walk doubles) sweeps to a
+/// file: the record's digest does not follow linked folders (which once walked 2^40 paths, a
+/// sweep that never started). Given a minute, which the sweep takes well under a second of.
+#[test]
+fn a_system_folder_that_links_to_itself_sweeps_to_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = faulty_system(dir.path(), "linked", "");
+    std::os::unix::fs::symlink(".", root.join("here")).unwrap();
+    std::os::unix::fs::symlink("..", root.join("resources").join("up")).unwrap();
+    let args = ["sweep", "linked", "--param", "good.k=0.5,1", "--metric", "end=final(good.x)", "--out", "a.csv"];
+    let mut child = spawn_runner(dir.path(), &args);
+    let started = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if started.elapsed() > Duration::from_secs(60) {
+            child.kill().unwrap();
+            panic!("the sweep of a folder that links to itself did not end within a minute");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(child.wait().unwrap().success());
+    assert_eq!(read_csv(&dir.path().join("a.csv")).1.len(), 2);
+}
+
 /// systems/quarter_car_road (built by `runner build`): the Ex. 4 sweep and a run in worker
 /// processes write exactly the bytes of the same in-process; `--plot` draws both.
 #[test]

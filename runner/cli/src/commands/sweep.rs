@@ -158,9 +158,9 @@ fn system_record(sweep: &system::Sweep, timeout: Option<f64>) -> Result<Record, 
 
 /// The sha256 of what a system is, the same however it is named (relative, absolute, through a
 /// link, by its folder or its `.ssd`): an archive's bytes; for a folder (or the folder of an
-/// `.ssd`), each structure, parameter, mapping and FMU file under it, by its name in the folder;
-/// then each component's FMU by its bytes and its parameter values, which a folder's SSD may read
-/// from files anywhere. The FMUs extracted from an archive are not hashed again (their bytes are
+/// `.ssd`), each structure, parameter, mapping and FMU file under it (not in linked folders), by
+/// its name in the folder; then each component's FMU by its bytes and its parameter values,
+/// which a folder's SSD may read from files anywhere. The FMUs extracted from an archive are not hashed again (their bytes are
 /// the archive's, their paths a fresh temporary folder per run).
 fn system_sha256(system: &System) -> Result<String, String> {
     let path = &system.path;
@@ -182,7 +182,9 @@ fn system_sha256(system: &System) -> Result<String, String> {
             let entries = std::fs::read_dir(&folder).map_err(|e| format!("cannot read {}: {e}", folder.display()))?;
             for entry in entries.flatten() {
                 let p = entry.path();
-                if p.is_dir() {
+                // A linked folder is not walked (links back up would walk without end); what
+                // the system uses from it is hashed below, by component.
+                if entry.file_type().is_ok_and(|t| t.is_dir()) {
                     folders.push(p);
                 } else if p.extension().and_then(|e| e.to_str()).is_some_and(|e| matches!(e, "ssd" | "ssv" | "ssm" | "ssb" | "fmu")) {
                     files.push(p);

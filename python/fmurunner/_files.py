@@ -81,11 +81,17 @@ def sweep_to_file(
     m = len(metric_names)
 
     def earlier() -> None:
+        text = ""
         try:
             with open(record_path, encoding="utf-8") as f:
-                lines = [line for line in f if not line.startswith("#")]
-            record = json.loads("".join(lines))
+                text = f.read()
+            record = json.loads("".join(line for line in text.splitlines(keepends=True) if not line.startswith("#")))
+            if not isinstance(record, dict):
+                raise ValueError("it is not a JSON object")
         except (OSError, ValueError) as e:
+            if text.startswith("# runner sweep"):
+                raise RunnerError(f"{record_path} is the record of a sweep of the command line, runner sweep: continue it "
+                                  f"there, with --out {out} --resume") from None
             raise RunnerError(f"cannot read {record_path}, the record of the sweep that wrote {partial}: {e}") from None
         # A record from before the interface was recorded ran through the default one: the same
         # sweep when this one takes the default too (its rows are not lost to an upgrade).

@@ -156,6 +156,21 @@ def test_a_partial_file_holding_every_row_is_put_in_place(faulty, tmp_path):
     assert out.read_bytes() == complete and not (tmp_path / "sweep.csv.partial").exists()
 
 
+def test_a_record_of_the_command_line_is_named_and_other_damage_refused(faulty, tmp_path):
+    """resume=True beside a record the command line wrote (KEY = VALUE lines, not JSON) says so
+    and how to continue it there; a record that is JSON but no object is refused as unreadable
+    (it once raised AttributeError)."""
+    out = tmp_path / "sweep.csv"
+    (tmp_path / "sweep.csv.partial").write_text("k,x_end,status\n")
+    record = tmp_path / "sweep.csv.sweep"
+    record.write_text("# runner sweep: what produced the CSV beside this file; `runner sweep --resume` checks it\nfmu = f.fmu\n")
+    with pytest.raises(RunnerError, match=r"record of a sweep of the command line, runner sweep: continue it there, with --out .* --resume"):
+        fmurunner.sweep(faulty, {"k": [1.0]}, {"x_end": "final(x)"}, stop_time=1.0, out=out, resume=True)
+    record.write_text("[1, 2]\n")
+    with pytest.raises(RunnerError, match="cannot read .*sweep.csv.sweep.*it is not a JSON object"):
+        fmurunner.sweep(faulty, {"k": [1.0]}, {"x_end": "final(x)"}, stop_time=1.0, out=out, resume=True)
+
+
 def test_sweep_results_carry_units():
     frame = fmurunner.sweep(fmu_path("quarter_car"), {"speed": [2.0, 4.0]}, ["peak=max(z_s)"], stop_time=1.0, threads=2)
     assert frame.attrs["units"]["speed"] == "m/s"

@@ -463,6 +463,37 @@ fn a_worker_that_crashes_or_hangs_keeps_all_but_its_last_tenth_of_a_second_of_ro
     }
 }
 
+/// Ctrl-C (SIGINT) a second into a run whose rows come slowly (5 ms a step, 100 s of model time)
+/// stops it with exit code 130 and keeps in --out the rows before it, as a failed run and a
+/// system's interrupted run do (it once threw them away after saying "keeping what has
+/// finished"), in a worker and in this process: they are the first rows of a clean run, and the
+/// message counts them.
+#[test]
+fn an_interrupted_run_keeps_its_rows_in_the_out_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "slow.fmu", false, &["-DSLOW_STEP"]);
+    let f = fmu.to_str().unwrap();
+    ok(runner(dir.path(), &["simulate", f, "--stop-time", "1", "--out", "clean.csv"]));
+    let (header, clean) = read_csv(&dir.path().join("clean.csv"));
+    let x = header.iter().position(|h| h == "x").unwrap();
+    for mode in [&[][..], &["--in-process"][..]] {
+        let mut args = vec!["simulate", f, "--stop-time", "100", "--out", "stopped.csv"];
+        args.extend(mode);
+        let child = spawn_runner(dir.path(), &args);
+        std::thread::sleep(std::time::Duration::from_secs(1));
+        // SAFETY: a signal to the child this test started.
+        assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+        let o = child.wait_with_output().unwrap();
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(130), "{mode:?}: {err}");
+        let (h, kept) = read_csv(&dir.path().join("stopped.csv"));
+        assert_eq!(h, header);
+        assert!(!kept.is_empty() && kept.len() < 10_001, "{mode:?}: {} rows", kept.len());
+        assert!(err.contains(&format!("stopped.csv keeps the {} row(s) before the interruption", kept.len())), "{mode:?}: {err}");
+        assert!(kept.iter().zip(&clean).all(|(k, c)| k[x] == c[x]), "{mode:?}: the kept rows are a clean run's first");
+    }
+}
+
 /// A run that fails (fmi2DoStep returns fmi2Error at the first step from t = 0.5) keeps in its
 /// --out file every row before the failure, the same rows standard output gets (t = 0 to 0.5
 /// every 0.01 s: 51 rows), in a worker and in this process; the error names the time, the call

@@ -160,6 +160,30 @@ fn a_system_worker_that_crashes_keeps_all_but_its_last_tenth_of_a_second_of_rows
     assert!(kept.iter().zip(&clean).all(|(k, c)| x.iter().all(|&i| k[i] == c[i])), "the kept rows are the clean run's first");
 }
 
+/// Ctrl-C (SIGINT) a second into a system's run in this process whose rows come slowly stops it
+/// with exit code 130, the rows before it kept in --out (the first rows of a clean run), as in a
+/// worker; the run in this process once went on to its stop time and exited 0.
+#[test]
+fn an_interrupted_system_run_in_process_stops_and_keeps_its_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = faulty_system_compiled(dir.path(), "slow", "", &["-DSLOW_STEP"]);
+    let r = root.to_str().unwrap();
+    ok(runner(dir.path(), &["simulate", r, "--in-process", "--stop-time", "1", "--out", "clean.csv"]));
+    let (header, clean) = read_csv(&dir.path().join("clean.csv"));
+    let child = spawn_runner(dir.path(), &["simulate", r, "--in-process", "--stop-time", "100", "--out", "stopped.csv"]);
+    std::thread::sleep(Duration::from_secs(1));
+    // SAFETY: a signal to the child this test started.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    assert!(stderr(&o).contains("interrupted (the rows before it are in stopped.csv)"), "{}", stderr(&o));
+    let (h, kept) = read_csv(&dir.path().join("stopped.csv"));
+    assert_eq!(h, header);
+    assert!(!kept.is_empty() && kept.len() < 10_001, "{} rows", kept.len());
+    let x: Vec<usize> = header.iter().enumerate().filter(|(_, h)| h.ends_with(".x")).map(|(c, _)| c).collect();
+    assert!(kept.iter().zip(&clean).all(|(k, c)| x.iter().all(|&i| k[i] == c[i])), "the kept rows are a clean run's first");
+}
+
 /// A component whose binary crashes as it loads (an initializer raising SIGSEGV, as a broken
 /// static constructor does): the supervisor reads and checks the system without loading any
 /// binary, so it survives; every point of a sweep fails alone, and `runner simulate` of the

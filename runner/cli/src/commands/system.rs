@@ -446,10 +446,19 @@ pub fn simulate(
         writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
     };
     let result = match isolation {
-        None => bound.run("system", &grid, &sets, &mut write).map_err(|failure| failure.to_string()).map(|outcome| match outcome {
-            RunOutcome::Finished => None,
-            RunOutcome::Ended(why) => Some(why.to_string()),
-        }),
+        // Ctrl-C ends a run here at its next row, as it ends one in a worker.
+        None => bound
+            .run(
+                "system",
+                &grid,
+                &sets,
+                |t: f64, values: &[f64]| if interrupt::requested() { Err("interrupted".to_owned()) } else { write(t, values) },
+            )
+            .map_err(|failure| failure.to_string())
+            .map(|outcome| match outcome {
+                RunOutcome::Finished => None,
+                RunOutcome::Ended(why) => Some(why.to_string()),
+            }),
         Some(config) => {
             let width = 1 + bound.columns.len();
             let setup = Setup::Load { files: system.files(), algorithm: Box::new(algorithm.clone()) };

@@ -4,7 +4,7 @@ come, so a killed process loses nothing it had handed over), a record of what th
 beside it (``<out>.sweep``: the FMU's sha256, the interface it runs through and the sweep as the
 engine runs it, the integrator's settings included), and the file
 renamed to ``<out>`` when complete. ``resume=True`` continues from the partial file when its
-record is this sweep's.
+record is this sweep's and each of its rows is the row this sweep writes for its point.
 """
 
 from __future__ import annotations
@@ -48,6 +48,13 @@ def _difference(earlier: dict[str, Any], current: dict[str, Any]) -> str | None:
     return "\n".join(lines) or None
 
 
+def _csv_line(fields: list[str]) -> bytes:
+    """One row's bytes, exactly as the sweep's writer spells them."""
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerow(fields)
+    return buffer.getvalue().encode("utf-8", errors="surrogateescape")
+
+
 def _text(x: float) -> str:
     return "" if np.isnan(x) else repr(float(x))
 
@@ -74,11 +81,17 @@ def sweep_to_file(
     m = len(metric_names)
 
     def earlier() -> None:
+        text = ""
         try:
             with open(record_path, encoding="utf-8") as f:
-                lines = [line for line in f if not line.startswith("#")]
-            record = json.loads("".join(lines))
+                text = f.read()
+            record = json.loads("".join(line for line in text.splitlines(keepends=True) if not line.startswith("#")))
+            if not isinstance(record, dict):
+                raise ValueError("it is not a JSON object")
         except (OSError, ValueError) as e:
+            if text.startswith("# runner sweep"):
+                raise RunnerError(f"{record_path} is the record of a sweep of the command line, runner sweep: continue it "
+                                  f"there, with --out {out} --resume") from None
             raise RunnerError(f"cannot read {record_path}, the record of the sweep that wrote {partial}: {e}") from None
         # A record from before the interface was recorded ran through the default one: the same
         # sweep when this one takes the default too (its rows are not lost to an upgrade).
@@ -91,18 +104,61 @@ def sweep_to_file(
                 f"run the earlier sweep again with resume=True, or delete {partial} to start this one"
             )
 
-    def read_rows(file: str) -> tuple[pd.DataFrame, int]:
-        """The complete rows of ``file`` as text (a last line cut short by a kill is dropped) and
-        the byte length they take."""
+    def read_rows(file: str) -> tuple[list[list[str]], int]:
+        """The finished rows of ``file`` (their fields as text) and the bytes they take with the
+        header, read back as ``runner sweep --resume`` reads them: each must be exactly the row
+        this sweep writes for its point. One that is not is refused, unless it is the last, which
+        a kill may have cut short (even inside a quoted status): that one is dropped."""
         with open(file, "rb") as f:
             data = f.read()
-        end = data.rfind(b"\n") + 1
-        table = pd.read_csv(io.BytesIO(data[:end]), keep_default_na=False, dtype=str) if end else pd.DataFrame()
-        if end and list(table.columns) != header:
-            raise RunnerError(f"{file} has the columns {list(table.columns)}, not this sweep's {header}")
-        return table, end
+        # Undecodable bytes (a torn character, a crashed machine's zeros) read as themselves.
+        reader = csv.reader(io.StringIO(data.decode("utf-8", errors="surrogateescape"), newline=""))
+
+        def next_fields() -> list[str] | None:
+            try:
+                return next(reader, None)
+            except csv.Error:
+                # A quote cut by a kill, or a NUL: the torn end.
+                return None
+
+        # The parameter values of the points the file may hold, as the writer below spells them.
+        points = _points(ranges, 0, min(n, data.count(b"\n")))
+
+        def point_fields(i: int) -> list[str] | None:
+            return [repr(float(points[name][i])) for name, _ in ranges] if i < len(points[ranges[0][0]]) else None
+
+        rows: list[list[str]] = []
+        start = 0
+        p = len(ranges)
+        fields = next_fields()
+        while fields is not None:
+            line = _csv_line(fields)
+            expected = header if start == 0 else point_fields(len(rows))
+            exact = data[start:start + len(line)] == line and len(fields) == len(header)
+            if exact and expected is not None and fields[:len(expected)] == expected:
+                if start > 0:
+                    for text in fields[p:p + m]:
+                        try:
+                            float(text or "nan")
+                        except ValueError:
+                            raise RunnerError(
+                                f"{file}: row {len(rows) + 1} has the metric {text!r}, which is not a number") from None
+                    rows.append(fields)
+                start += len(line)
+                fields = next_fields()
+                continue
+            if next_fields() is None and (start > 0 or not data.endswith(b"\n")):
+                return rows, start
+            if start == 0:
+                raise RunnerError(f"{file} does not start with this sweep's header {header}")
+            i = len(rows) + 1
+            raise RunnerError(
+                f"{file}: row {i} is not the row this sweep writes for point {i} (the file was changed, or is another sweep's)")
+        return rows, start
 
     first, kept = 0, None
+    # False when `out` is found complete already (no partial file to put in its place).
+    renaming = True
     if resume and os.path.exists(partial):
         earlier()
         kept, valid = read_rows(partial)
@@ -117,7 +173,7 @@ def sweep_to_file(
         kept, _ = read_rows(out)
         if len(kept) != n:
             raise RunnerError(f"{out} has {len(kept)} of this sweep's {n} rows and no partial file to continue; run without resume to start again")
-        first = n
+        first, renaming = n, False
     else:
         if not resume and os.path.exists(partial):
             raise RunnerError(f"{partial} holds the finished points of an earlier sweep: continue it with resume=True, or delete it to start again")
@@ -129,11 +185,12 @@ def sweep_to_file(
     values = np.full((n, m), np.nan)
     status = np.full(n, "ok", dtype=object)
     if kept is not None and first:
-        for k, name in enumerate(metric_names):
+        p = len(ranges)
+        for i, fields in enumerate(kept):
             # Python's float() reads the shortest round-trip text back to the same double, which
             # pandas' own float parsers do not promise.
-            values[:first, k] = [float(text) if text else np.nan for text in kept[name][:first]]
-        status[:first] = kept["status"].to_numpy()[:first]
+            values[i] = [float(text) if text else np.nan for text in fields[p:p + m]]
+            status[i] = fields[p + m]
     if first < n:
         with open(partial, "a", encoding="utf-8", newline="") as f:
             writer = csv.writer(f, lineterminator="\n")
@@ -154,5 +211,7 @@ def sweep_to_file(
                 os.fsync(f.fileno())
 
             run(first, on_rows)
+    # Also a partial file that holds every row (killed before it was renamed) is put in place.
+    if renaming:
         os.replace(partial, out)
     return _frame(ranges, metric_names, values, status)

@@ -11,6 +11,7 @@
  * modelDescription then declares canBeInstantiatedOnlyOncePerProcess); with -DSLOW_LOAD, loading
  * the binary takes a second (an initializer that sleeps); with -DCRASH_ON_LOAD, loading it
  * crashes the process with SIGSEGV (an initializer, as a broken static constructor does); with
+ * -DSLOW_STEP, each fmi2DoStep takes 5 ms more (a model whose rows come slowly); with
  * -DEXIT_HANDLER, the first
  * fmi2Instantiate registers code of the binary to run at process exit; with -DNEEDS_PYTHON, it
  * leaves a libpython symbol undefined. It also has the solver
@@ -213,6 +214,9 @@ EXPORT fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolea
     (void)no_prior;
     Instance *inst = (Instance *)c;
     inst->steps++;
+#ifdef SLOW_STEP
+    usleep(5000);
+#endif
     if (inst->fault && (inst->fault_solver < 0 || inst->fault_solver == inst->solver) && t + 1e-12 >= inst->fault_time) {
         switch (inst->fault) {
         case 1: *(volatile int *)NULL = 1; break;

@@ -98,6 +98,79 @@ def test_a_sweep_to_a_file_resumes_where_it_stopped(faulty, tmp_path):
         fmurunner.sweep(faulty, {"k": [9.0, 8.0]}, metrics, stop_time=1.0, out=out, resume=True)
 
 
+def test_a_partial_file_that_is_not_this_sweeps_rows_is_refused_and_a_torn_last_row_dropped(faulty, tmp_path):
+    """resume=True reads the partial file's rows back as `runner sweep --resume` does: each row
+    must be the row this sweep writes for its point (its parameter values, as many fields as the
+    header, numbers or nothing for the metrics); a row that is not is refused with a RunnerError
+    naming the file and the row, unless it is the file's last line, which a kill may have cut
+    short (even inside a quoted status that holds a newline): that one is dropped and run again.
+    Before, rows in another order or of other points were kept as they were (the returned table
+    and the CSV gave their metrics to the wrong points), and other damage raised pandas' or
+    numpy's errors."""
+    params = {"k": [0.5, 1.0, 1.5, 2.0]}
+    metrics = {"x_end": "final(x)"}
+    out = tmp_path / "sweep.csv"
+    partial = tmp_path / "sweep.csv.partial"
+    kwargs = dict(stop_time=1.0, threads=2, out=out)
+    full = fmurunner.sweep(faulty, params, metrics, **kwargs)
+    complete = out.read_bytes()
+    lines = complete.decode().splitlines(keepends=True)
+    out.unlink()
+    no_number = lines[1].split(",")
+    no_number[1] = "abc"
+    refused = {
+        "rows in another order": (lines[0] + lines[2] + lines[1], "row 1 is not the row this sweep writes for point 1"),
+        "another point's row": (lines[0] + lines[1] + "9.0,0.5,ok\n" + lines[3], "row 2 is not the row this sweep writes"),
+        "a row with a field more": (lines[0] + lines[1].replace("\n", ",x\n") + lines[2], "row 1 is not the row"),
+        "a metric that is no number": (lines[0] + ",".join(no_number) + lines[2], "row 1 has the metric 'abc', which is not a number"),
+    }
+    for what, (text, message) in refused.items():
+        partial.write_text(text)
+        with pytest.raises(RunnerError, match=message) as e:
+            fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+        assert str(partial) in str(e.value), what
+    torn = {
+        "a last row cut inside a quoted status": lines[0] + lines[1] + '1.0,,"crashed: SIGSEGV\nin fmi2Do',
+        "a row past the last point": "".join(lines) + lines[1],
+        "a last row of another point": lines[0] + lines[1] + "9.0,0.5,ok\n",
+    }
+    for what, text in torn.items():
+        partial.write_text(text)
+        resumed = fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+        pd.testing.assert_frame_equal(resumed, full, check_exact=True, obj=what)
+        assert out.read_bytes() == complete, what
+        out.unlink()
+
+
+def test_a_partial_file_holding_every_row_is_put_in_place(faulty, tmp_path):
+    """A sweep killed after its last row reached the partial file but before the file was renamed
+    leaves every row there: resume=True runs nothing and puts the file in place as the CSV (it
+    once returned the table and left the CSV unwritten, the partial file there for good)."""
+    params = {"k": [0.5, 1.0, 1.5]}
+    out = tmp_path / "sweep.csv"
+    full = fmurunner.sweep(faulty, params, {"x_end": "final(x)"}, stop_time=1.0, threads=2, out=out)
+    complete = out.read_bytes()
+    out.rename(tmp_path / "sweep.csv.partial")
+    resumed = fmurunner.sweep(faulty, params, {"x_end": "final(x)"}, stop_time=1.0, threads=2, out=out, resume=True)
+    pd.testing.assert_frame_equal(resumed, full, check_exact=True)
+    assert out.read_bytes() == complete and not (tmp_path / "sweep.csv.partial").exists()
+
+
+def test_a_record_of_the_command_line_is_named_and_other_damage_refused(faulty, tmp_path):
+    """resume=True beside a record the command line wrote (KEY = VALUE lines, not JSON) says so
+    and how to continue it there; a record that is JSON but no object is refused as unreadable
+    (it once raised AttributeError)."""
+    out = tmp_path / "sweep.csv"
+    (tmp_path / "sweep.csv.partial").write_text("k,x_end,status\n")
+    record = tmp_path / "sweep.csv.sweep"
+    record.write_text("# runner sweep: what produced the CSV beside this file; `runner sweep --resume` checks it\nfmu = f.fmu\n")
+    with pytest.raises(RunnerError, match=r"record of a sweep of the command line, runner sweep: continue it there, with --out .* --resume"):
+        fmurunner.sweep(faulty, {"k": [1.0]}, {"x_end": "final(x)"}, stop_time=1.0, out=out, resume=True)
+    record.write_text("[1, 2]\n")
+    with pytest.raises(RunnerError, match="cannot read .*sweep.csv.sweep.*it is not a JSON object"):
+        fmurunner.sweep(faulty, {"k": [1.0]}, {"x_end": "final(x)"}, stop_time=1.0, out=out, resume=True)
+
+
 def test_sweep_results_carry_units():
     frame = fmurunner.sweep(fmu_path("quarter_car"), {"speed": [2.0, 4.0]}, ["peak=max(z_s)"], stop_time=1.0, threads=2)
     assert frame.attrs["units"]["speed"] == "m/s"

@@ -432,6 +432,68 @@ fn a_sweeps_unpacked_copy_is_removed_before_it_exits_in_both_modes() {
     }
 }
 
+/// A worker that crashes (fault 1, SIGSEGV) or hangs (fault 3, stopped by `--timeout 1`) in the
+/// step from t = 1, after rows that came slowly (5 ms a step: half a second for the 101 rows t = 0
+/// to 1), leaves in the --out file all but the rows of its last tenth of a second: the worker
+/// sends what it holds once a tenth of a second has passed, not only when 64 KiB are waiting
+/// (before, every row was lost with the worker, and the message said the run failed before its
+/// first row). At 5 ms a step a tenth of a second is 20 rows; at least 60 of the 101 are asked
+/// for, which leaves room for a loaded machine's slower wake-ups. The rows kept are the first
+/// rows of a clean run's, and the message counts them.
+#[test]
+fn a_worker_that_crashes_or_hangs_keeps_all_but_its_last_tenth_of_a_second_of_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "slow.fmu", false, &["-DSLOW_STEP"]);
+    let f = fmu.to_str().unwrap();
+    ok(runner(dir.path(), &["simulate", f, "--stop-time", "1", "--out", "clean.csv"]));
+    let (header, clean) = read_csv(&dir.path().join("clean.csv"));
+    assert_eq!(clean.len(), 101);
+    let x = header.iter().position(|h| h == "x").unwrap();
+    for (fault, failure) in [("1", "crashed: SIGSEGV in fmi2DoStep at t = 1"), ("3", "timed out after 1 s in fmi2DoStep at t = 1")] {
+        let out = format!("fault{fault}.csv");
+        let set_fault = format!("fault={fault}");
+        let args = ["simulate", f, "--set", &set_fault, "--set", "fault_time=1", "--stop-time", "2", "--timeout", "1", "--out", &out];
+        let err = fails(runner(dir.path(), &args));
+        assert!(err.contains(failure), "{err}");
+        let (h, kept) = read_csv(&dir.path().join(&out));
+        assert_eq!(h, header);
+        assert!(kept.len() >= 60, "fault {fault}: {} of the 101 rows before the failure kept: {err}", kept.len());
+        assert!(err.contains(&format!("{out} keeps the {} row(s) before the failure", kept.len())), "{err}");
+        assert!(kept.iter().zip(&clean).all(|(k, c)| k[x] == c[x]), "fault {fault}: the kept rows are the clean run's first");
+    }
+}
+
+/// Ctrl-C (SIGINT) a second into a run whose rows come slowly (5 ms a step, 100 s of model time)
+/// stops it with exit code 130 and keeps in --out the rows before it, as a failed run and a
+/// system's interrupted run do (it once threw them away after saying "keeping what has
+/// finished"), in a worker and in this process: they are the first rows of a clean run, and the
+/// message counts them.
+#[test]
+fn an_interrupted_run_keeps_its_rows_in_the_out_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = faulty_fmu(dir.path(), "slow.fmu", false, &["-DSLOW_STEP"]);
+    let f = fmu.to_str().unwrap();
+    ok(runner(dir.path(), &["simulate", f, "--stop-time", "1", "--out", "clean.csv"]));
+    let (header, clean) = read_csv(&dir.path().join("clean.csv"));
+    let x = header.iter().position(|h| h == "x").unwrap();
+    for mode in [&[][..], &["--in-process"][..]] {
+        let mut args = vec!["simulate", f, "--stop-time", "100", "--out", "stopped.csv"];
+        args.extend(mode);
+        let child = spawn_runner(dir.path(), &args);
+        std::thread::sleep(std::time::Duration::from_secs(1));
+        // SAFETY: a signal to the child this test started.
+        assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+        let o = child.wait_with_output().unwrap();
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(130), "{mode:?}: {err}");
+        let (h, kept) = read_csv(&dir.path().join("stopped.csv"));
+        assert_eq!(h, header);
+        assert!(!kept.is_empty() && kept.len() < 10_001, "{mode:?}: {} rows", kept.len());
+        assert!(err.contains(&format!("stopped.csv keeps the {} row(s) before the interruption", kept.len())), "{mode:?}: {err}");
+        assert!(kept.iter().zip(&clean).all(|(k, c)| k[x] == c[x]), "{mode:?}: the kept rows are a clean run's first");
+    }
+}
+
 /// A run that fails (fmi2DoStep returns fmi2Error at the first step from t = 0.5) keeps in its
 /// --out file every row before the failure, the same rows standard output gets (t = 0 to 0.5
 /// every 0.01 s: 51 rows), in a worker and in this process; the error names the time, the call

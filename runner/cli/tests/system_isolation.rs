@@ -16,7 +16,12 @@ use common::*;
 /// (index 0), so a crash named `bad` is not merely the last component stepped. `bad` gets the
 /// parameter binding `binding` (SSV parameters inside <ssv:Parameters>).
 fn faulty_system(dir: &Path, name: &str, binding: &str) -> PathBuf {
-    let fmu = faulty_fmu(dir, "faulty.fmu", false, &[]);
+    faulty_system_compiled(dir, name, binding, &[])
+}
+
+/// [`faulty_system`], faulty.c compiled with `flags`.
+fn faulty_system_compiled(dir: &Path, name: &str, binding: &str, flags: &[&str]) -> PathBuf {
+    let fmu = faulty_fmu(dir, "faulty.fmu", false, flags);
     let parameters = |inner: &str| {
         format!(
             r#"<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="p"><ssv:Parameters>{inner}</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>"#
@@ -130,6 +135,53 @@ fn a_hanging_component_times_out_its_point_only() {
     assert!(err.contains("--point-timeout needs worker processes"), "{err}");
     let err = fails(runner(dir.path(), &["simulate", root.to_str().unwrap(), "--in-process", "--timeout", "1"]));
     assert!(err.contains("--timeout needs a worker process"), "{err}");
+}
+
+/// A system's worker that crashes (component `bad`, SIGSEGV in the step from t = 1) after rows
+/// that came slowly (each component 5 ms a step: a second for the 101 rows t = 0 to 1) leaves in
+/// the --out file all but the rows of its last tenth of a second (10 rows at 10 ms a step), not
+/// none as when the worker sent rows only 64 KiB at a time; at least 60 of the 101 are asked for,
+/// room for a loaded machine's slower wake-ups. The rows kept are a clean run's first.
+#[test]
+fn a_system_worker_that_crashes_keeps_all_but_its_last_tenth_of_a_second_of_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = faulty_system_compiled(dir.path(), "slow", "", &["-DSLOW_STEP"]);
+    let r = root.to_str().unwrap();
+    ok(runner(dir.path(), &["simulate", r, "--stop-time", "1", "--out", "clean.csv"]));
+    let (header, clean) = read_csv(&dir.path().join("clean.csv"));
+    assert_eq!(clean.len(), 101);
+    let args = ["simulate", r, "--set", "bad.fault=1", "--set", "bad.fault_time=1", "--stop-time", "2", "--out", "crashed.csv"];
+    let err = fails(runner(dir.path(), &args));
+    assert!(err.contains("crashed: SIGSEGV in fmi2DoStep of component 'bad' at t = 1"), "{err}");
+    let (h, kept) = read_csv(&dir.path().join("crashed.csv"));
+    assert_eq!(h, header);
+    assert!(kept.len() >= 60, "{} of the 101 rows before the crash kept", kept.len());
+    let x: Vec<usize> = header.iter().enumerate().filter(|(_, h)| h.ends_with(".x")).map(|(c, _)| c).collect();
+    assert!(kept.iter().zip(&clean).all(|(k, c)| x.iter().all(|&i| k[i] == c[i])), "the kept rows are the clean run's first");
+}
+
+/// Ctrl-C (SIGINT) a second into a system's run in this process whose rows come slowly stops it
+/// with exit code 130, the rows before it kept in --out (the first rows of a clean run), as in a
+/// worker; the run in this process once went on to its stop time and exited 0.
+#[test]
+fn an_interrupted_system_run_in_process_stops_and_keeps_its_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = faulty_system_compiled(dir.path(), "slow", "", &["-DSLOW_STEP"]);
+    let r = root.to_str().unwrap();
+    ok(runner(dir.path(), &["simulate", r, "--in-process", "--stop-time", "1", "--out", "clean.csv"]));
+    let (header, clean) = read_csv(&dir.path().join("clean.csv"));
+    let child = spawn_runner(dir.path(), &["simulate", r, "--in-process", "--stop-time", "100", "--out", "stopped.csv"]);
+    std::thread::sleep(Duration::from_secs(1));
+    // SAFETY: a signal to the child this test started.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    assert!(stderr(&o).contains("interrupted (the rows before it are in stopped.csv)"), "{}", stderr(&o));
+    let (h, kept) = read_csv(&dir.path().join("stopped.csv"));
+    assert_eq!(h, header);
+    assert!(!kept.is_empty() && kept.len() < 10_001, "{} rows", kept.len());
+    let x: Vec<usize> = header.iter().enumerate().filter(|(_, h)| h.ends_with(".x")).map(|(c, _)| c).collect();
+    assert!(kept.iter().zip(&clean).all(|(k, c)| x.iter().all(|&i| k[i] == c[i])), "the kept rows are a clean run's first");
 }
 
 /// A component whose binary crashes as it loads (an initializer raising SIGSEGV, as a broken
@@ -269,6 +321,102 @@ fn a_sweep_of_an_ssp_archive_resumes() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("resuming: 1 of 3 points"), "{}", stderr(&o));
     assert_eq!(std::fs::read(dir.path().join("a.csv")).unwrap(), complete);
+}
+
+/// Cuts the finished sweep `out` (in `dir`) back to its header and first row, as `<out>.partial`:
+/// a sweep killed after its first point.
+fn keep_first_row(dir: &Path, out: &str) -> Vec<u8> {
+    let complete = std::fs::read(dir.join(out)).unwrap();
+    let first_row = complete.iter().enumerate().filter(|(_, &b)| b == b'\n').nth(1).unwrap().0 + 1;
+    std::fs::write(dir.join(format!("{out}.partial")), &complete[..first_row]).unwrap();
+    std::fs::remove_file(dir.join(out)).unwrap();
+    complete
+}
+
+/// The same system named another way resumes the sweep: a folder given relatively, with a
+/// trailing slash, absolutely, by its `.ssd`, or by the bare `SystemStructure.ssd` from inside
+/// it; an `.ssp` relatively, absolutely or through a symbolic link. Each resume runs the two
+/// points missing and ends with the bytes of the uninterrupted sweep. (The record once held the
+/// path as given, and hashed every file with its path, so each of these was refused as "not from
+/// this sweep"; the bare `SystemStructure.ssd` failed with "cannot read : No such file".)
+#[test]
+fn a_system_sweep_resumes_however_the_system_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let root = faulty_system(d, "faulty", "");
+    let params = ["good.k=0.5,0.75,1"];
+    ok(sweep(d, Path::new("faulty"), &params, "a.csv", &[]));
+    let absolute = root.display().to_string();
+    for name in ["./faulty/", absolute.as_str(), "faulty/SystemStructure.ssd"] {
+        let complete = keep_first_row(d, "a.csv");
+        let o = sweep(d, Path::new(name), &params, "a.csv", &["--resume"]);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).contains("resuming: 1 of 3 points"), "{name}: {}", stderr(&o));
+        assert_eq!(std::fs::read(d.join("a.csv")).unwrap(), complete, "{name}");
+    }
+    let complete = keep_first_row(d, "a.csv");
+    let o = sweep(&root, Path::new("SystemStructure.ssd"), &params, "../a.csv", &["--resume"]);
+    assert!(o.status.success(), "SystemStructure.ssd from inside the folder: {}", stderr(&o));
+    assert_eq!(std::fs::read(d.join("a.csv")).unwrap(), complete, "SystemStructure.ssd from inside the folder");
+
+    let ssd = std::fs::read(root.join("SystemStructure.ssd")).unwrap();
+    let fmu = std::fs::read(root.join("resources").join("faulty.fmu")).unwrap();
+    write_zip(&d.join("faulty.ssp"), &[ZipItem::File("SystemStructure.ssd", &ssd), ZipItem::File("resources/faulty.fmu", &fmu)]);
+    std::os::unix::fs::symlink("faulty.ssp", d.join("link.ssp")).unwrap();
+    ok(sweep(d, Path::new("faulty.ssp"), &params, "p.csv", &[]));
+    let absolute = d.join("faulty.ssp").display().to_string();
+    for name in [absolute.as_str(), "link.ssp"] {
+        let complete = keep_first_row(d, "p.csv");
+        let o = sweep(d, Path::new(name), &params, "p.csv", &["--resume"]);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        assert_eq!(std::fs::read(d.join("p.csv")).unwrap(), complete, "{name}");
+    }
+}
+
+/// A folder's SSD may bind a parameter file outside the folder: changing that file changes the
+/// system, so a partial file from before is refused (it was once resumed, its first row from the
+/// old parameter values and the others from the new).
+#[test]
+fn a_changed_parameter_file_outside_the_system_folder_refuses_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fmu = faulty_fmu(d, "faulty.fmu", false, &[]);
+    let ssd = r#"<ssd:System name="s"><ssd:Elements><ssd:Component name="good" source="resources/faulty.fmu"><ssd:ParameterBindings><ssd:ParameterBinding source="../outside.ssv"/></ssd:ParameterBindings></ssd:Component><ssd:Component name="bad" source="resources/faulty.fmu"/></ssd:Elements></ssd:System>"#;
+    let root = system(d, "outside", ssd, &[("faulty.fmu", &fmu)], &[]);
+    let ssv = |x0: &str| {
+        format!(
+            r#"<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="1.0" name="p"><ssv:Parameters><ssv:Parameter name="x0"><ssv:Real value="{x0}"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet>"#
+        )
+    };
+    std::fs::write(d.join("outside.ssv"), ssv("1")).unwrap();
+    ok(sweep(d, &root, &["bad.k=0.5,0.75,1"], "a.csv", &[]));
+    keep_first_row(d, "a.csv");
+    std::fs::write(d.join("outside.ssv"), ssv("2")).unwrap();
+    let err = fails(sweep(d, &root, &["bad.k=0.5,0.75,1"], "a.csv", &["--resume"]));
+    assert!(err.contains("is not from this sweep") && err.contains("system_sha256"), "{err}");
+}
+
+/// A system folder holding links to itself (two: each level of the walk doubles) sweeps to a
+/// file: the record's digest does not follow linked folders (which once walked 2^40 paths, a
+/// sweep that never started). Given a minute, which the sweep takes well under a second of.
+#[test]
+fn a_system_folder_that_links_to_itself_sweeps_to_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = faulty_system(dir.path(), "linked", "");
+    std::os::unix::fs::symlink(".", root.join("here")).unwrap();
+    std::os::unix::fs::symlink("..", root.join("resources").join("up")).unwrap();
+    let args = ["sweep", "linked", "--param", "good.k=0.5,1", "--metric", "end=final(good.x)", "--out", "a.csv"];
+    let mut child = spawn_runner(dir.path(), &args);
+    let started = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if started.elapsed() > Duration::from_secs(60) {
+            child.kill().unwrap();
+            panic!("the sweep of a folder that links to itself did not end within a minute");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(child.wait().unwrap().success());
+    assert_eq!(read_csv(&dir.path().join("a.csv")).1.len(), 2);
 }
 
 /// systems/quarter_car_road (built by `runner build`): the Ex. 4 sweep and a run in worker

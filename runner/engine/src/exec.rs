@@ -86,7 +86,8 @@ impl<'a> Runs<'a> {
 
     /// Runs `request`, calling `sample(t, values, texts)` at every sample. In a worker, a crash,
     /// a timeout, `stop()` or a failing `sample` end the run with an error naming the signal
-    /// and the FMI call; in this process `stop` is not looked at (a run cannot be stopped).
+    /// and the FMI call; in this process `stop()` ends it at its next sample ("interrupted"; an FMI
+    /// call in progress cannot be stopped).
     pub fn run(
         &mut self,
         request: &RunRequest,
@@ -96,6 +97,13 @@ impl<'a> Runs<'a> {
         let session = match (self.held, self.session.as_mut()) {
             (Held::Loaded(fmu), _) => {
                 let bound = request.bind(&fmu.description, fmu.interface, true)?;
+                // `stop()` ends a run here at its next sample, as it ends one in a worker.
+                let sample = |t: f64, values: &[f64], texts: &dyn Texts| {
+                    if stop() {
+                        return Err("interrupted".to_owned());
+                    }
+                    sample(t, values, texts)
+                };
                 return fmi_importer::call_log::logging(request.log_fmi_calls.as_ref(), || bound.run().execute(fmu, sample));
             }
             (Held::Described(_), Some(session)) => session,

@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use fmi_importer::trace::{self, Call, CallSlot};
 use fmi_importer::{Description, Interface};
-use runner_sandbox::worker::{Incoming, Serving};
+use runner_sandbox::worker::{Incoming, Pacer, Serving};
 use runner_sandbox::{Config, Failure, Service, SharedMemory, WorkerCommand};
 use serde::{Deserialize, Serialize};
 
@@ -177,13 +177,14 @@ pub fn serve() -> Result<(), String> {
     Ok(())
 }
 
-/// Runs `request` on `fmu`, sending its samples in batches.
+/// Runs `request` on `fmu`, sending its samples in batches ([`Pacer`]).
 fn run(serving: &Serving<Engine>, fmu: &fmi_importer::Fmu, request: &RunRequest) -> Result<RunEnd, String> {
     let bound = request.bind(&fmu.description, fmu.interface, true)?;
     let mut samples: Vec<f64> = Vec::with_capacity(BATCH + 64);
     let mut texts = Vec::new();
     // The columns the supervisor cannot print from their numbers.
     let mut lossy: Option<Vec<usize>> = None;
+    let mut pacer = Pacer::new(BATCH);
     let flush = |samples: &mut Vec<f64>, texts: &mut Vec<String>| {
         serving.send(&Samples { values: std::mem::take(samples), texts: std::mem::take(texts) })
     };
@@ -192,7 +193,7 @@ fn run(serving: &Serving<Engine>, fmu: &fmi_importer::Fmu, request: &RunRequest)
         samples.extend_from_slice(values);
         let lossy = lossy.get_or_insert_with(|| (0..values.len()).filter(|&c| reader.needs_text(c)).collect());
         texts.extend(lossy.iter().map(|&c| reader.text(c, values)));
-        if samples.len() >= BATCH || texts.len() >= BATCH {
+        if pacer.due(samples.len().max(texts.len())) {
             flush(&mut samples, &mut texts)?;
             samples.reserve(BATCH + 64);
         }

@@ -504,16 +504,17 @@ fn execute(
     Ok(traces)
 }
 
-/// A failed run's error, after the rows written before the failure are put in place: `--out`
-/// gets them as standard output has them (every row up to the failure, then the error), and
-/// the message says how many there are. Ctrl-C abandons the file, as it does every result.
+/// A failed or interrupted run's error, after the rows written before it are put in place:
+/// `--out` gets them as standard output has them (every row up to the failure or Ctrl-C, then
+/// the error), and the message says how many there are, as a system's run keeps them.
 fn keep_rows(writer: output::CsvRows, error: String, out: Option<&Path>, rows: usize, last: f64) -> String {
-    let Some(path) = out.filter(|_| !interrupt::requested()) else {
+    let Some(path) = out else {
         return error;
     };
+    let (ended, end) = if interrupt::requested() { ("was interrupted", "interruption") } else { ("failed", "failure") };
     match writer.finish() {
-        Ok(()) if rows == 0 => format!("{error}\n{} has the header only: the run failed before its first row", path.display()),
-        Ok(()) => format!("{error}\n{} keeps the {rows} row(s) before the failure, up to t = {last}", path.display()),
+        Ok(()) if rows == 0 => format!("{error}\n{} has the header only: the run {ended} before its first row", path.display()),
+        Ok(()) => format!("{error}\n{} keeps the {rows} row(s) before the {end}, up to t = {last}", path.display()),
         Err(e) => format!("{error}\n(the rows before the failure are lost too: {e})"),
     }
 }

@@ -123,8 +123,7 @@ fn run_system(options: &Options) -> Result<Summary, String> {
 }
 
 /// The record of a system sweep: what `--resume` compares. The system is identified by the
-/// digest of its files (the archive, or the structure, parameter files and FMUs of a folder)
-/// and of every component's FMU.
+/// digest of what it is (see [`system_sha256`]), not by the path it was named by.
 fn system_record(sweep: &system::Sweep, timeout: Option<f64>) -> Result<Record, String> {
     let system = sweep.system();
     let spec = sweep.spec();
@@ -157,23 +156,35 @@ fn system_record(sweep: &system::Sweep, timeout: Option<f64>) -> Result<Record, 
     Ok(Record { entries })
 }
 
-/// The sha256 of a system's files: an archive's bytes; for a folder (or the folder of an
-/// `.ssd`), each structure, parameter, mapping and FMU file under it by name; then each
-/// component's FMU that is not in the archive (those are in its bytes, and their extracted
-/// paths differ from run to run, which would refuse every resume).
+/// The sha256 of what a system is, the same however it is named (relative, absolute, through a
+/// link, by its folder or its `.ssd`): an archive's bytes; for a folder (or the folder of an
+/// `.ssd`), each structure, parameter, mapping and FMU file under it (not in linked folders), by
+/// its name in the folder; then each component's FMU by its bytes and its parameter values,
+/// which a folder's SSD may read from files anywhere. The FMUs extracted from an archive are not hashed again (their bytes are
+/// the archive's, their paths a fresh temporary folder per run).
 fn system_sha256(system: &System) -> Result<String, String> {
     let path = &system.path;
-    let mut files: Vec<PathBuf> = Vec::new();
+    let mut hash = Sha256::new();
+    let mut put = |name: &str, digest: &str| {
+        hash.update(name.as_bytes());
+        hash.update([0]);
+        hash.update(digest.as_bytes());
+    };
     if path.extension().is_some_and(|e| e == "ssp") {
-        files.push(path.clone());
+        put("", &file_sha256(path)?);
     } else {
-        let root = if path.is_dir() { path.clone() } else { path.parent().unwrap_or(Path::new(".")).to_path_buf() };
-        let mut folders = vec![root];
+        // `SystemStructure.ssd`'s parent is the empty path, which names no folder to read.
+        let root =
+            if path.is_dir() { path.as_path() } else { path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")) };
+        let mut files: Vec<PathBuf> = Vec::new();
+        let mut folders = vec![root.to_path_buf()];
         while let Some(folder) = folders.pop() {
             let entries = std::fs::read_dir(&folder).map_err(|e| format!("cannot read {}: {e}", folder.display()))?;
             for entry in entries.flatten() {
                 let p = entry.path();
-                if p.is_dir() {
+                // A linked folder is not walked (links back up would walk without end); what
+                // the system uses from it is hashed below, by component.
+                if entry.file_type().is_ok_and(|t| t.is_dir()) {
                     folders.push(p);
                 } else if p.extension().and_then(|e| e.to_str()).is_some_and(|e| matches!(e, "ssd" | "ssv" | "ssm" | "ssb" | "fmu")) {
                     files.push(p);
@@ -181,14 +192,17 @@ fn system_sha256(system: &System) -> Result<String, String> {
             }
         }
         files.sort();
+        for file in &files {
+            put(&file.strip_prefix(root).unwrap_or(file).display().to_string(), &file_sha256(file)?);
+        }
     }
-    let in_archive = |source: &Path| system.archive_root().is_some_and(|root| source.starts_with(root));
-    files.extend(system.structure.components.iter().map(|c| c.source.clone()).filter(|source| !in_archive(source)));
-    let mut hash = Sha256::new();
-    for file in &files {
-        hash.update(file.display().to_string().as_bytes());
-        hash.update([0]);
-        hash.update(file_sha256(file)?.as_bytes());
+    for component in &system.structure.components {
+        let in_archive = system.archive_root().is_some_and(|root| component.source.starts_with(root));
+        let fmu_sha256 = if in_archive { String::new() } else { file_sha256(&component.source)? };
+        put(&component.name, &fmu_sha256);
+        for assignment in &component.parameters {
+            put(&assignment.variable, &format!("{:?}", assignment.value));
+        }
     }
     Ok(format!("{:x}", hash.finalize()))
 }

@@ -28,7 +28,7 @@ use runner_engine::request::MetricSet;
 use runner_engine::run::Grid;
 use runner_engine::sweep::{self, PointResult, Space};
 use runner_engine::variables;
-use runner_sandbox::worker::{Incoming, Serving};
+use runner_sandbox::worker::{Incoming, Pacer, Serving};
 use runner_sandbox::{run_batch, Config, Failure, Service, Session, SharedMemory, WorkerCommand, Workers};
 use serde::{Deserialize, Serialize};
 
@@ -386,14 +386,15 @@ pub fn serve() -> Result<(), String> {
     Ok(())
 }
 
-/// Runs the system in a worker, sending its rows in batches.
+/// Runs the system in a worker, sending its rows in batches ([`Pacer`]).
 fn run_streamed(serving: &Serving<Systems>, bound: &Bound, grid: &Grid, sets: &[String]) -> Result<Option<String>, String> {
     let sets = bound.parse_sets(sets)?;
     let mut rows: Vec<f64> = Vec::with_capacity(BATCH + 64);
+    let mut pacer = Pacer::new(BATCH);
     let result = bound.run("system", grid, &sets, |t, values| {
         rows.push(t);
         rows.extend_from_slice(values);
-        if rows.len() >= BATCH {
+        if pacer.due(rows.len()) {
             serving.send(&Rows(std::mem::take(&mut rows)))?;
             rows.reserve(BATCH + 64);
         }
@@ -445,10 +446,19 @@ pub fn simulate(
         writer.write_record(&row).map_err(|e| format!("cannot write CSV: {e}"))
     };
     let result = match isolation {
-        None => bound.run("system", &grid, &sets, &mut write).map_err(|failure| failure.to_string()).map(|outcome| match outcome {
-            RunOutcome::Finished => None,
-            RunOutcome::Ended(why) => Some(why.to_string()),
-        }),
+        // Ctrl-C ends a run here at its next row, as it ends one in a worker.
+        None => bound
+            .run(
+                "system",
+                &grid,
+                &sets,
+                |t: f64, values: &[f64]| if interrupt::requested() { Err("interrupted".to_owned()) } else { write(t, values) },
+            )
+            .map_err(|failure| failure.to_string())
+            .map(|outcome| match outcome {
+                RunOutcome::Finished => None,
+                RunOutcome::Ended(why) => Some(why.to_string()),
+            }),
         Some(config) => {
             let width = 1 + bound.columns.len();
             let setup = Setup::Load { files: system.files(), algorithm: Box::new(algorithm.clone()) };

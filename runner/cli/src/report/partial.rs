@@ -46,8 +46,9 @@ pub struct Record {
     pub entries: Vec<(String, String)>,
 }
 
-/// Keys that describe but do not identify (the FMU may be moved; its hash decides).
-const INFORMATIONAL: &[&str] = &["fmu"];
+/// Keys that describe but do not identify (the FMU or system may be moved or named another way;
+/// its hash decides).
+const INFORMATIONAL: &[&str] = &["fmu", "system"];
 
 impl Record {
     /// The record's text.
@@ -61,6 +62,12 @@ impl Record {
 
     /// Reads a record written by [`Record::text`].
     pub fn parse(text: &str) -> Result<Record, String> {
+        if text.starts_with("# fmurunner sweep") {
+            return Err(
+                "this is the record of a sweep of the Python package, fmurunner: continue it there, with sweep(..., out=..., resume=True)"
+                    .to_owned(),
+            );
+        }
         let mut entries = Vec::new();
         for line in text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
             let (key, value) = line.split_once(" = ").ok_or_else(|| format!("the line {line:?} is not KEY = VALUE"))?;
@@ -474,6 +481,16 @@ mod tests {
         assert!(err.contains("row 2 is not the row this sweep writes for point 2"), "{err}");
         std::fs::write(&path, "speed,m,status\n").unwrap();
         assert!(read_finished(&path, &header(), 1, &mut points).err().unwrap().contains("header"));
+    }
+
+    /// The Python package's record (JSON after its own first line) is named as such, not
+    /// refused for its first line that is not KEY = VALUE.
+    #[test]
+    fn a_record_of_the_python_package_is_named() {
+        let text =
+            "# fmurunner sweep: what produced the CSV beside this file; sweep(..., resume=True) checks it\n{\n \"fmu\": \"a.fmu\"\n}\n";
+        let err = Record::parse(text).unwrap_err();
+        assert!(err.contains("fmurunner") && err.contains("resume=True"), "{err}");
     }
 
     #[test]

@@ -1,6 +1,7 @@
-//! Ctrl-C: the first one asks long commands to stop (the runs in progress are abandoned, no
-//! result file is committed, a sweep keeps its finished points in its `.partial` file); a second
-//! one quits at once, deleting unfinished temporary result files (not a sweep's `.partial`).
+//! Ctrl-C (SIGINT), and SIGTERM and SIGHUP as a job scheduler or a closed terminal sends them:
+//! the first one asks long commands to stop (a sweep keeps its finished points in its
+//! `.partial` file, a run its rows so far in `--out`); a second one quits at once, deleting
+//! unfinished temporary result files (not a sweep's `.partial`).
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -11,10 +12,12 @@ static SIGNALS: AtomicUsize = AtomicUsize::new(0);
 /// Temporary files of result files being written, for the second Ctrl-C to delete.
 static PARTIAL: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
-/// Exit code of a command stopped by Ctrl-C (128 + SIGINT, as shells report it).
+/// Exit code of a command stopped by Ctrl-C (128 + SIGINT, as shells report it), or by SIGTERM
+/// or SIGHUP (the handler is not told which signal came).
 pub const EXIT_CODE: i32 = 130;
 
-/// Installs the Ctrl-C handler (once per process; later calls do nothing).
+/// Installs the handler of Ctrl-C, SIGTERM and SIGHUP (once per process; later calls do
+/// nothing).
 pub fn install() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {

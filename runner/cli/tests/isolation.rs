@@ -467,7 +467,8 @@ fn a_worker_that_crashes_or_hangs_keeps_all_but_its_last_tenth_of_a_second_of_ro
 /// stops it with exit code 130 and keeps in --out the rows before it, as a failed run and a
 /// system's interrupted run do (it once threw them away after saying "keeping what has
 /// finished"), in a worker and in this process: they are the first rows of a clean run, and the
-/// message counts them.
+/// message counts them. SIGTERM (a job scheduler's, `kill`'s) does the same: it once killed the
+/// runner, leaving the rows in a hidden temporary file and no --out.
 #[test]
 fn an_interrupted_run_keeps_its_rows_in_the_out_file() {
     let dir = tempfile::tempdir().unwrap();
@@ -476,13 +477,15 @@ fn an_interrupted_run_keeps_its_rows_in_the_out_file() {
     ok(runner(dir.path(), &["simulate", f, "--stop-time", "1", "--out", "clean.csv"]));
     let (header, clean) = read_csv(&dir.path().join("clean.csv"));
     let x = header.iter().position(|h| h == "x").unwrap();
-    for mode in [&[][..], &["--in-process"][..]] {
+    for (mode, signal) in
+        [(&[][..], libc::SIGINT), (&["--in-process"][..], libc::SIGINT), (&[][..], libc::SIGTERM), (&["--in-process"][..], libc::SIGTERM)]
+    {
         let mut args = vec!["simulate", f, "--stop-time", "100", "--out", "stopped.csv"];
         args.extend(mode);
         let child = spawn_runner(dir.path(), &args);
         std::thread::sleep(std::time::Duration::from_secs(1));
         // SAFETY: a signal to the child this test started.
-        assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+        assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, signal) }, 0);
         let o = child.wait_with_output().unwrap();
         let err = stderr(&o);
         assert_eq!(o.status.code(), Some(130), "{mode:?}: {err}");

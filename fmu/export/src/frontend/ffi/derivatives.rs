@@ -197,11 +197,16 @@ mod tests {
         continuous_of::<Decay>(1.5)
     }
 
-    /// [`continuous`] for model `M` at state `x`.
-    unsafe fn continuous_of<M: Model>(x: f64) -> (*mut c_void, Arc<Mutex<Vec<String>>>) {
+    /// A logger that collects the instance's log lines, and the lines.
+    fn collected_log() -> (Logger, Arc<Mutex<Vec<String>>>) {
         let log = Arc::new(Mutex::new(Vec::new()));
         let sink = log.clone();
-        let logger = Logger::new(Some(Box::new(move |_, _, m: &str| sink.lock().expect("log lock").push(m.to_owned()))), false);
+        (Logger::new(Some(Box::new(move |_, _, m: &str| sink.lock().expect("log lock").push(m.to_owned()))), false), log)
+    }
+
+    /// [`continuous`] for model `M` at state `x`.
+    unsafe fn continuous_of<M: Model>(x: f64) -> (*mut c_void, Arc<Mutex<Vec<String>>>) {
+        let (logger, log) = collected_log();
         let token = crate::table::guid::<M>();
         let c = instantiate::<Fmi3, M>(|| {
             Some(Request {
@@ -382,9 +387,7 @@ mod tests {
     /// collected.
     unsafe fn stepping() -> (*mut c_void, Arc<Mutex<Vec<String>>>) {
         use crate::fmi2::Fmi2;
-        let log = Arc::new(Mutex::new(Vec::new()));
-        let sink = log.clone();
-        let logger = Logger::new(Some(Box::new(move |_, _, m: &str| sink.lock().expect("log lock").push(m.to_owned()))), false);
+        let (logger, log) = collected_log();
         let token = crate::table::guid::<Decay>();
         let c = instantiate::<Fmi2, Decay>(|| {
             Some(Request {

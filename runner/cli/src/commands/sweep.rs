@@ -179,7 +179,13 @@ fn system_sha256(system: &System) -> Result<String, String> {
         let mut files: Vec<PathBuf> = Vec::new();
         let mut folders = vec![root.to_path_buf()];
         while let Some(folder) = folders.pop() {
-            let entries = std::fs::read_dir(&folder).map_err(|e| format!("cannot read {}: {e}", folder.display()))?;
+            // A folder below the root that cannot be listed (no permission, gone) holds nothing
+            // the system read: it loaded, so what it uses is readable, and is hashed below.
+            let entries = match std::fs::read_dir(&folder) {
+                Ok(entries) => entries,
+                Err(_) if folder != root => continue,
+                Err(e) => return Err(format!("cannot read {}: {e}", folder.display())),
+            };
             for entry in entries.flatten() {
                 let p = entry.path();
                 // A linked folder is not walked (links back up would walk without end); what
@@ -193,6 +199,11 @@ fn system_sha256(system: &System) -> Result<String, String> {
         }
         files.sort();
         for file in &files {
+            // Only regular files (through links): reading a FIFO would wait for a writer. One
+            // that cannot be opened (a dangling link, no permission) is no file the system read.
+            if !std::fs::metadata(file).is_ok_and(|m| m.is_file()) || std::fs::File::open(file).is_err() {
+                continue;
+            }
             put(&file.strip_prefix(root).unwrap_or(file).display().to_string(), &file_sha256(file)?);
         }
     }

@@ -127,6 +127,10 @@ def sweep_to_file(
         def point_fields(i: int) -> list[str] | None:
             return [repr(float(points[name][i])) for name, _ in ranges] if i < len(points[ranges[0][0]]) else None
 
+        # The header is the file's first write: a file holding only part of it was killed before
+        # any row was there, and starting it again loses nothing. Another first line is refused.
+        header_line = _csv_line(header)
+        header_torn = len(data) < len(header_line) and header_line.startswith(data)
         rows: list[list[str]] = []
         start = 0
         p = len(ranges)
@@ -147,10 +151,10 @@ def sweep_to_file(
                 start += len(line)
                 fields = next_fields()
                 continue
-            if next_fields() is None and (start > 0 or not data.endswith(b"\n")):
+            if next_fields() is None and (start > 0 or header_torn):
                 return rows, start
             if start == 0:
-                raise RunnerError(f"{file} does not start with this sweep's header {header}")
+                raise RunnerError(f"{file} does not start with this sweep's header {header}: it is not this sweep's CSV, or was changed")
             i = len(rows) + 1
             raise RunnerError(
                 f"{file}: row {i} is not the row this sweep writes for point {i} (the file was changed, or is another sweep's)")

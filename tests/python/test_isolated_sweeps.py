@@ -171,6 +171,34 @@ def test_a_record_of_the_command_line_is_named_and_other_damage_refused(faulty, 
         fmurunner.sweep(faulty, {"k": [1.0]}, {"x_end": "final(x)"}, stop_time=1.0, out=out, resume=True)
 
 
+def test_a_torn_header_is_started_again_and_another_first_line_refused(faulty, tmp_path):
+    """A partial file holding part of the header (the file's first write, so no row was there; a
+    kill before it was whole) is started again on resume=True, as `runner sweep --resume` does:
+    nothing is lost. A first line that is not part of this sweep's header is refused, naming the
+    file, and left as it was, even with no newline after it (it was started again, its content
+    lost, before)."""
+    params = {"k": [0.5, 1.0]}
+    metrics = {"x_end": "final(x)"}
+    out = tmp_path / "sweep.csv"
+    partial = tmp_path / "sweep.csv.partial"
+    kwargs = dict(stop_time=1.0, threads=2, out=out)
+    full = fmurunner.sweep(faulty, params, metrics, **kwargs)
+    complete = out.read_bytes()
+    header = complete.split(b"\n")[0]
+    for cut in (1, len(header) // 2, len(header)):
+        out.unlink()
+        partial.write_bytes(header[:cut])
+        resumed = fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+        pd.testing.assert_frame_equal(resumed, full, check_exact=True, obj=f"header cut at {cut}")
+        assert out.read_bytes() == complete
+    out.unlink()
+    for other in (b"speed", header[:-1] + b"\n", b"k,y"):
+        partial.write_bytes(other)
+        with pytest.raises(RunnerError, match="does not start with this sweep's header") as e:
+            fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+        assert str(partial) in str(e.value) and partial.read_bytes() == other, other
+
+
 def test_sweep_results_carry_units():
     frame = fmurunner.sweep(fmu_path("quarter_car"), {"speed": [2.0, 4.0]}, ["peak=max(z_s)"], stop_time=1.0, threads=2)
     assert frame.attrs["units"]["speed"] == "m/s"

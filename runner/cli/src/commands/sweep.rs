@@ -508,7 +508,8 @@ impl Destination {
                 partial_path.display(),
                 n - finished.rows
             );
-            // A kill before the header reached the file leaves it empty: start it again.
+            // A kill before the whole header reached the file leaves it empty or with part of the
+            // header, and no row: start it again.
             let file = if finished.valid == 0 {
                 PartialCsv::create(out, &table.header)?
             } else {

@@ -39,6 +39,59 @@ fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
     PathBuf::from(name)
 }
 
+/// `<out>.sweep` held under an exclusive advisory lock (`flock`) for the sweep's life, so that a
+/// second sweep to the same `--out` (this command or the Python package, which locks the same
+/// file) is refused instead of interleaving its rows with this one's. The kernel drops the lock
+/// when the process ends, however it ends: a killed sweep never blocks its `--resume`.
+pub struct SweepLock {
+    file: File,
+    path: PathBuf,
+    /// The record had content when it was locked: an earlier sweep's (an empty one is what
+    /// locking created, or a sweep killed before writing it left).
+    pub had_record: bool,
+}
+
+impl SweepLock {
+    /// Locks `<out>.sweep`, creating it empty if there is none; refused at once if another
+    /// process holds it.
+    pub fn acquire(out: &Path) -> Result<SweepLock, String> {
+        use std::os::fd::AsRawFd;
+        let path = record_path(out);
+        let file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)
+            .map_err(|e| format!("cannot open {}, the record of the sweep to {}: {e}", path.display(), out.display()))?;
+        // SAFETY: flock on a descriptor this function owns.
+        if unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+            let e = std::io::Error::last_os_error();
+            return Err(if e.kind() == std::io::ErrorKind::WouldBlock {
+                format!(
+                    "another sweep is writing {} (it holds {} locked): wait for it to end, or stop it and continue with --resume",
+                    out.display(),
+                    path.display()
+                )
+            } else {
+                format!("cannot lock {}, the record of the sweep to {}: {e}", path.display(), out.display())
+            });
+        }
+        let had_record = file.metadata().map_err(|e| format!("cannot read {}: {e}", path.display()))?.len() > 0;
+        Ok(SweepLock { file, path, had_record })
+    }
+
+    /// Replaces the record's text in the locked file itself (a new file renamed over it would
+    /// be a file another sweep could lock).
+    pub fn write_record(&mut self, text: &str) -> Result<(), String> {
+        let cannot = |e: std::io::Error| format!("cannot write {}: {e}", self.path.display());
+        self.file.set_len(0).map_err(cannot)?;
+        self.file.seek(SeekFrom::Start(0)).map_err(cannot)?;
+        self.file.write_all(text.as_bytes()).map_err(cannot)?;
+        self.file.sync_data().map_err(cannot)
+    }
+}
+
 /// What a sweep is, as `key = value` lines: everything that decides its CSV's content.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Record {

@@ -5,11 +5,16 @@ beside it (``<out>.sweep``: the FMU's sha256, the interface it runs through and 
 engine runs it, the integrator's settings included), and the file
 renamed to ``<out>`` when complete. ``resume=True`` continues from the partial file when its
 record is this sweep's and each of its rows is the row this sweep writes for its point.
+
+The record is held under an exclusive ``flock`` for the sweep's life, as ``runner sweep`` holds
+it, so a second sweep to the same ``out`` (of either) is refused instead of interleaving rows;
+the lock ends with the process, so a killed sweep never blocks its resume.
 """
 
 from __future__ import annotations
 
 import csv
+import fcntl
 import hashlib
 import io
 import json
@@ -86,6 +91,8 @@ def sweep_to_file(
             with open(record_path, encoding="utf-8") as f:
                 text = f.read()
             record = json.loads("".join(line for line in text.splitlines(keepends=True) if not line.startswith("#")))
+            if not text:
+                raise ValueError("it is empty")
             if not isinstance(record, dict):
                 raise ValueError("it is not a JSON object")
         except (OSError, ValueError) as e:
@@ -127,6 +134,10 @@ def sweep_to_file(
         def point_fields(i: int) -> list[str] | None:
             return [repr(float(points[name][i])) for name, _ in ranges] if i < len(points[ranges[0][0]]) else None
 
+        # The header is the file's first write: a file holding only part of it was killed before
+        # any row was there, and starting it again loses nothing. Another first line is refused.
+        header_line = _csv_line(header)
+        header_torn = len(data) < len(header_line) and header_line.startswith(data)
         rows: list[list[str]] = []
         start = 0
         p = len(ranges)
@@ -147,71 +158,82 @@ def sweep_to_file(
                 start += len(line)
                 fields = next_fields()
                 continue
-            if next_fields() is None and (start > 0 or not data.endswith(b"\n")):
+            if next_fields() is None and (start > 0 or header_torn):
                 return rows, start
             if start == 0:
-                raise RunnerError(f"{file} does not start with this sweep's header {header}")
+                raise RunnerError(f"{file} does not start with this sweep's header {header}: it is not this sweep's CSV, or was changed")
             i = len(rows) + 1
             raise RunnerError(
                 f"{file}: row {i} is not the row this sweep writes for point {i} (the file was changed, or is another sweep's)")
         return rows, start
 
-    first, kept = 0, None
-    # False when `out` is found complete already (no partial file to put in its place).
-    renaming = True
-    if resume and os.path.exists(partial):
-        earlier()
-        kept, valid = read_rows(partial)
-        first = len(kept)
-        with open(partial, "r+b") as binary:
-            binary.truncate(valid)
-        if valid == 0:
+    # Before anything is read: another sweep at this `out` would change it under us.
+    lock = open(record_path, "a+b")  # held until the sweep ends (closed below)
+    try:
+        try:
+            fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise RunnerError(f"another sweep is writing {out} (it holds {record_path} locked): wait for it to end, "
+                              f"or stop it and continue with resume=True") from None
+        had_record = os.fstat(lock.fileno()).st_size > 0
+        first, kept = 0, None
+        # False when `out` is found complete already (no partial file to put in its place).
+        renaming = True
+        if resume and os.path.exists(partial):
+            earlier()
+            kept, valid = read_rows(partial)
+            first = len(kept)
+            with open(partial, "r+b") as binary:
+                binary.truncate(valid)
+            if valid == 0:
+                with open(partial, "w", encoding="utf-8", newline="") as f:
+                    csv.writer(f, lineterminator="\n").writerow(header)
+        elif resume and os.path.exists(out) and had_record:
+            earlier()
+            kept, _ = read_rows(out)
+            if len(kept) != n:
+                raise RunnerError(f"{out} has {len(kept)} of this sweep's {n} rows and no partial file to continue; run without resume to start again")
+            first, renaming = n, False
+        else:
+            if not resume and os.path.exists(partial):
+                raise RunnerError(f"{partial} holds the finished points of an earlier sweep: continue it with resume=True, or delete it to start again")
+            with open(record_path, "w", encoding="utf-8") as f:
+                f.write(RECORD_HEADER + "\n" + json.dumps(current, indent=1) + "\n")
             with open(partial, "w", encoding="utf-8", newline="") as f:
                 csv.writer(f, lineterminator="\n").writerow(header)
-    elif resume and os.path.exists(out) and os.path.exists(record_path):
-        earlier()
-        kept, _ = read_rows(out)
-        if len(kept) != n:
-            raise RunnerError(f"{out} has {len(kept)} of this sweep's {n} rows and no partial file to continue; run without resume to start again")
-        first, renaming = n, False
-    else:
-        if not resume and os.path.exists(partial):
-            raise RunnerError(f"{partial} holds the finished points of an earlier sweep: continue it with resume=True, or delete it to start again")
-        with open(record_path, "w", encoding="utf-8") as f:
-            f.write(RECORD_HEADER + "\n" + json.dumps(current, indent=1) + "\n")
-        with open(partial, "w", encoding="utf-8", newline="") as f:
-            csv.writer(f, lineterminator="\n").writerow(header)
 
-    values = np.full((n, m), np.nan)
-    status = np.full(n, "ok", dtype=object)
-    if kept is not None and first:
-        p = len(ranges)
-        for i, fields in enumerate(kept):
-            # Python's float() reads the shortest round-trip text back to the same double, which
-            # pandas' own float parsers do not promise.
-            values[i] = [float(text) if text else np.nan for text in fields[p:p + m]]
-            status[i] = fields[p + m]
-    if first < n:
-        with open(partial, "a", encoding="utf-8", newline="") as f:
-            writer = csv.writer(f, lineterminator="\n")
+        values = np.full((n, m), np.nan)
+        status = np.full(n, "ok", dtype=object)
+        if kept is not None and first:
+            p = len(ranges)
+            for i, fields in enumerate(kept):
+                # Python's float() reads the shortest round-trip text back to the same double, which
+                # pandas' own float parsers do not promise.
+                values[i] = [float(text) if text else np.nan for text in fields[p:p + m]]
+                status[i] = fields[p + m]
+        if first < n:
+            with open(partial, "a", encoding="utf-8", newline="") as f:
+                writer = csv.writer(f, lineterminator="\n")
 
-            def on_rows(start: int, data: bytes, failures: list[tuple[int, str]]) -> None:
-                rows = np.frombuffer(data, dtype="<f8").reshape(-1, m)
-                stop = start + len(rows)
-                values[start:stop] = rows
-                for i, message in failures:
-                    status[i] = message
-                points = _points(ranges, start, stop)
-                for k in range(len(rows)):
-                    i = start + k
-                    writer.writerow(
-                        [repr(float(points[name][k])) for name, _ in ranges] + [_text(x) for x in rows[k]] + [status[i]]
-                    )
-                f.flush()
-                os.fsync(f.fileno())
+                def on_rows(start: int, data: bytes, failures: list[tuple[int, str]]) -> None:
+                    rows = np.frombuffer(data, dtype="<f8").reshape(-1, m)
+                    stop = start + len(rows)
+                    values[start:stop] = rows
+                    for i, message in failures:
+                        status[i] = message
+                    points = _points(ranges, start, stop)
+                    for k in range(len(rows)):
+                        i = start + k
+                        writer.writerow(
+                            [repr(float(points[name][k])) for name, _ in ranges] + [_text(x) for x in rows[k]] + [status[i]]
+                        )
+                    f.flush()
+                    os.fsync(f.fileno())
 
-            run(first, on_rows)
-    # Also a partial file that holds every row (killed before it was renamed) is put in place.
-    if renaming:
-        os.replace(partial, out)
-    return _frame(ranges, metric_names, values, status)
+                run(first, on_rows)
+        # Also a partial file that holds every row (killed before it was renamed) is put in place.
+        if renaming:
+            os.replace(partial, out)
+        return _frame(ranges, metric_names, values, status)
+    finally:
+        lock.close()

@@ -171,6 +171,96 @@ def test_a_record_of_the_command_line_is_named_and_other_damage_refused(faulty, 
         fmurunner.sweep(faulty, {"k": [1.0]}, {"x_end": "final(x)"}, stop_time=1.0, out=out, resume=True)
 
 
+def test_a_torn_header_is_started_again_and_another_first_line_refused(faulty, tmp_path):
+    """A partial file holding part of the header (the file's first write, so no row was there; a
+    kill before it was whole) is started again on resume=True, as `runner sweep --resume` does:
+    nothing is lost. A first line that is not part of this sweep's header is refused, naming the
+    file, and left as it was, even with no newline after it (it was started again, its content
+    lost, before)."""
+    params = {"k": [0.5, 1.0]}
+    metrics = {"x_end": "final(x)"}
+    out = tmp_path / "sweep.csv"
+    partial = tmp_path / "sweep.csv.partial"
+    kwargs = dict(stop_time=1.0, threads=2, out=out)
+    full = fmurunner.sweep(faulty, params, metrics, **kwargs)
+    complete = out.read_bytes()
+    header = complete.split(b"\n")[0]
+    for cut in (1, len(header) // 2, len(header)):
+        out.unlink()
+        partial.write_bytes(header[:cut])
+        resumed = fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+        pd.testing.assert_frame_equal(resumed, full, check_exact=True, obj=f"header cut at {cut}")
+        assert out.read_bytes() == complete
+    out.unlink()
+    for other in (b"speed", header[:-1] + b"\n", b"k,y"):
+        partial.write_bytes(other)
+        with pytest.raises(RunnerError, match="does not start with this sweep's header") as e:
+            fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+        assert str(partial) in str(e.value) and partial.read_bytes() == other, other
+
+
+def test_a_second_sweep_to_the_same_out_is_refused_and_a_killed_ones_lock_does_not_block_resume(faulty, tmp_path):
+    """While a sweep (in another Python process) writes out=, a second to the same file, of this
+    package or `runner sweep`, is refused at once naming the file, rather than interleaving its
+    rows with the first's: both hold the record `<out>.sweep` under flock. The lock dies with
+    the process: after a SIGKILL of the first, resume=True continues and the table is the one
+    an uninterrupted sweep gives, bit for bit. And this package is refused while `runner sweep`
+    writes the file. Before the lock, the second ran."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from fmurunner_helpers import RUNNER
+
+    params = {"k": [0.01 * i for i in range(1, 3001)]}
+    kwargs = dict(stop_time=10.0, output_interval=0.001, threads=2)
+    out = tmp_path / "sweep.csv"
+    partial = tmp_path / "sweep.csv.partial"
+    script = (f"import fmurunner\nfmurunner.sweep({str(faulty)!r}, {params!r}, {{'x_end': 'final(x)'}}, "
+              f"out={str(out)!r}, **{kwargs!r})\n")
+    child = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and child.poll() is None:
+            if partial.exists() and partial.read_text().count("\n") > 20:
+                break
+            time.sleep(0.02)
+        assert child.poll() is None, "the first sweep ended before the second started"
+        with pytest.raises(RunnerError, match=f"another sweep is writing {out} \\(it holds {out}.sweep locked\\)"):
+            fmurunner.sweep(faulty, params, {"x_end": "final(x)"}, out=out, resume=True, **kwargs)
+        cli = subprocess.run([str(RUNNER), "sweep", str(faulty), "--param", "k=1,2", "--metric", "x_end=final(x)",
+                              "--out", str(out), "--resume"], capture_output=True, text=True, timeout=60)
+        assert cli.returncode != 0 and f"another sweep is writing {out}" in cli.stderr, cli.stderr
+        assert child.poll() is None, "the first sweep was still running while the others were refused"
+    finally:
+        child.send_signal(signal.SIGKILL)
+        child.communicate(timeout=60)
+    resumed = fmurunner.sweep(faulty, params, {"x_end": "final(x)"}, out=out, resume=True, **kwargs)
+    whole = fmurunner.sweep(faulty, params, {"x_end": "final(x)"}, **kwargs)
+    pd.testing.assert_frame_equal(resumed, whole, check_exact=True)
+
+    # The other way round: `runner sweep` writing, this package refused.
+    cli_out = tmp_path / "cli.csv"
+    runner = subprocess.Popen([str(RUNNER), "sweep", str(faulty), "--param", "k=0.01:30:0.01", "--metric", "x_end=final(x)",
+                               "--stop-time", "10", "--output-interval", "0.001", "--threads", "2", "--out", str(cli_out)],
+                              stderr=subprocess.PIPE, text=True)
+    try:
+        cli_partial = tmp_path / "cli.csv.partial"
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and runner.poll() is None:
+            if cli_partial.exists() and cli_partial.read_text().count("\n") > 20:
+                break
+            time.sleep(0.02)
+        assert runner.poll() is None, "runner sweep ended before the second started"
+        with pytest.raises(RunnerError, match=f"another sweep is writing {cli_out}"):
+            fmurunner.sweep(faulty, params, {"x_end": "final(x)"}, out=cli_out, **kwargs)
+        assert runner.poll() is None, "runner sweep was still running while this package was refused"
+    finally:
+        runner.send_signal(signal.SIGKILL)
+        runner.communicate(timeout=60)
+
+
 def test_sweep_results_carry_units():
     frame = fmurunner.sweep(fmu_path("quarter_car"), {"speed": [2.0, 4.0]}, ["peak=max(z_s)"], stop_time=1.0, threads=2)
     assert frame.attrs["units"]["speed"] == "m/s"

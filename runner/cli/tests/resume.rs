@@ -166,6 +166,48 @@ fn resume_refuses_a_partial_file_of_another_sweep_and_names_the_difference() {
     assert!(err.contains("--resume needs --out"), "{err}");
 }
 
+/// Two sweeps to the same `--out` at once would interleave their rows in one partial file: the
+/// second is refused at once, naming the file, whether it starts afresh or with `--resume`, and
+/// changes nothing. The lock dies with its process: after a SIGKILL of the first, `--resume`
+/// continues and ends with exactly the uninterrupted run's bytes. Before the lock, the second
+/// with `--resume` ran, both appending to one file (a fresh one is refused only because the
+/// partial file is there already, so not before the first's header is written).
+#[test]
+fn a_second_sweep_to_the_same_out_is_refused_and_a_killed_ones_lock_does_not_block_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = c_fmu(dir.path(), "dahlquist.fmu", "linux64", &[]);
+    let f = fmu.to_str().unwrap();
+    // Four times the other tests' points (about 2.5 s on 2 workers): the first sweep is still
+    // running while the second starts and is refused, which is checked below.
+    let mut args = sweep_args(f, "s.csv");
+    args[3] = "k=0.5:1.3:0.0005";
+    let mut reference_args = args.clone();
+    reference_args[13] = "reference.csv";
+    reference_args.push("--in-process");
+    ok(runner(dir.path(), &reference_args));
+    let expected = std::fs::read(dir.path().join("reference.csv")).unwrap();
+
+    let mut first = spawn_runner(dir.path(), &args);
+    let partial = dir.path().join("s.csv.partial");
+    let started = Instant::now();
+    while std::fs::read(&partial).map_or(0, |b| b.iter().filter(|&&c| c == b'\n').count()) < 20 {
+        assert!(started.elapsed() < Duration::from_secs(60) && first.try_wait().unwrap().is_none(), "the first sweep writes rows");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let mut resumed = args.clone();
+    resumed.push("--resume");
+    for second in [&resumed, &args] {
+        let err = fails(runner(dir.path(), second));
+        assert!(err.contains("another sweep is writing s.csv (it holds s.csv.sweep locked)"), "{err}");
+    }
+    assert!(first.try_wait().unwrap().is_none(), "the first sweep was still running while the second was refused");
+    first.kill().unwrap(); // SIGKILL: no chance to unlock
+    first.wait().unwrap();
+    let o = runner(dir.path(), &resumed);
+    assert!(o.status.success() && stderr(&o).contains("resuming: "), "{}", stderr(&o));
+    assert_eq!(std::fs::read(dir.path().join("s.csv")).unwrap(), expected, "exactly the uninterrupted run's CSV");
+}
+
 /// The record names the FMU by its content: the same path holding another build is refused on
 /// `--resume` with the digests side by side, and accepted again once the first build is back.
 #[test]

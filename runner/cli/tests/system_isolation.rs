@@ -419,6 +419,55 @@ fn a_system_folder_that_links_to_itself_sweeps_to_a_file() {
     assert_eq!(read_csv(&dir.path().join("a.csv")).1.len(), 2);
 }
 
+/// An `.ssd` named directly: the record's digest walks its folder, where entries the system does
+/// not use may not be readable. A dangling link `old.fmu`, a FIFO `notes.ssv` (reading it would
+/// wait for a writer) and, unless the test runs as root (which reads through any mode), a folder
+/// of mode 000 are passed over: the sweep runs and resumes. Before, the link failed the sweep
+/// ("cannot read .../old.fmu") and the FIFO hung it.
+#[test]
+fn entries_the_system_does_not_use_and_cannot_be_read_do_not_fail_its_sweep() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = faulty_system(dir.path(), "cluttered", "");
+    std::os::unix::fs::symlink("gone.fmu", root.join("old.fmu")).unwrap();
+    let fifo = std::ffi::CString::new(root.join("notes.ssv").into_os_string().into_encoded_bytes()).unwrap();
+    // SAFETY: mkfifo on a path this test owns.
+    assert_eq!(unsafe { libc::mkfifo(fifo.as_ptr(), 0o644) }, 0);
+    let private = root.join("private");
+    std::fs::create_dir(&private).unwrap();
+    std::fs::write(private.join("other.ssd"), "<not read/>").unwrap();
+    // SAFETY: geteuid has no preconditions.
+    let as_root = unsafe { libc::geteuid() } == 0;
+    if as_root {
+        println!("running as root, which reads a folder of mode 000: only the link and the FIFO are tried");
+    } else {
+        std::fs::set_permissions(&private, std::os::unix::fs::PermissionsExt::from_mode(0o000)).unwrap();
+    }
+    let args = ["sweep", "cluttered/SystemStructure.ssd", "--param", "good.k=0.5,1", "--metric", "end=final(good.x)", "--out", "a.csv"];
+    let run = |args: &[&str]| {
+        let mut child = spawn_runner(dir.path(), args);
+        let started = Instant::now();
+        while child.try_wait().unwrap().is_none() {
+            if started.elapsed() > Duration::from_secs(60) {
+                child.kill().unwrap();
+                panic!("the sweep did not end within a minute (reading the FIFO?)");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        child.wait_with_output().unwrap()
+    };
+    let o = run(&args);
+    let resumed = run(&[&args[..], &["--resume"]].concat());
+    if !as_root {
+        // The temporary folder must be removable.
+        std::fs::set_permissions(&private, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    }
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(read_csv(&dir.path().join("a.csv")).1.len(), 2);
+    // The same digest again: resuming the finished sweep finds it complete.
+    let o = resumed;
+    assert!(o.status.success() && stderr(&o).contains("already complete"), "{}", stderr(&o));
+}
+
 /// systems/quarter_car_road (built by `runner build`): the Ex. 4 sweep and a run in worker
 /// processes write exactly the bytes of the same in-process; `--plot` draws both.
 #[test]

@@ -29,7 +29,7 @@ use crate::commands::system;
 use crate::experiment::{self, RunDefaults, Target};
 use crate::integration::Integration;
 use crate::interrupt;
-use crate::report::partial::{self, PartialCsv, Record};
+use crate::report::partial::{self, PartialCsv, Record, SweepLock};
 use crate::report::progress::Progress;
 use crate::report::{self, output};
 use crate::workers;
@@ -179,7 +179,13 @@ fn system_sha256(system: &System) -> Result<String, String> {
         let mut files: Vec<PathBuf> = Vec::new();
         let mut folders = vec![root.to_path_buf()];
         while let Some(folder) = folders.pop() {
-            let entries = std::fs::read_dir(&folder).map_err(|e| format!("cannot read {}: {e}", folder.display()))?;
+            // A folder below the root that cannot be listed (no permission, gone) holds nothing
+            // the system read: it loaded, so what it uses is readable, and is hashed below.
+            let entries = match std::fs::read_dir(&folder) {
+                Ok(entries) => entries,
+                Err(_) if folder != root => continue,
+                Err(e) => return Err(format!("cannot read {}: {e}", folder.display())),
+            };
             for entry in entries.flatten() {
                 let p = entry.path();
                 // A linked folder is not walked (links back up would walk without end); what
@@ -193,6 +199,11 @@ fn system_sha256(system: &System) -> Result<String, String> {
         }
         files.sort();
         for file in &files {
+            // Only regular files (through links): reading a FIFO would wait for a writer. One
+            // that cannot be opened (a dangling link, no permission) is no file the system read.
+            if !std::fs::metadata(file).is_ok_and(|m| m.is_file()) || std::fs::File::open(file).is_err() {
+                continue;
+            }
             put(&file.strip_prefix(root).unwrap_or(file).display().to_string(), &file_sha256(file)?);
         }
     }
@@ -416,6 +427,8 @@ enum Destination {
     Stdout(csv::Writer<output::Output>),
     File {
         partial: PartialCsv,
+        /// Held until the sweep ends: no other sweep writes this `--out` meanwhile.
+        _lock: SweepLock,
         /// The first point still to run (a resumed sweep's), and the finished points' metric
         /// values and failures.
         first: usize,
@@ -473,10 +486,17 @@ impl Destination {
         let n = table.space.len;
         let current = current()?;
         let (partial_path, record_path) = (partial::partial_path(out), partial::record_path(out));
+        // Before anything is read: another sweep at this `--out` would change it under us.
+        let mut lock = SweepLock::acquire(out)?;
+        let had_record = lock.had_record;
         let earlier = || -> Result<Record, String> {
-            let text = std::fs::read_to_string(&record_path).map_err(|e| {
+            let cannot = |e: &dyn std::fmt::Display| {
                 format!("cannot read {}, the record of the sweep that wrote {}: {e}", record_path.display(), partial_path.display())
-            })?;
+            };
+            let text = std::fs::read_to_string(&record_path).map_err(|e| cannot(&e))?;
+            if !had_record {
+                return Err(cannot(&"it is empty"));
+            }
             let earlier = Record::parse(&text).map_err(|e| format!("{}: {e}", record_path.display()))?;
             match earlier.difference(&current) {
                 None => Ok(earlier),
@@ -497,14 +517,21 @@ impl Destination {
                 partial_path.display(),
                 n - finished.rows
             );
-            // A kill before the header reached the file leaves it empty: start it again.
+            // A kill before the whole header reached the file leaves it empty or with part of the
+            // header, and no row: start it again.
             let file = if finished.valid == 0 {
                 PartialCsv::create(out, &table.header)?
             } else {
                 PartialCsv::resume(out, finished.valid, finished.rows)?
             };
-            Ok(Opened::Run(Destination::File { partial: file, first: finished.rows, kept: finished.metrics, failed: finished.failed }))
-        } else if resume && out.exists() && record_path.exists() {
+            Ok(Opened::Run(Destination::File {
+                partial: file,
+                _lock: lock,
+                first: finished.rows,
+                kept: finished.metrics,
+                failed: finished.failed,
+            }))
+        } else if resume && out.exists() && had_record {
             earlier()?;
             let finished = partial::read_finished(out, &table.header, table.m, &mut spell_some)?;
             if finished.rows != n {
@@ -525,8 +552,14 @@ impl Destination {
                     partial_path.display()
                 ));
             }
-            output::write_file(&record_path, current.text().as_bytes())?;
-            Ok(Opened::Run(Destination::File { partial: PartialCsv::create(out, &table.header)?, first: 0, kept: Vec::new(), failed: 0 }))
+            lock.write_record(&current.text())?;
+            Ok(Opened::Run(Destination::File {
+                partial: PartialCsv::create(out, &table.header)?,
+                _lock: lock,
+                first: 0,
+                kept: Vec::new(),
+                failed: 0,
+            }))
         }
     }
 

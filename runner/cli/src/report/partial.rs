@@ -39,6 +39,59 @@ fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
     PathBuf::from(name)
 }
 
+/// `<out>.sweep` held under an exclusive advisory lock (`flock`) for the sweep's life, so that a
+/// second sweep to the same `--out` (this command or the Python package, which locks the same
+/// file) is refused instead of interleaving its rows with this one's. The kernel drops the lock
+/// when the process ends, however it ends: a killed sweep never blocks its `--resume`.
+pub struct SweepLock {
+    file: File,
+    path: PathBuf,
+    /// The record had content when it was locked: an earlier sweep's (an empty one is what
+    /// locking created, or a sweep killed before writing it left).
+    pub had_record: bool,
+}
+
+impl SweepLock {
+    /// Locks `<out>.sweep`, creating it empty if there is none; refused at once if another
+    /// process holds it.
+    pub fn acquire(out: &Path) -> Result<SweepLock, String> {
+        use std::os::fd::AsRawFd;
+        let path = record_path(out);
+        let file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)
+            .map_err(|e| format!("cannot open {}, the record of the sweep to {}: {e}", path.display(), out.display()))?;
+        // SAFETY: flock on a descriptor this function owns.
+        if unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+            let e = std::io::Error::last_os_error();
+            return Err(if e.kind() == std::io::ErrorKind::WouldBlock {
+                format!(
+                    "another sweep is writing {} (it holds {} locked): wait for it to end, or stop it and continue with --resume",
+                    out.display(),
+                    path.display()
+                )
+            } else {
+                format!("cannot lock {}, the record of the sweep to {}: {e}", path.display(), out.display())
+            });
+        }
+        let had_record = file.metadata().map_err(|e| format!("cannot read {}: {e}", path.display()))?.len() > 0;
+        Ok(SweepLock { file, path, had_record })
+    }
+
+    /// Replaces the record's text in the locked file itself (a new file renamed over it would
+    /// be a file another sweep could lock).
+    pub fn write_record(&mut self, text: &str) -> Result<(), String> {
+        let cannot = |e: std::io::Error| format!("cannot write {}: {e}", self.path.display());
+        self.file.set_len(0).map_err(cannot)?;
+        self.file.seek(SeekFrom::Start(0)).map_err(cannot)?;
+        self.file.write_all(text.as_bytes()).map_err(cannot)?;
+        self.file.sync_data().map_err(cannot)
+    }
+}
+
 /// What a sweep is, as `key = value` lines: everything that decides its CSV's content.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Record {
@@ -362,11 +415,16 @@ pub fn read_finished(
     let mut finished = Finished { rows: 0, valid: 0, metrics: Vec::new(), failed: 0 };
     let mut start = 0usize;
     let params = header.len() - metrics - 1;
+    // The header is the file's first write: a file that holds only part of it was killed before
+    // any row was there, and starting it again loses nothing.
+    let header_line = csv_line(&csv::StringRecord::from(header.to_vec()))?;
+    let header_torn = bytes.len() < header_line.len() && header_line.starts_with(&bytes);
+    let torn_or_refused = |finished, start, end| torn_or_refused(path, finished, start, end, bytes.len(), header_torn);
     loop {
         let more = match reader.read_record(&mut record) {
             Ok(more) => more,
             // Invalid UTF-8 or a quote cut by a kill: only acceptable as the torn end.
-            Err(_) => return torn_or_refused(path, finished, start, bytes.len(), bytes.len()),
+            Err(_) => return torn_or_refused(finished, start, bytes.len()),
         };
         if !more {
             return Ok(finished);
@@ -383,7 +441,7 @@ pub fn read_finished(
             None => false,
         };
         if !matches {
-            return torn_or_refused(path, finished, start, end, bytes.len());
+            return torn_or_refused(finished, start, end);
         }
         if start != 0 {
             for text in &fields[params..params + metrics] {
@@ -404,12 +462,20 @@ pub fn read_finished(
 }
 
 /// A row that does not read back exactly: if it runs to the end of the file it is the row a
-/// kill cut short, and the rows before it stand; anywhere else the file is not this sweep's.
-fn torn_or_refused(path: &Path, finished: Finished, start: usize, end: usize, length: usize) -> Result<Finished, String> {
-    if end >= length && start > 0 {
+/// kill cut short, and the rows before it stand (a header cut short, `header_torn`, leaves no
+/// row); anywhere else the file is not this sweep's.
+fn torn_or_refused(
+    path: &Path,
+    finished: Finished,
+    start: usize,
+    end: usize,
+    length: usize,
+    header_torn: bool,
+) -> Result<Finished, String> {
+    if end >= length && (start > 0 || header_torn) {
         Ok(finished)
     } else if start == 0 {
-        Err(format!("{} does not start with this sweep's header", path.display()))
+        Err(format!("{} does not start with this sweep's header: it is not this sweep's CSV, or was changed", path.display()))
     } else {
         Err(format!(
             "{}: row {} is not the row this sweep writes for point {} (the file was changed, or is another sweep's)",
@@ -481,6 +547,25 @@ mod tests {
         assert!(err.contains("row 2 is not the row this sweep writes for point 2"), "{err}");
         std::fs::write(&path, "speed,m,status\n").unwrap();
         assert!(read_finished(&path, &header(), 1, &mut points).err().unwrap().contains("header"));
+    }
+
+    /// A header cut short (the file's first write, so no row was there) is started again, as
+    /// the Python package does; a first line that is not part of this sweep's header is refused,
+    /// cut short or not. Before, the torn header was refused and `--resume` could not go on.
+    #[test]
+    fn a_torn_header_is_started_again_and_another_first_line_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("s.csv.partial");
+        for torn in ["k", "k,m,sta", "k,m,status"] {
+            std::fs::write(&path, torn).unwrap();
+            let read = read_finished(&path, &header(), 1, &mut points).unwrap_or_else(|e| panic!("{torn:?}: {e}"));
+            assert_eq!((read.rows, read.valid), (0, 0), "{torn:?}: nothing kept, the file starts again");
+        }
+        for other in ["speed", "k,m,statu\n", "k,x"] {
+            std::fs::write(&path, other).unwrap();
+            let err = read_finished(&path, &header(), 1, &mut points).err().unwrap_or_else(|| panic!("{other:?} accepted"));
+            assert!(err.contains("s.csv.partial does not start with this sweep's header"), "{err}");
+        }
     }
 
     /// The Python package's record (JSON after its own first line) is named as such, not

@@ -7,6 +7,7 @@ stepped with its exact solution, so a good point's metric is exp(-k t) at the en
 
 import math
 import os
+import time
 
 import numpy as np
 import pandas as pd
@@ -21,6 +22,16 @@ RunnerError = fmurunner.RunnerError
 @pytest.fixture(scope="module")
 def faulty(tmp_path_factory):
     return faulty_fmu(tmp_path_factory.mktemp("faulty"))
+
+
+def wait_for_rows(partial, process, rows=20, seconds=60):
+    """Waits until the sweep `process` has written more than `rows` lines to `partial`, or has
+    ended, or `seconds` have passed (the caller asserts which)."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and process.poll() is None:
+        if partial.exists() and partial.read_text().count("\n") > rows:
+            return
+        time.sleep(0.02)
 
 
 def test_a_crashing_or_hanging_point_is_a_failed_row_and_the_sweep_goes_on(faulty):
@@ -209,8 +220,6 @@ def test_a_second_sweep_to_the_same_out_is_refused_and_a_killed_ones_lock_does_n
     import signal
     import subprocess
     import sys
-    import time
-
     from fmurunner_helpers import RUNNER
 
     params = {"k": [0.01 * i for i in range(1, 3001)]}
@@ -221,11 +230,7 @@ def test_a_second_sweep_to_the_same_out_is_refused_and_a_killed_ones_lock_does_n
               f"out={str(out)!r}, **{kwargs!r})\n")
     child = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and child.poll() is None:
-            if partial.exists() and partial.read_text().count("\n") > 20:
-                break
-            time.sleep(0.02)
+        wait_for_rows(partial, child)
         assert child.poll() is None, "the first sweep ended before the second started"
         with pytest.raises(RunnerError, match=f"another sweep is writing {out} \\(it holds {out}.sweep locked\\)"):
             fmurunner.sweep(faulty, params, {"x_end": "final(x)"}, out=out, resume=True, **kwargs)
@@ -246,12 +251,7 @@ def test_a_second_sweep_to_the_same_out_is_refused_and_a_killed_ones_lock_does_n
                                "--stop-time", "10", "--output-interval", "0.001", "--threads", "2", "--out", str(cli_out)],
                               stderr=subprocess.PIPE, text=True)
     try:
-        cli_partial = tmp_path / "cli.csv.partial"
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and runner.poll() is None:
-            if cli_partial.exists() and cli_partial.read_text().count("\n") > 20:
-                break
-            time.sleep(0.02)
+        wait_for_rows(tmp_path / "cli.csv.partial", runner)
         assert runner.poll() is None, "runner sweep ended before the second started"
         with pytest.raises(RunnerError, match=f"another sweep is writing {cli_out}"):
             fmurunner.sweep(faulty, params, {"x_end": "final(x)"}, out=cli_out, **kwargs)
@@ -277,8 +277,6 @@ def test_a_sweep_interrupted_with_ctrl_c_keeps_its_rows_and_resumes(faulty, tmp_
     import signal
     import subprocess
     import sys
-    import time
-
     params = {"k": [0.01 * i for i in range(1, 3001)]}
     kwargs = dict(stop_time=10.0, output_interval=0.001, threads=2)
     out = tmp_path / "sweep.csv"
@@ -287,11 +285,7 @@ def test_a_sweep_interrupted_with_ctrl_c_keeps_its_rows_and_resumes(faulty, tmp_
               f"out={str(out)!r}, **{kwargs!r})\n")
     child = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True,
                              preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and child.poll() is None:
-        if partial.exists() and partial.read_text().count("\n") > 20:
-            break
-        time.sleep(0.02)
+    wait_for_rows(partial, child)
     assert child.poll() is None, "the sweep ended before it could be interrupted"
     child.send_signal(signal.SIGINT)
     _, stderr = child.communicate(timeout=60)

@@ -8,15 +8,14 @@ record is this sweep's and each of its rows is the row this sweep writes for its
 
 The record is held under an exclusive ``flock`` for the sweep's life, as ``runner sweep`` holds
 it, so a second sweep to the same ``out`` (of either) is refused instead of interleaving rows;
-the lock ends with the process, so a killed sweep never blocks its resume.
+the lock ends with the process, so a killed sweep never blocks its resume. The lock, the
+spelling of a row and the check of the rows read back are the engine's, the code ``runner
+sweep`` runs: the two tools cannot drift apart.
 """
 
 from __future__ import annotations
 
-import csv
-import fcntl
 import hashlib
-import io
 import json
 import os
 from collections.abc import Callable
@@ -25,7 +24,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ._engine import RunnerError
+from ._engine import RunnerError, SweepLock, csv_line, read_finished
 
 #: The record's first line: what wrote it.
 RECORD_HEADER = "# fmurunner sweep: what produced the CSV beside this file; sweep(..., resume=True) checks it"
@@ -51,13 +50,6 @@ def _difference(earlier: dict[str, Any], current: dict[str, Any]) -> str | None:
             what = "the FMU's content" if key == "fmu_sha256" else key
             lines.append(f"  {what}: {earlier.get(key)!r} then, {current.get(key)!r} now")
     return "\n".join(lines) or None
-
-
-def _csv_line(fields: list[str]) -> bytes:
-    """One row's bytes, exactly as the sweep's writer spells them."""
-    buffer = io.StringIO()
-    csv.writer(buffer, lineterminator="\n").writerow(fields)
-    return buffer.getvalue().encode("utf-8", errors="surrogateescape")
 
 
 def _text(x: float) -> str:
@@ -111,109 +103,57 @@ def sweep_to_file(
                 f"run the earlier sweep again with resume=True, or delete {partial} to start this one"
             )
 
-    def read_rows(file: str) -> tuple[list[list[str]], int]:
-        """The finished rows of ``file`` (their fields as text) and the bytes they take with the
-        header, read back as ``runner sweep --resume`` reads them: each must be exactly the row
-        this sweep writes for its point. One that is not is refused, unless it is the last, which
-        a kill may have cut short (even inside a quoted status): that one is dropped."""
-        with open(file, "rb") as f:
-            data = f.read()
-        # Undecodable bytes (a torn character, a crashed machine's zeros) read as themselves.
-        reader = csv.reader(io.StringIO(data.decode("utf-8", errors="surrogateescape"), newline=""))
-
-        def next_fields() -> list[str] | None:
-            try:
-                return next(reader, None)
-            except csv.Error:
-                # A quote cut by a kill, or a NUL: the torn end.
-                return None
-
+    def read_rows(file: str) -> tuple[np.ndarray, list[tuple[int, str]], int]:
+        """The finished rows of ``file``: their metrics, the (row, status) of those not ``ok``, and
+        the bytes they take with the header. The engine reads them back as ``runner sweep
+        --resume`` does: each must be exactly the row this sweep writes for its point; one that is
+        not is refused, unless it is the last, which a kill may have cut short: that one is
+        dropped (a header cut short starts the file again)."""
         # The parameter values of the points the file may hold, as the writer below spells them.
-        points = _points(ranges, 0, min(n, data.count(b"\n")))
-
-        def point_fields(i: int) -> list[str] | None:
-            return [repr(float(points[name][i])) for name, _ in ranges] if i < len(points[ranges[0][0]]) else None
-
-        # The header is the file's first write: a file holding only part of it was killed before
-        # any row was there, and starting it again loses nothing. Another first line is refused.
-        header_line = _csv_line(header)
-        header_torn = len(data) < len(header_line) and header_line.startswith(data)
-        rows: list[list[str]] = []
-        start = 0
-        p = len(ranges)
-        fields = next_fields()
-        while fields is not None:
-            line = _csv_line(fields)
-            expected = header if start == 0 else point_fields(len(rows))
-            exact = data[start:start + len(line)] == line and len(fields) == len(header)
-            if exact and expected is not None and fields[:len(expected)] == expected:
-                if start > 0:
-                    for text in fields[p:p + m]:
-                        try:
-                            float(text or "nan")
-                        except ValueError:
-                            raise RunnerError(
-                                f"{file}: row {len(rows) + 1} has the metric {text!r}, which is not a number") from None
-                    rows.append(fields)
-                start += len(line)
-                fields = next_fields()
-                continue
-            if next_fields() is None and (start > 0 or header_torn):
-                return rows, start
-            if start == 0:
-                raise RunnerError(f"{file} does not start with this sweep's header {header}: it is not this sweep's CSV, or was changed")
-            i = len(rows) + 1
-            raise RunnerError(
-                f"{file}: row {i} is not the row this sweep writes for point {i} (the file was changed, or is another sweep's)")
-        return rows, start
+        with open(file, "rb") as f:
+            lines = sum(block.count(b"\n") for block in iter(lambda: f.read(1 << 16), b""))
+        points = _points(ranges, 0, min(n, lines))
+        spelled = [[repr(float(points[name][i])) for name, _ in ranges] for i in range(len(points[ranges[0][0]]))]
+        valid, rows, metrics, statuses = read_finished(file, header, m, spelled)
+        return np.array(metrics, dtype=float).reshape(rows, m), statuses, valid
 
     # Before anything is read: another sweep at this `out` would change it under us.
-    lock = open(record_path, "a+b")  # held until the sweep ends (closed below)
+    lock = SweepLock(out)  # held until the sweep ends (released below)
     try:
-        try:
-            fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise RunnerError(f"another sweep is writing {out} (it holds {record_path} locked): wait for it to end, "
-                              f"or stop it and continue with resume=True") from None
-        had_record = os.fstat(lock.fileno()).st_size > 0
         first, kept = 0, None
         # False when `out` is found complete already (no partial file to put in its place).
         renaming = True
         if resume and os.path.exists(partial):
             earlier()
-            kept, valid = read_rows(partial)
-            first = len(kept)
+            kept = read_rows(partial)
+            first, valid = len(kept[0]), kept[2]
             with open(partial, "r+b") as binary:
                 binary.truncate(valid)
             if valid == 0:
-                with open(partial, "w", encoding="utf-8", newline="") as f:
-                    csv.writer(f, lineterminator="\n").writerow(header)
-        elif resume and os.path.exists(out) and had_record:
+                with open(partial, "wb") as f:
+                    f.write(csv_line(header))
+        elif resume and os.path.exists(out) and lock.had_record:
             earlier()
-            kept, _ = read_rows(out)
-            if len(kept) != n:
-                raise RunnerError(f"{out} has {len(kept)} of this sweep's {n} rows and no partial file to continue; run without resume to start again")
+            kept = read_rows(out)
+            if len(kept[0]) != n:
+                raise RunnerError(f"{out} has {len(kept[0])} of this sweep's {n} rows and no partial file to continue; run without resume to start again")
             first, renaming = n, False
         else:
             if not resume and os.path.exists(partial):
                 raise RunnerError(f"{partial} holds the finished points of an earlier sweep: continue it with resume=True, or delete it to start again")
-            with open(record_path, "w", encoding="utf-8") as f:
-                f.write(RECORD_HEADER + "\n" + json.dumps(current, indent=1) + "\n")
-            with open(partial, "w", encoding="utf-8", newline="") as f:
-                csv.writer(f, lineterminator="\n").writerow(header)
+            lock.write_record(RECORD_HEADER + "\n" + json.dumps(current, indent=1) + "\n")
+            with open(partial, "wb") as f:
+                f.write(csv_line(header))
 
         values = np.full((n, m), np.nan)
         status = np.full(n, "ok", dtype=object)
         if kept is not None and first:
-            p = len(ranges)
-            for i, fields in enumerate(kept):
-                # Python's float() reads the shortest round-trip text back to the same double, which
-                # pandas' own float parsers do not promise.
-                values[i] = [float(text) if text else np.nan for text in fields[p:p + m]]
-                status[i] = fields[p + m]
+            # The engine read the shortest round-trip text back to the same double.
+            values[:first] = kept[0]
+            for i, text in kept[1]:
+                status[i] = text
         if first < n:
-            with open(partial, "a", encoding="utf-8", newline="") as f:
-                writer = csv.writer(f, lineterminator="\n")
+            with open(partial, "ab") as f:
 
                 def on_rows(start: int, data: bytes, failures: list[tuple[int, str]]) -> None:
                     rows = np.frombuffer(data, dtype="<f8").reshape(-1, m)
@@ -224,9 +164,9 @@ def sweep_to_file(
                     points = _points(ranges, start, stop)
                     for k in range(len(rows)):
                         i = start + k
-                        writer.writerow(
+                        f.write(csv_line(
                             [repr(float(points[name][k])) for name, _ in ranges] + [_text(x) for x in rows[k]] + [status[i]]
-                        )
+                        ))
                     f.flush()
                     os.fsync(f.fileno())
 
@@ -236,4 +176,4 @@ def sweep_to_file(
             os.replace(partial, out)
         return _frame(ranges, metric_names, values, status)
     finally:
-        lock.close()
+        lock.release()

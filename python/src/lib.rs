@@ -5,6 +5,7 @@
 //! few strings (failed points' statuses, text columns) that numbers cannot carry.
 
 mod stepping;
+mod sweep_file;
 
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -674,6 +675,9 @@ fn _engine(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Model>()?;
     m.add_class::<stepping::Stepper>()?;
     m.add_class::<stepping::StepResult>()?;
+    m.add_function(wrap_pyfunction!(sweep_file::csv_line, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep_file::read_finished, m)?)?;
+    m.add_class::<sweep_file::SweepLock>()?;
     // The points a sweep may have, as the command line allows.
     m.add("MAX_POINTS", runner_engine::sweep::MAX_POINTS)?;
     Ok(())

@@ -133,7 +133,7 @@ def test_a_partial_file_that_is_not_this_sweeps_rows_is_refused_and_a_torn_last_
         "rows in another order": (lines[0] + lines[2] + lines[1], "row 1 is not the row this sweep writes for point 1"),
         "another point's row": (lines[0] + lines[1] + "9.0,0.5,ok\n" + lines[3], "row 2 is not the row this sweep writes"),
         "a row with a field more": (lines[0] + lines[1].replace("\n", ",x\n") + lines[2], "row 1 is not the row"),
-        "a metric that is no number": (lines[0] + ",".join(no_number) + lines[2], "row 1 has the metric 'abc', which is not a number"),
+        "a metric that is no number": (lines[0] + ",".join(no_number) + lines[2], 'row 1 has the metric "abc", which is not a number'),
     }
     for what, (text, message) in refused.items():
         partial.write_text(text)
@@ -151,6 +151,35 @@ def test_a_partial_file_that_is_not_this_sweeps_rows_is_refused_and_a_torn_last_
         pd.testing.assert_frame_equal(resumed, full, check_exact=True, obj=what)
         assert out.read_bytes() == complete, what
         out.unlink()
+
+
+def test_failed_rows_are_kept_by_a_resume_as_written(faulty, tmp_path):
+    """The rows of failed points (their status, a message that may hold commas, quotes and
+    newlines; their metrics empty) are read back by resume=True as they were written: the package
+    writes and reads its rows through the engine's code for `runner sweep --out`, so the table
+    and the file of a resumed sweep equal an uninterrupted one's, byte for byte. The points kept
+    are not run again: a status planted in a kept row (spelled by the same engine) comes back."""
+    params = {"fault": [0.0, 1.0, 0.0, 4.0, 0.0]}
+    metrics = {"x_end": "final(x)"}
+    out = tmp_path / "sweep.csv"
+    partial = tmp_path / "sweep.csv.partial"
+    kwargs = dict(stop_time=1.0, output_interval=0.01, threads=2, point_timeout=5.0, out=out)
+    full = fmurunner.sweep(faulty, params, metrics, **kwargs)
+    assert list(full["status"] == "ok") == [True, False, True, False, True], list(full["status"])
+    complete = out.read_bytes()
+    lines = complete.splitlines(keepends=True)
+    out.unlink()
+    # Cut after the failed point 1's row.
+    partial.write_bytes(b"".join(lines[:3]))
+    resumed = fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+    pd.testing.assert_frame_equal(resumed, full, check_exact=True)
+    assert out.read_bytes() == complete
+    out.unlink()
+    planted = 'crashed: planted, "quoted"\nover two lines'
+    partial.write_bytes(lines[0] + lines[1] + fmurunner._engine.csv_line(["1.0", "", planted]))
+    resumed = fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+    assert resumed["status"][1] == planted and resumed["status"][3] == full["status"][3]
+    assert pd.read_csv(out, keep_default_na=False)["status"][1] == planted
 
 
 def test_a_partial_file_holding_every_row_is_put_in_place(faulty, tmp_path):

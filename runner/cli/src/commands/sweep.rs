@@ -487,7 +487,7 @@ impl Destination {
         let current = current()?;
         let (partial_path, record_path) = (partial::partial_path(out), partial::record_path(out));
         // Before anything is read: another sweep at this `--out` would change it under us.
-        let mut lock = SweepLock::acquire(out)?;
+        let mut lock = SweepLock::acquire(out, "--resume")?;
         let had_record = lock.had_record;
         let earlier = || -> Result<Record, String> {
             let cannot = |e: &dyn std::fmt::Display| {

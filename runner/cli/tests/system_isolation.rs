@@ -298,6 +298,26 @@ fn a_killed_system_sweep_resumes_to_the_uninterrupted_csv() {
     assert!(err.contains("is not from this sweep") && err.contains("system_sha256"), "{err}");
 }
 
+/// A system sweep's `--set` is recorded by the value the FMU gets, not as typed: `0.5` and `5e-1`
+/// resume each other's sweep (they once refused each other as "not from this sweep"), while
+/// another value is refused, naming the assignment.
+#[test]
+fn a_system_sweep_resumes_with_the_same_set_written_another_way() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    faulty_system(d, "faulty", "");
+    let params = ["good.k=0.5,0.75,1"];
+    ok(sweep(d, Path::new("faulty"), &params, "a.csv", &["--set", "good.x0=0.5"]));
+    let complete = keep_first_row(d, "a.csv");
+    let o = sweep(d, Path::new("faulty"), &params, "a.csv", &["--set", "good.x0=5e-1", "--resume"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("resuming: 1 of 3 points"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(d.join("a.csv")).unwrap(), complete);
+    keep_first_row(d, "a.csv");
+    let err = fails(sweep(d, Path::new("faulty"), &params, "a.csv", &["--set", "good.x0=0.6", "--resume"]));
+    assert!(err.contains("set: the partial file's sweep has good.x0=0.5, this one good.x0=0.6"), "{err}");
+}
+
 /// A sweep of an `.ssp` archive resumes: its record names the system by the archive's bytes, not
 /// by the paths its FMUs were extracted to (a fresh temporary folder per run, which once made
 /// every resume of an archive refused as "not from this sweep"). The first row of a finished

@@ -138,8 +138,9 @@ fn system_record(sweep: &system::Sweep, timeout: Option<f64>) -> Result<Record, 
     for text in spec.metrics.texts() {
         put("metric", text.clone());
     }
-    for text in &spec.sets {
-        put("set", text.clone());
+    // By value, as the FMU gets it: `0.05`, `5e-2` and `5 cm` are the same sweep.
+    for (c, variable, value) in sweep.plan().sets() {
+        put("set", format!("{}.{}={}", system.components[*c].name, variable.name, value_text(value)));
     }
     let grid = &spec.grid;
     put("start_time", format!("{:?}", grid.start));

@@ -294,6 +294,11 @@ impl<'a> SweepPlan<'a> {
         Ok(SweepPlan { grid: spec.grid, sets, swept, space, metrics, sources })
     }
 
+    /// The `--set` assignments, resolved: (component, variable, value in the FMU's unit).
+    pub fn sets(&self) -> &[Assignment<'a>] {
+        &self.sets
+    }
+
     /// The swept variables, in the order of the space's ranges.
     pub fn swept(&self) -> impl Iterator<Item = &'a Variable> + '_ {
         self.swept.iter().map(|&(_, v)| v)

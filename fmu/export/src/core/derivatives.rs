@@ -1208,6 +1208,94 @@ pub(crate) mod tests {
         assert_eq!(out, [-2.0, 4.0]);
     }
 
+    /// x' = -k u x, y = u x: the states' Jacobian (d der(x)/dx = -k u, dy/dx = u) depends on
+    /// a tunable parameter and on the input, which the dual passes' kept lift holds.
+    #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+    #[variables(states = S)]
+    struct Scaled<T = f64> {
+        /// Rate constant
+        #[parameter(tunable)]
+        k: T,
+        /// Input
+        #[input]
+        u: T,
+        /// Output u x
+        #[output]
+        y: T,
+    }
+
+    impl Default for Scaled {
+        fn default() -> Self {
+            Scaled { k: 2.0, u: 0.5, y: 0.0 }
+        }
+    }
+
+    impl<T: Scalar> Equations<T> for Scaled<T> {
+        fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError> {
+            S { x: T::one() }.store(x);
+            Ok(())
+        }
+
+        fn derivatives(&self, _t: T, x: &[T], dx: &mut [T]) {
+            let S { x } = S::load(x);
+            S { x: -self.k * self.u * x }.store(dx);
+        }
+
+        fn outputs(&mut self, _t: T, x: &[T]) {
+            let S { x } = S::load(x);
+            self.y = self.u * x;
+        }
+    }
+
+    impl Model for Scaled {
+        const N_STATES: usize = 1;
+
+        fn info() -> ModelInfo {
+            ModelInfo { identifier: "scaled", description: "", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
+        }
+    }
+
+    /// The Jacobian blocks and the lifted model are kept from call to call while the point
+    /// stays: an input set (Continuous-Time Mode) or a tunable parameter set (Event Mode)
+    /// between two Jacobians at the same time and states, in the same mode, must give the
+    /// new Jacobian, through the general route and the in-place one an importer's columns
+    /// take. By hand: d der(x)/dx = -k u, dy/dx = u, exactly (products of exact values).
+    #[test]
+    fn a_parameter_or_input_set_between_jacobians_at_the_same_states_gives_the_new_jacobian() {
+        let mut core = Core::<Scaled>::new("scaled", Logger::new(None, false), NAMES);
+        core.setup(None, 0.0, None).unwrap();
+        core.start_exchange().unwrap();
+        core.set_continuous_states(&[1.5]).unwrap();
+        let row = |name: &str| core.table().rows.iter().position(|r| r.name == name).unwrap() as u32;
+        let (der, y, x, k, u) = (row("der(x)"), row("y"), row("x"), row("k"), row("u"));
+        let general = |core: &mut Core<Scaled>, mode: Mode| {
+            let mut out = [0.0; 2];
+            core.directional_derivative(&[der, y], &[x], &[1.0], &mut out, mode, "test").unwrap();
+            out
+        };
+        let in_place = |core: &mut Core<Scaled>, mode: Mode| {
+            let mut out = [0.0; 2];
+            assert_eq!(core.try_directional_derivative(&[der, y], &[x], &[1.0], &mut out, mode), Some(true));
+            out
+        };
+        // k = 2, u = 0.5.
+        assert_eq!(general(&mut core, Mode::ContinuousTime), [-1.0, 0.5]);
+        core.set_real(&[u], &[3.0], Phase::ContinuousTime, "ContinuousTimeMode").unwrap();
+        assert_eq!(in_place(&mut core, Mode::ContinuousTime), [-6.0, 3.0]);
+        core.set_real(&[u], &[4.0], Phase::ContinuousTime, "ContinuousTimeMode").unwrap();
+        assert_eq!(general(&mut core, Mode::ContinuousTime), [-8.0, 4.0]);
+        // Event Mode, where the tunable parameter may be set: k = 2, u = 4, then k = 5.
+        assert_eq!(general(&mut core, Mode::Event), [-8.0, 4.0]);
+        core.set_real(&[k], &[5.0], Phase::Event, "EventMode").unwrap();
+        assert_eq!(in_place(&mut core, Mode::Event), [-20.0, 4.0]);
+        core.set_real(&[k], &[0.25], Phase::Event, "EventMode").unwrap();
+        assert_eq!(general(&mut core, Mode::Event), [-1.0, 4.0]);
+        // The states did not move: the Jacobians differ by the sets alone.
+        let mut states = [0.0];
+        core.continuous_states(&mut states, false).unwrap();
+        assert_eq!(states, [1.5]);
+    }
+
     /// At initialization the parameters are knowns and the state an unknown: x = x0, so
     /// dx/dx0 = 1, d der(x)/dk = -x0, d y/d x0 = 2 x0.
     #[test]

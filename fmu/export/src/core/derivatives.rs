@@ -489,11 +489,16 @@ impl<M: Model> Core<M> {
             field_values(&self.table.rows, &j.knowns, &j.seeds, &self.state.model, &mut j.known_values);
             j.done = Default::default();
         }
+        let groups = [0..j.state_columns, j.state_columns..j.knowns.len()];
         for (row, derivatives) in [(0, true), (1, false)] {
-            for (column, group) in [(0, 0..j.state_columns), (1, j.state_columns..j.knowns.len())] {
-                if j.done[row][column] || !rows[row] || !columns[column] || group.is_empty() {
+            if !rows[row] {
+                continue;
+            }
+            for (column, group) in groups.iter().enumerate() {
+                if j.done[row][column] || !columns[column] || group.is_empty() {
                     continue;
                 }
+                let group = group.clone();
                 let pass = Pass {
                     t: self.state.t,
                     x: &self.state.x,

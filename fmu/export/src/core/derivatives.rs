@@ -188,14 +188,14 @@ impl Jacobians {
         // The column's values from the start: a slice in registers, not the Vec read again
         // after every store to `sensitivity` (which may alias it, for all the compiler knows).
         let values = self.values.get(column..).unwrap_or_default();
-        // v - v is 0 for a finite v and NaN otherwise: two instructions per value where
+        // v * 0 is zero for a finite v and NaN otherwise: two instructions per value where
         // `is_finite` and the flag's update took five.
         let mut probe = 0.0;
         for (out, &row) in sensitivity.iter_mut().zip(&self.asked_rows) {
             // Adding to 0.0 as the general sum does keeps its results to the bit (-0.0 too).
             let mut v = 0.0;
             v += values[row] * seed;
-            probe += v - v;
+            probe += v * 0.0;
             *out = v;
         }
         probe == 0.0

@@ -1053,8 +1053,18 @@ where
         }
         let mut t = DualSVec64::from(pass.t);
         x.clear();
-        x.extend(pass.x.iter().map(|&v| DualSVec64::from(v)));
-        for (l, known) in knowns.iter().enumerate() {
+        // The usual chunk, an implicit solver's: the states first and in order, each seeded as
+        // it is made (not made unseeded, then found and seeded again).
+        let n = pass.x.len();
+        let in_order = knowns.len() >= n && knowns[..n].iter().enumerate().all(|(l, k)| *k == Known::State(l));
+        let rest = if in_order {
+            x.extend(pass.x.iter().enumerate().map(|(l, &v)| seeded(v, Some(l))));
+            n
+        } else {
+            x.extend(pass.x.iter().map(|&v| DualSVec64::from(v)));
+            0
+        };
+        for (l, known) in knowns.iter().enumerate().skip(rest) {
             match *known {
                 Known::Time => t = seeded(pass.t, Some(l)),
                 Known::State(k) => x[k] = seeded(pass.x[k], Some(l)),

@@ -102,7 +102,8 @@
 //! without a branch per value (+155 on quarter_car), the point passed from the column's call into
 //! the blocks (+8 quarter_car, -20 mass_spring_damper; out of line +74), dual numbers of exactly 5
 //! lanes for quarter_car's 5 states (+6), the field values read for the fields alone (+20
-//! mass_spring_damper), the call's four pointers tested without short-circuits (no change).
+//! mass_spring_damper), the call's four pointers tested without short-circuits (no change), the
+//! read-out element by element again (+33 quarter_car, -10 mass_spring_damper).
 //!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0
 //! FMUs of second_order, mass_spring_damper, quarter_car and pendulum in target/, built by

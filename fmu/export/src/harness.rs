@@ -3,7 +3,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use crate::core::derivatives::{field_values, Evaluates, KeptLift, Known, Pass, Unknown};
+use crate::core::derivatives::{field_places, field_values, Evaluates, KeptLift, Known, Pass, Unknown};
 use crate::core::Failure;
 use crate::fmi2::state_machine::Interface;
 use crate::fmi2::Instance;
@@ -266,6 +266,7 @@ pub fn jacobian<M: Model>(model: &M, t: f64, x: &[f64], equations: Stage) -> Jac
         t,
         x,
         knowns: &seeds,
+        fields: &field_places(&seeds),
         values: &values,
         seeded: 0..seeds.len(),
         unknowns: &targets,

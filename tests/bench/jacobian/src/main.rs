@@ -75,6 +75,36 @@
 //! checks and 60 for the column; a column-major block (one slice per column) saved 70 in the
 //! calls and cost 296 in the dual pass, and was reverted (docs/benchmarks.md, fifth round).
 //!
+//! Sixth round, measured 2026-12-06 at 9f032ca (the dual pass seeds only the model fields
+//! among the knowns, their places found with the layout, and a chunk that begins with the
+//! states in order seeds each as it is made; a column's finiteness probed as v * 0 and its
+//! rows' offsets kept with the asked unknowns; the blocks' loop made once per call; the
+//! importer's unit seed found without counting every value), in instructions per Jacobian at a
+//! new point (FMI 2.0): quarter_car 4,063 -> 3,809 against 2,113 for n + 1 evaluations (1.80;
+//! FMI 3.0 3,876 against 2,112), second_order 1,814 -> 1,716 against 942 (1.82),
+//! mass_spring_damper 1,847 -> 1,755 against 837 (2.10), pendulum 1,942 -> 1,851 against 1,092
+//! (1.70): missed for every FMU. In time, five runs at load average 4.5 interleaved with main's
+//! FMUs (the same importer): 1.01-1.51 (quarter_car 1.01-1.08, mass_spring_damper 1.44-1.51)
+//! against 1.06-1.60 (quarter_car 1.06-1.12, mass_spring_damper 1.51-1.60): missed. The lifted
+//! model was already kept between points (`KeptLift`, lifted again only when the instance's
+//! version moves: no lift in the profiled Jacobians). What is left, quarter_car: the FMU's
+//! functions 2,570 per Jacobian (five fmi2GetDirectionalDerivative 1,142, about 228 a call; the
+//! dual pass 1,271: `forward` 636, `jacobian_blocks` 272, the model's `accelerations` 234,
+//! `road_rate` 60 and cos 25 in dual numbers, memcpy 44; memcmp 89; setting the time and states
+//! 68) against 1,027 for the evaluations' (six fmi2GetDerivatives 744, six
+//! fmi2SetContinuousStates 258, the time 25); the importer's 1,112 against 984.
+//! mass_spring_damper: the FMU's 1,207 (`forward` 385, `jacobian_blocks` 235, two calls 353, the
+//! model 110) against 304 (three fmi2GetDerivatives of 57 each), the importer's 449 against 445.
+//! The FMU's share alone exceeds the whole n + 1 evaluations for every FMU: the fixed cost of one
+//! dual pass (its set-up, seeding and read-out over a table-driven layout, a few hundred
+//! instructions spread over many lines of a few instructions each in a line-level profile) is
+//! several evaluations of these small models. Tried and dropped this round: the states compared
+//! without a branch per value (+155 on quarter_car), the point passed from the column's call into
+//! the blocks (+8 quarter_car, -20 mass_spring_damper; out of line +74), dual numbers of exactly 5
+//! lanes for quarter_car's 5 states (+6), the field values read for the fields alone (+20
+//! mass_spring_damper), the call's four pointers tested without short-circuits (no change), the
+//! read-out element by element again (+33 quarter_car, -10 mass_spring_damper).
+//!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0
 //! FMUs of second_order, mass_spring_damper, quarter_car and pendulum in target/, built by
 //! `runner build`). For a profiler: `jacobian_bench --one SOURCE FMU` takes one batch of

@@ -428,7 +428,7 @@ pub struct Lifting<M> {
     /// One forward pass in dual numbers ([`crate::core::derivatives::forward`]).
     pub forward: fn(&M, &crate::core::derivatives::Pass, &mut crate::core::derivatives::KeptLift, &mut [f64]) -> Result<(), ModelError>,
     /// Output derivatives along the trajectory ([`crate::core::derivatives::trajectory`]).
-    pub trajectory: fn(&M, &[f64], &mut crate::core::derivatives::Trajectory) -> Result<(), ModelError>,
+    pub trajectory: fn(&mut M, &[f64], &mut crate::core::derivatives::Trajectory) -> Result<(), ModelError>,
 }
 
 /// Computes the `#[derived]` fields of `model` from its parameters again ([`Lift::refresh`];

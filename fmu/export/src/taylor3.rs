@@ -545,25 +545,27 @@ mod tests {
     /// binary, so `a * (1 / b)` against `a / b`, or an unfused `mul_add`, would show.
     #[test]
     fn values_are_those_of_f64() {
-        let (x, y, z) = (Dual3_64::new(0.3, 1.7, -2.9, 0.11), Dual3_64::new(1.3, 0.7, 5.3, -0.23), Dual3_64::new(0.7, 0.1, 0.2, 0.3));
-        let (tx, ty, tz) = (Taylor3::varying(x), Taylor3::varying(y), Taylor3::varying(z));
+        // Each operation's operands are ones where num-dual's value is not f64's (checked).
+        let dual = |re: f64| Dual3_64::new(re, 1.7, -2.9, 0.11);
         let derivatives = |d: Dual3_64| [d.v1, d.v2, d.v3].map(f64::to_bits);
+        let (a, b, c, d, e, f, g) = (dual(0.3), dual(0.7), dual(2.9), dual(5.3), dual(0.61), dual(0.7), dual(1.3));
+        let t = Taylor3::varying;
         let cases: [(&str, Taylor3, Dual3_64, f64); 8] = [
-            ("x / y", tx / ty, x / y, 0.3 / 1.3),
-            ("tan x", ComplexField::tan(tx), ComplexField::tan(x), 0.3f64.tan()),
-            ("tanh x", ComplexField::tanh(tx), ComplexField::tanh(x), 0.3f64.tanh()),
-            ("x^5", ComplexField::powi(tx, 5), ComplexField::powi(x, 5), 0.3f64.powi(5)),
-            ("x^y", ComplexField::powf(tx, ty), ComplexField::powf(x, y), 0.3f64.powf(1.3)),
-            ("hypot", ComplexField::hypot(tx, ty), ComplexField::hypot(x, y), 0.3f64.hypot(1.3)),
-            ("log_y x", ComplexField::log(tx, ty), ComplexField::log(x, y), 0.3f64.log(1.3)),
-            ("x y + z", ComplexField::mul_add(tx, ty, tz), x * y + z, 0.3f64.mul_add(1.3, 0.7)),
+            ("a / b", t(a) / t(b), a / b, 0.3 / 0.7),
+            ("tan a", ComplexField::tan(t(a)), ComplexField::tan(a), 0.3f64.tan()),
+            ("tanh b", ComplexField::tanh(t(b)), ComplexField::tanh(b), 0.7f64.tanh()),
+            ("g^5", ComplexField::powi(t(g), 5), ComplexField::powi(g, 5), 1.3f64.powi(5)),
+            ("a^c", ComplexField::powf(t(a), t(c)), ComplexField::powf(a, c), 0.3f64.powf(2.9)),
+            ("hypot(a, c)", ComplexField::hypot(t(a), t(c)), ComplexField::hypot(a, c), 0.3f64.hypot(2.9)),
+            ("log_d a", ComplexField::log(t(a), t(d)), ComplexField::log(a, d), 0.3f64.log(5.3)),
+            ("a e + f", ComplexField::mul_add(t(a), t(e), t(f)), a * e + f, 0.3f64.mul_add(0.61, 0.7)),
         ];
         for (what, t, d, f) in cases {
+            assert_ne!(d.re.to_bits(), f.to_bits(), "{what} does not tell num-dual's value from f64's");
             assert_eq!(t.dual.re.to_bits(), f.to_bits(), "value of {what}");
             assert_eq!(derivatives(t.dual), derivatives(d), "derivatives of {what}");
         }
-        let (third, tenth) = (Taylor3::constant(1.0), Taylor3::constant(3.0));
-        assert_eq!((third / tenth).dual.re.to_bits(), (1.0f64 / 3.0).to_bits());
+        assert_eq!((Taylor3::constant(0.3) / Taylor3::constant(0.7)).dual.re.to_bits(), (0.3f64 / 0.7).to_bits());
         let memo = crate::phase_cosine::PhaseCosine::default();
         for phase in [0.1, 2.6, 40.3, 1e3 + 0.37] {
             let c = crate::Scalar::cos_near(Taylor3::varying(Dual3_64::new(phase, 1.0, 0.0, 0.0)), &memo);

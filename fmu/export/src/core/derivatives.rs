@@ -568,7 +568,9 @@ impl<M: Model> Core<M> {
 
 impl<M: Model> Core<M> {
     /// The kept plan's pass at the current point ([`trajectory`]); with
-    /// [`Trajectory::shares_outputs`], the `f64` outputs too, which are then current.
+    /// [`Trajectory::shares_outputs`], the `f64` outputs too, which are then current. Inlined
+    /// into the derivatives' call (a frame less per communication step).
+    #[inline(always)]
     fn evaluate_trajectory(&mut self, lifting: crate::model::Lifting<M>) -> Result<(), ModelError> {
         self.input_derivatives();
         let pass = &mut self.trajectory;
@@ -595,14 +597,13 @@ impl<M: Model> Core<M> {
     /// values are `f64`'s to the bit) reads the outputs there too: they come from the same pass
     /// as their derivatives, which the next [`Core::output_derivatives`] then serves, instead of
     /// from a second evaluation of the model's outputs in `f64` (on the road, its sine and
-    /// cosine again). Else, or should the pass fail, `Model::outputs` in `f64`.
+    /// cosine again). Should the pass fail, `Model::outputs` in `f64`. Called only with
+    /// [`Trajectory::shares_outputs`] (the other reads take the `f64` outputs in line).
     #[inline(never)]
     pub(super) fn shared_outputs(&mut self) {
-        if self.trajectory.shares_outputs {
-            if let Some(lifting) = M::lifting() {
-                if self.evaluate_trajectory(lifting).is_ok() {
-                    return;
-                }
+        if let Some(lifting) = M::lifting() {
+            if self.evaluate_trajectory(lifting).is_ok() {
+                return;
             }
         }
         self.trajectory.current = false;

@@ -468,7 +468,12 @@ impl<M: Model> Core<M> {
     #[inline(always)]
     fn refresh_outputs_for(&mut self, i: usize) {
         if self.state.outputs_dirty && self.table.computed.get(i) == Some(&true) {
-            self.shared_outputs();
+            if self.trajectory.shares_outputs {
+                self.shared_outputs();
+            } else {
+                self.trajectory.current = false;
+                self.state.refresh_outputs();
+            }
         }
     }
 

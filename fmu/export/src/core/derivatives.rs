@@ -766,12 +766,17 @@ where
         M::refresh_over::<D>(lifted);
     }
     let t = D::taylor(pass.t, &[1.0, 0.0, 0.0]);
-    let n = x.len();
-    xs.clear();
-    xs.extend(x.iter().map(|&v| D::from(v)));
+    // The model's constant number of states (x has as many): the loops below then have a
+    // known length, without bounds checks, unrolled for a few states.
+    let n = M::N_STATES;
+    let x = &x[..n];
+    xs.resize(n, D::from(0.0));
     dx.resize(n, D::from(0.0));
     pass.state_rates.resize(n, [0.0; MAX_ORDER]);
-    let rates = &mut pass.state_rates[..n];
+    let (xs, dx, rates) = (&mut xs[..n], &mut dx[..n], &mut pass.state_rates[..n]);
+    for (lifted_x, &v) in xs.iter_mut().zip(x) {
+        *lifted_x = D::from(v);
+    }
     // Per state: its derivatives of orders 1 to D::ORDER, found one order per pass and given to
     // the state's dual number for the next.
     for order in 0..D::ORDER {

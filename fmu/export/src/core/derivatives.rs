@@ -523,7 +523,7 @@ impl<M: Model> Core<M> {
         if !pass.request.is(vrs, orders) {
             pass.plan(&self.table, vrs, orders, function)?;
         }
-        if self.planned_output_derivatives(lifting, orders, values).map_err(|e| Failure::error(format!("{function}: {e}")))? {
+        if self.planned_output_derivatives(lifting, values).map_err(|e| Failure::error(format!("{function}: {e}")))? {
             Ok(())
         } else {
             Err(self.not_differentiable(values, vrs, true, function))
@@ -540,26 +540,23 @@ impl<M: Model> Core<M> {
         if values.len() != vrs.len() || !self.trajectory.request.is(vrs, orders) {
             return None;
         }
-        self.planned_output_derivatives(lifting, orders, values).ok().filter(|&finite| finite)
+        self.planned_output_derivatives(lifting, values).ok().filter(|&finite| finite)
     }
 
-    /// The output derivatives of the kept plan (`self.trajectory`, made for `orders`) into
+    /// The output derivatives of the kept plan (`self.trajectory`, made for the request) into
     /// `values`: whether they are all finite. Those of the current point when the outputs'
     /// evaluation computed them already ([`Core::shared_outputs`]).
     #[inline(always)]
-    fn planned_output_derivatives(
-        &mut self,
-        lifting: crate::model::Lifting<M>,
-        orders: &[i32],
-        values: &mut [f64],
-    ) -> Result<bool, ModelError> {
+    fn planned_output_derivatives(&mut self, lifting: crate::model::Lifting<M>, values: &mut [f64]) -> Result<bool, ModelError> {
         if !self.rates_current() {
             self.evaluate_trajectory(lifting)?;
         }
         let pass = &self.trajectory;
+        let rates = pass.rates.as_flattened();
         let mut finite = true;
-        for ((value, &at), &order) in values.iter_mut().zip(&pass.at).zip(orders) {
-            *value = pass.rates[at as usize][order as usize - 1];
+        for (value, &at) in values.iter_mut().zip(&pass.at) {
+            // A place checked with the plan, but the rates are the pass's: no panic if not.
+            *value = rates.get(at as usize).copied().unwrap_or(f64::NAN);
             finite &= value.is_finite();
         }
         Ok(finite)
@@ -650,7 +647,7 @@ impl Trajectory {
                     self.outputs.len() - 1
                 }
             };
-            self.at.push(at as u32);
+            self.at.push((at * MAX_ORDER + order as usize - 1) as u32);
         }
         self.request.keep(vrs, orders);
         self.reads_fields = self.outputs.iter().any(|u| matches!(u, Unknown::Field(_)));
@@ -700,7 +697,8 @@ pub struct Trajectory {
     pub shared: Vec<usize>,
     /// `rates` are those of the point the outputs were last made current at (by this pass).
     pub(super) current: bool,
-    /// Per value of the request: its output's place in `outputs` (and in `rates`).
+    /// Per value of the request: its place in `rates` read as one slice (its output's place in
+    /// `outputs` times [`MAX_ORDER`], plus its order less one).
     at: Vec<u32>,
     /// The highest order asked for: the pass evaluates in dual numbers of that order (one
     /// pass of the right-hand side per order for the states' derivatives), and the rates

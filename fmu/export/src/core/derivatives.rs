@@ -569,7 +569,10 @@ impl<M: Model> Core<M> {
     /// into the derivatives' call (a frame less per communication step).
     #[inline(always)]
     fn evaluate_trajectory(&mut self, lifting: crate::model::Lifting<M>) -> Result<(), ModelError> {
-        self.input_derivatives();
+        // No call when no input is driven, nor was at the last pass (the road's case).
+        if !(self.state.drives.is_empty() && self.trajectory.inputs.is_empty()) {
+            self.input_derivatives();
+        }
         let pass = &mut self.trajectory;
         (pass.t, pass.version, pass.current) = (self.state.t, self.version, false);
         (lifting.trajectory)(&mut self.state.model, &self.state.x, pass)?;

@@ -691,9 +691,9 @@ pub struct Trajectory {
     pub outputs: Vec<Unknown>,
     /// Some of `outputs` are model fields: the outputs are evaluated (found with the plan).
     pub reads_fields: bool,
-    /// The pass also gives the `f64` model its outputs ([`Core::shared_outputs`]): it runs in
-    /// [`Taylor3`] and every value `Model::outputs` computes is one of the Real fields of
-    /// `shared`, which take the pass's value parts.
+    /// The pass also gives the `f64` model its outputs (at the first read of one after a step):
+    /// it runs in [`Taylor3`] and every value `Model::outputs` computes is one of the Real
+    /// fields of `shared`, which take the pass's value parts.
     pub shares_outputs: bool,
     /// The fields (numbered as [`crate::Lift::field`]) of every value `Model::outputs`
     /// computes, when [`Trajectory::shares_outputs`].

@@ -428,7 +428,7 @@ pub struct Lifting<M> {
     /// One forward pass in dual numbers ([`crate::core::derivatives::forward`]).
     pub forward: fn(&M, &crate::core::derivatives::Pass, &mut crate::core::derivatives::KeptLift, &mut [f64]) -> Result<(), ModelError>,
     /// Output derivatives along the trajectory ([`crate::core::derivatives::trajectory`]).
-    pub trajectory: fn(&M, &[f64], &mut crate::core::derivatives::Trajectory) -> Result<(), ModelError>,
+    pub trajectory: fn(&mut M, &[f64], &mut crate::core::derivatives::Trajectory) -> Result<(), ModelError>,
 }
 
 /// Computes the `#[derived]` fields of `model` from its parameters again ([`Lift::refresh`];
@@ -530,7 +530,10 @@ pub trait Equations<T: Scalar> {
     /// The right-hand side: `dx = f(t, x, inputs)`, in the current regime.
     fn derivatives(&self, t: T, x: &[T], dx: &mut [T]);
 
-    /// Computes the output fields from the current time and state.
+    /// Computes the output fields from the current time and state. Only the fields of the
+    /// table's computed variables: while a master reads output derivatives of order 3 at every
+    /// step, the toolkit gives the `f64` model those fields from the same evaluation in dual
+    /// numbers (`core::derivatives::Trajectory::shares_outputs`) instead of calling this in `f64`.
     fn outputs(&mut self, _t: T, _x: &[T]) {}
 }
 

@@ -9,9 +9,17 @@
 //! quotient with one costs the other's four parts times a number, and of two of them one
 //! multiplication. Every other operation is the [`Dual3_64`]'s.
 //!
-//! The parts are those [`Dual3_64`] gives, bit for bit, but for the sign of a zero: where
-//! num-dual adds the constant's zero parts times the other's (`0 * v + c * w`), this skips the
-//! zero term, which only changes `-0 + 0` into `0`.
+//! The derivative parts are those [`Dual3_64`] gives, bit for bit, but for the sign of a zero:
+//! where num-dual adds the constant's zero parts times the other's (`0 * v + c * w`), this skips
+//! the zero term, which only changes `-0 + 0` into `0`.
+//!
+//! The value part is what the same operation gives in `f64`, bit for bit: the toolkit then
+//! serves a model's `f64` outputs from the pass that computes their derivatives
+//! ([`crate::core::derivatives::Trajectory`]) instead of evaluating them twice. num-dual's own
+//! value parts differ from `f64` in a few operations (a quotient is `a * (1 / b)`, `powi` and
+//! `powf` multiply out three powers, `tan` and `tanh` divide, `hypot` squares and takes the
+//! root, `mul_add` does not fuse); here those take the `f64` operation's value, and
+//! `cos_near` the memoized cosine's (what the `f64` model computes).
 
 use std::fmt;
 use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Rem, RemAssign, Sub, SubAssign};
@@ -49,6 +57,13 @@ impl Taylor3 {
     #[inline(always)]
     fn like(self, dual: Dual3_64) -> Taylor3 {
         Taylor3 { dual, constant: self.constant }
+    }
+
+    /// The number with its value part `value` (what `f64` computes), derivatives as they are.
+    #[inline(always)]
+    fn valued(mut self, value: f64) -> Taylor3 {
+        self.dual.re = value;
+        self
     }
 
     /// `dual`, constant when `self` and `other` both are.
@@ -117,19 +132,18 @@ impl Mul for Taylor3 {
 
 impl Div for Taylor3 {
     type Output = Taylor3;
-    /// num-dual's quotient (the product with the divisor's reciprocal, `1 / re`), without a
-    /// constant divisor's zero parts.
+    /// num-dual's quotient's derivative parts (the product with the divisor's reciprocal,
+    /// `1 / re`), without a constant divisor's zero parts; the value `f64`'s quotient.
     #[inline(always)]
     fn div(self, other: Taylor3) -> Taylor3 {
+        let value = self.dual.re / other.dual.re;
         if other.constant {
-            let reciprocal = 1.0 / other.dual.re;
             if self.constant {
-                Taylor3::constant(self.dual.re * reciprocal)
-            } else {
-                Taylor3::varying(self.dual * reciprocal)
+                return Taylor3::constant(value);
             }
+            Taylor3::varying(self.dual * (1.0 / other.dual.re)).valued(value)
         } else {
-            Taylor3::varying(self.dual / other.dual)
+            Taylor3::varying(self.dual / other.dual).valued(value)
         }
     }
 }
@@ -334,7 +348,17 @@ macro_rules! unary {
 impl ComplexField for Taylor3 {
     type RealField = Taylor3;
 
-    unary!(floor, ceil, round, trunc, fract, recip, sin, cos, tan, asin, acos, atan, sinh, cosh, tanh, asinh, acosh, atanh);
+    unary!(floor, ceil, round, trunc, fract, recip, sin, cos, asin, acos, atan, sinh, cosh, asinh, acosh, atanh);
+
+    // num-dual divides the sine by the cosine: the value is f64's.
+    #[inline]
+    fn tan(self) -> Taylor3 {
+        self.like(ComplexField::tan(self.dual)).valued(self.dual.re.tan())
+    }
+    #[inline]
+    fn tanh(self) -> Taylor3 {
+        self.like(ComplexField::tanh(self.dual)).valued(self.dual.re.tanh())
+    }
     unary!(log2, log10, ln, ln_1p, sqrt, exp, exp2, exp_m1, cbrt, abs, modulus, norm1);
 
     fn from_real(re: Taylor3) -> Taylor3 {
@@ -358,11 +382,12 @@ impl ComplexField for Taylor3 {
     fn unscale(self, factor: Taylor3) -> Taylor3 {
         self / factor
     }
+    /// The product and sum's derivatives; the value fused, as `f64`'s `mul_add`.
     fn mul_add(self, a: Taylor3, b: Taylor3) -> Taylor3 {
-        self * a + b
+        (self * a + b).valued(self.dual.re.mul_add(a.dual.re, b.dual.re))
     }
     fn hypot(self, other: Taylor3) -> Taylor3 {
-        self.with(other, self.dual.hypot(other.dual))
+        self.with(other, self.dual.hypot(other.dual)).valued(self.dual.re.hypot(other.dual.re))
     }
     fn conjugate(self) -> Taylor3 {
         self
@@ -373,13 +398,13 @@ impl ComplexField for Taylor3 {
         (self.like(s), self.like(c))
     }
     fn log(self, base: Taylor3) -> Taylor3 {
-        self.with(base, self.dual.log(base.dual))
+        self.with(base, self.dual.log(base.dual)).valued(self.dual.re.log(base.dual.re))
     }
     fn powi(self, n: i32) -> Taylor3 {
-        self.like(self.dual.powi(n))
+        self.like(self.dual.powi(n)).valued(self.dual.re.powi(n))
     }
     fn powf(self, n: Taylor3) -> Taylor3 {
-        self.with(n, self.dual.powf(n.dual))
+        self.with(n, self.dual.powf(n.dual)).valued(self.dual.re.powf(n.dual.re))
     }
     fn powc(self, n: Taylor3) -> Taylor3 {
         self.powf(n)
@@ -471,6 +496,11 @@ impl crate::Scalar for Taylor3 {
     fn value(self) -> f64 {
         self.dual.re
     }
+
+    /// The cosine's derivatives; the value the memo gives, as in the `f64` model.
+    fn cos_near(self, memo: &crate::phase_cosine::PhaseCosine) -> Taylor3 {
+        ComplexField::cos(self).valued(memo.cos(self.dual.re))
+    }
 }
 
 #[cfg(test)]
@@ -496,7 +526,10 @@ mod tests {
         let bits = |d: Dual3_64| [d.re, d.v1, d.v2, d.v3].map(|v| if v == 0.0 { 0 } else { v.to_bits() });
         for (x, y, dx, dy) in cases {
             assert_eq!(bits((x * y).dual), bits(dx * dy), "{x} * {y}");
-            assert_eq!(bits((x / y).dual), bits(dx / dy), "{x} / {y}");
+            // The quotient's value is f64's a / b, not num-dual's a * (1 / b).
+            let (q, dq) = (bits((x / y).dual), bits(dx / dy));
+            assert_eq!(q[1..], dq[1..], "{x} / {y}");
+            assert_eq!((x / y).dual.re.to_bits(), (dx.re / dy.re).to_bits(), "{x} / {y}");
             assert_eq!(bits((x + y).dual), bits(dx + dy), "{x} + {y}");
             assert_eq!(bits((x - y).dual), bits(dx - dy), "{x} - {y}");
             assert_eq!((x * y).constant, x.constant && y.constant);
@@ -504,5 +537,40 @@ mod tests {
         let (s, c) = Taylor3::varying(a).sin_cos();
         assert_eq!((bits(s.dual), bits(c.dual)), (bits(a.sin_cos().0), bits(a.sin_cos().1)));
         assert!(Taylor3::constant(p).sin().constant && !Taylor3::varying(a).sin().constant);
+    }
+
+    /// The value part of every operation whose num-dual value is computed another way than
+    /// f64's is f64's, bit for bit (the outputs served from the derivatives' pass must be the
+    /// f64 model's); the derivative parts stay num-dual's. The operands are not exact in
+    /// binary, so `a * (1 / b)` against `a / b`, or an unfused `mul_add`, would show.
+    #[test]
+    fn values_are_those_of_f64() {
+        // Each operation's operands are ones where num-dual's value is not f64's (checked).
+        let dual = |re: f64| Dual3_64::new(re, 1.7, -2.9, 0.11);
+        let derivatives = |d: Dual3_64| [d.v1, d.v2, d.v3].map(f64::to_bits);
+        let (a, b, c, d, e, f, g) = (dual(0.3), dual(0.7), dual(2.9), dual(5.3), dual(0.61), dual(0.7), dual(1.3));
+        let t = Taylor3::varying;
+        let cases: [(&str, Taylor3, Dual3_64, f64); 8] = [
+            ("a / b", t(a) / t(b), a / b, 0.3 / 0.7),
+            ("tan a", ComplexField::tan(t(a)), ComplexField::tan(a), 0.3f64.tan()),
+            ("tanh b", ComplexField::tanh(t(b)), ComplexField::tanh(b), 0.7f64.tanh()),
+            ("g^5", ComplexField::powi(t(g), 5), ComplexField::powi(g, 5), 1.3f64.powi(5)),
+            ("a^c", ComplexField::powf(t(a), t(c)), ComplexField::powf(a, c), 0.3f64.powf(2.9)),
+            ("hypot(a, c)", ComplexField::hypot(t(a), t(c)), ComplexField::hypot(a, c), 0.3f64.hypot(2.9)),
+            ("log_d a", ComplexField::log(t(a), t(d)), ComplexField::log(a, d), 0.3f64.log(5.3)),
+            ("a e + f", ComplexField::mul_add(t(a), t(e), t(f)), a * e + f, 0.3f64.mul_add(0.61, 0.7)),
+        ];
+        for (what, t, d, f) in cases {
+            assert_ne!(d.re.to_bits(), f.to_bits(), "{what} does not tell num-dual's value from f64's");
+            assert_eq!(t.dual.re.to_bits(), f.to_bits(), "value of {what}");
+            assert_eq!(derivatives(t.dual), derivatives(d), "derivatives of {what}");
+        }
+        assert_eq!((Taylor3::constant(0.3) / Taylor3::constant(0.7)).dual.re.to_bits(), (0.3f64 / 0.7).to_bits());
+        let memo = crate::phase_cosine::PhaseCosine::default();
+        for phase in [0.1, 2.6, 40.3, 1e3 + 0.37] {
+            let c = crate::Scalar::cos_near(Taylor3::varying(Dual3_64::new(phase, 1.0, 0.0, 0.0)), &memo);
+            assert_eq!(c.dual.re.to_bits(), memo.cos(phase).to_bits(), "cos_near at {phase}");
+            assert_eq!(derivatives(c.dual), derivatives(Dual3_64::new(phase, 1.0, 0.0, 0.0).cos()), "cos_near at {phase}");
+        }
     }
 }

@@ -561,6 +561,14 @@ impl<'a> Bound<'a> {
                     r.call_slots.push((r.slots[i], k - 1));
                 }
             }
+            if let [slot] = r.slots[..] {
+                r.direct = Some(slot);
+            }
+        }
+        for i in &mut inputs {
+            if let [Rate { from, factor, interpolate: false, .. }] = i.rates[..] {
+                i.direct = (factor == 1.0).then_some(from);
+            }
         }
         let interpolates = inputs.iter().any(|i| i.rates.iter().any(|r| r.interpolate));
         let coupled = inputs.iter().any(|i| !i.rates.is_empty());
@@ -919,6 +927,10 @@ struct Inputs<'a> {
     rate_orders: Vec<i32>,
     /// Their names, for errors.
     rate_names: Vec<&'a str>,
+    /// One polynomial input, extrapolated, without unit conversion (factor 1, which leaves
+    /// every number as it is): the slot of its source, whose rates the call then passes as they
+    /// are.
+    direct: Option<usize>,
     /// The interpolating inputs (set here rather than with the others): value reference, the
     /// slot of the source, and the conversion.
     interpolated: Vec<(u32, usize, f64, f64)>,
@@ -951,6 +963,9 @@ struct RateReads {
     call_orders: Vec<i32>,
     /// Per value of the call: the slot and the order's index where it goes.
     call_slots: Vec<(usize, usize)>,
+    /// The call reads orders 1 to n of one output, in that order (a source of one polynomial
+    /// connection): its slot, whose rates the call then fills in place.
+    direct: Option<usize>,
 }
 
 /// Time derivatives of orders 1 to [`MAX_COUPLING_ORDER`] of a slot's value.
@@ -1047,6 +1062,12 @@ fn read_rates(
         return Ok(());
     }
     driving(c);
+    if let Some(slot) = r.direct {
+        // The usual source, one output: no copying through scratch (a few dozen instructions
+        // a step).
+        let into = &mut rates[slot][..r.call_vrs.len()];
+        return instance.get_output_derivatives(&r.call_vrs, &r.call_orders, into).map_err(|e| failure(components, c, t, e));
+    }
     instance.get_output_derivatives(&r.call_vrs, &r.call_orders, scratch).map_err(|e| failure(components, c, t, e))?;
     for (&x, &(slot, k)) in scratch.iter().zip(&r.call_slots) {
         rates[slot][k] = x;
@@ -1077,6 +1098,10 @@ fn pass_rates(
     }
     driving(c);
     let fail = |e: String| failure(components, c, t, format!("{e} (setting {} with their derivatives)", inputs.rate_names.join(", ")));
+    if let Some(from) = inputs.direct {
+        // One extrapolated input without conversion: its source's rates as they are.
+        return instance.set_input_derivatives(&inputs.rate_vrs, &inputs.rate_orders, &rates[from][..inputs.rate_vrs.len()]).map_err(fail);
+    }
     let (derivatives, interpolated) = passed.split_at_mut(inputs.rate_vrs.len());
     if !inputs.interpolated.is_empty() {
         // The interpolating inputs start from their sources' values at the step's start.

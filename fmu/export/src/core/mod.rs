@@ -462,6 +462,21 @@ impl<M: Model> Core<M> {
         all_finite
     }
 
+    /// Brings the outputs up to date before row `i` is read, when `Model::outputs` computes it
+    /// (from the pass of the output derivatives when a master asks for them at every step:
+    /// [`Core::shared_outputs`]).
+    #[inline(always)]
+    fn refresh_outputs_for(&mut self, i: usize) {
+        if self.state.outputs_dirty && self.table.computed.get(i) == Some(&true) {
+            if self.trajectory.shares_outputs {
+                self.shared_outputs();
+            } else {
+                self.trajectory.current = false;
+                self.state.refresh_outputs();
+            }
+        }
+    }
+
     /// Reads Real variables (see `Core::prepare_read`). A value that is not finite is
     /// refused, naming it; after initialization that breaks the instance. Outputs are computed
     /// at the first one read, derivatives at the first der(x).
@@ -470,14 +485,10 @@ impl<M: Model> Core<M> {
         let mut dx: Option<Vec<f64>> = None;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
             let i = *vr as usize;
+            self.refresh_outputs_for(i);
             *value = match self.table.rows.get(i).map(|r| &r.slot) {
                 Some(Slot::Model(Access::State(k))) => self.state.x[*k],
-                Some(Slot::Model(Access::Real { get, .. })) => {
-                    if self.table.computed[i] {
-                        self.state.refresh_outputs();
-                    }
-                    get(&self.state.model)
-                }
+                Some(Slot::Model(Access::Real { get, .. })) => get(&self.state.model),
                 Some(Slot::Control(c)) if !c.is_integer() => self.control_value(*c),
                 Some(Slot::Time) => self.state.t,
                 Some(Slot::Derivative(k)) => {
@@ -522,13 +533,9 @@ impl<M: Model> Core<M> {
         self.prepare_read(phase)?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
             let i = *vr as usize;
+            self.refresh_outputs_for(i);
             *value = match self.table.rows.get(i).map(|r| &r.slot) {
-                Some(Slot::Model(Access::Integer { get, .. })) => {
-                    if self.table.computed[i] {
-                        self.state.refresh_outputs();
-                    }
-                    get(&self.state.model)
-                }
+                Some(Slot::Model(Access::Integer { get, .. })) => get(&self.state.model),
                 // Counters saturate rather than wrap: FMI integers are 32-bit.
                 Some(Slot::Control(c)) if c.is_integer() => self.control_value(*c).min(i32::MAX as f64) as i32,
                 _ => return Err(self.unknown(*vr, BaseType::Integer, false)),
@@ -542,13 +549,9 @@ impl<M: Model> Core<M> {
         self.prepare_read(phase)?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
             let i = *vr as usize;
+            self.refresh_outputs_for(i);
             *value = match self.table.rows.get(i).map(|r| &r.slot) {
-                Some(Slot::Model(Access::Boolean { get, .. })) => {
-                    if self.table.computed[i] {
-                        self.state.refresh_outputs();
-                    }
-                    get(&self.state.model)
-                }
+                Some(Slot::Model(Access::Boolean { get, .. })) => get(&self.state.model),
                 _ => return Err(self.unknown(*vr, BaseType::Boolean, false)),
             };
         }
@@ -562,11 +565,9 @@ impl<M: Model> Core<M> {
         let mut values = Vec::with_capacity(vrs.len());
         for vr in vrs {
             let i = *vr as usize;
+            self.refresh_outputs_for(i);
             match self.table.rows.get(i).map(|r| &r.slot) {
                 Some(Slot::Model(Access::String { get, .. })) => {
-                    if self.table.computed[i] {
-                        self.state.refresh_outputs();
-                    }
                     values.push(get(&self.state.model).to_owned());
                 }
                 _ => return Err(self.unknown(*vr, BaseType::String, false)),
@@ -759,6 +760,7 @@ impl<M: Model> Core<M> {
         let State { model, t, x, .. } = &mut self.state;
         model.outputs(*t, x);
         self.state.outputs_dirty = false;
+        self.trajectory.current = false;
         let (model, x) = (&self.state.model, &self.state.x);
         self.table.rows.iter().zip(&self.table.computed).find_map(|(row, &computed)| {
             let value = match &row.slot {

@@ -934,6 +934,7 @@ pub struct KeptLift(Vec<(std::any::TypeId, u64, Box<dyn std::any::Any + Send>)>)
 
 impl KeptLift {
     /// `model` lifted into `D`: the kept one when lifted into `D` at `version`, else afresh.
+    #[inline(always)]
     pub fn get<M: Model + Lift, D: crate::Scalar + Send + 'static>(&mut self, model: &M, version: u64) -> &mut Lifted<M::Over<D>, D>
     where
         M::Over<D>: Send + 'static,
@@ -941,22 +942,37 @@ impl KeptLift {
         // Found by its type's id, a constant here: asking each kept one for its type is a
         // dynamic call per entry.
         let kind = std::any::TypeId::of::<Lifted<M::Over<D>, D>>();
-        let lift = || {
-            let lifted = Lifted { model: model.lift::<D>(), x: Vec::<D>::new(), dx: Vec::new() };
-            (kind, version, Box::new(lifted) as Box<dyn std::any::Any + Send>)
-        };
         let at = match self.0.iter().position(|(k, ..)| *k == kind) {
             Some(at) if self.0[at].1 == version => at,
+            found => self.lift::<M, D>(model, version, found),
+        };
+        let kept: *mut (dyn std::any::Any + Send) = &mut *self.0[at].2;
+        // SAFETY: every entry holds a value of the type whose id it is kept with, and entry
+        // `at` is kept with `kind`'s. (`downcast_mut` would ask the value for its type again,
+        // a dynamic call at every pass.)
+        unsafe { &mut *kept.cast::<Lifted<M::Over<D>, D>>() }
+    }
+
+    /// [`KeptLift::get`] when nothing is kept for `D` at `version`: `model` lifted afresh into
+    /// the entry `found` for `D` (lifted at another version), or a new one. Its place.
+    #[cold]
+    #[inline(never)]
+    fn lift<M: Model + Lift, D: crate::Scalar + Send + 'static>(&mut self, model: &M, version: u64, found: Option<usize>) -> usize
+    where
+        M::Over<D>: Send + 'static,
+    {
+        let lifted = Lifted { model: model.lift::<D>(), x: Vec::<D>::new(), dx: Vec::new() };
+        let entry = (std::any::TypeId::of::<Lifted<M::Over<D>, D>>(), version, Box::new(lifted) as Box<dyn std::any::Any + Send>);
+        match found {
             Some(at) => {
-                self.0[at] = lift();
+                self.0[at] = entry;
                 at
             }
             None => {
-                self.0.push(lift());
+                self.0.push(entry);
                 self.0.len() - 1
             }
-        };
-        self.0[at].2.downcast_mut().expect("lifted into D above")
+        }
     }
 }
 

@@ -125,6 +125,14 @@ pub(crate) fn returned_with(entered: Option<Entered>, status: impl FnOnce() -> &
     }
 }
 
+/// Whether FMI calls are logged. For a caller that passes many arguments to [`call`]: branching
+/// on it first keeps the arguments' captures (stored to the stack before the flag is tested,
+/// when the compiler builds them for the logged path) out of the calls that are not logged.
+#[inline(always)]
+pub(crate) fn on() -> bool {
+    ON.load(Ordering::Relaxed)
+}
+
 /// Runs `call` (an FMI function: its status and what it gave back, by value), logged when the log
 /// is on. For the calls of every step: without the log this is one test of a flag before the
 /// call, the logging kept out of line.

@@ -173,6 +173,11 @@ pub(crate) fn set_real_input_derivatives(
     status_name: fn(c_int) -> &'static str,
 ) -> c_int {
     let n = vrs.len().min(orders.len()).min(values.len());
+    if !call_log::on() {
+        // SAFETY: `n` value references, orders and values, valid for the call (without the log, a
+        // master's call at every step: see `call_log::on`).
+        return unsafe { set(raw, vrs.as_ptr(), n, orders.as_ptr(), values.as_ptr()) };
+    }
     call_log::call(
         name,
         move || format!("vr={}, nvr={n}, order={}, value={}", list(&vrs[..n]), list(&orders[..n]), list(&values[..n])),
@@ -196,6 +201,11 @@ pub(crate) fn get_real_output_derivatives(
     status_name: fn(c_int) -> &'static str,
 ) -> c_int {
     let (n, values) = (vrs.len().min(orders.len()).min(out.len()), out.as_mut_ptr());
+    if !call_log::on() {
+        // SAFETY: `n` value references and orders, room for `n` values, valid for the call
+        // (without the log, a master's call at every step: see `call_log::on`).
+        return unsafe { get(raw, vrs.as_ptr(), n, orders.as_ptr(), values) };
+    }
     call_log::call(
         name,
         move || format!("vr={}, nvr={n}, order={}", list(&vrs[..n]), list(&orders[..n])),

@@ -34,6 +34,36 @@ def wait_for_rows(partial, process, rows=20, seconds=60):
         time.sleep(0.02)
 
 
+#: The metric of the sweeps to a file below: x(1) = exp(-k) for a good point.
+X_END = {"x_end": "final(x)"}
+
+
+def finished_sweep(faulty, tmp_path, params, **options):
+    """A finished sweep of `faulty` over `params` to tmp_path/sweep.csv (metric X_END, to t = 1,
+    2 threads, `options`): its CSV's path, its partial file's, the keyword arguments that resume
+    it, its table and its CSV's bytes."""
+    out = tmp_path / "sweep.csv"
+    kwargs = dict(stop_time=1.0, threads=2, out=out, **options)
+    full = fmurunner.sweep(faulty, params, X_END, **kwargs)
+    return out, tmp_path / "sweep.csv.partial", kwargs, full, out.read_bytes()
+
+
+def start_long_sweep(faulty, tmp_path, **popen):
+    """A sweep of 3,000 points of `faulty` to tmp_path/sweep.csv started in another Python process
+    (`popen`: Popen's options), long enough to be stopped while it writes: its CSV's path, its
+    partial file's, its parameters, the keyword arguments that run it again, and the process
+    (stderr piped)."""
+    import subprocess
+    import sys
+    params = {"k": [0.01 * i for i in range(1, 3001)]}
+    kwargs = dict(stop_time=10.0, output_interval=0.001, threads=2)
+    out = tmp_path / "sweep.csv"
+    script = (f"import fmurunner\nfmurunner.sweep({str(faulty)!r}, {params!r}, {X_END!r}, "
+              f"out={str(out)!r}, **{kwargs!r})\n")
+    child = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True, **popen)
+    return out, tmp_path / "sweep.csv.partial", params, kwargs, child
+
+
 def test_a_crashing_or_hanging_point_is_a_failed_row_and_the_sweep_goes_on(faulty):
     frame = fmurunner.sweep(faulty, {"fault": [0, 1, 0, 3, 4, 0]}, {"x_end": "final(x)"}, stop_time=1.0,
                             output_interval=0.01, threads=2, point_timeout=1.0)
@@ -119,12 +149,7 @@ def test_a_partial_file_that_is_not_this_sweeps_rows_is_refused_and_a_torn_last_
     and the CSV gave their metrics to the wrong points), and other damage raised pandas' or
     numpy's errors."""
     params = {"k": [0.5, 1.0, 1.5, 2.0]}
-    metrics = {"x_end": "final(x)"}
-    out = tmp_path / "sweep.csv"
-    partial = tmp_path / "sweep.csv.partial"
-    kwargs = dict(stop_time=1.0, threads=2, out=out)
-    full = fmurunner.sweep(faulty, params, metrics, **kwargs)
-    complete = out.read_bytes()
+    out, partial, kwargs, full, complete = finished_sweep(faulty, tmp_path, params)
     lines = complete.decode().splitlines(keepends=True)
     out.unlink()
     no_number = lines[1].split(",")
@@ -138,7 +163,7 @@ def test_a_partial_file_that_is_not_this_sweeps_rows_is_refused_and_a_torn_last_
     for what, (text, message) in refused.items():
         partial.write_text(text)
         with pytest.raises(RunnerError, match=message) as e:
-            fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+            fmurunner.sweep(faulty, params, X_END, resume=True, **kwargs)
         assert str(partial) in str(e.value), what
     torn = {
         "a last row cut inside a quoted status": lines[0] + lines[1] + '1.0,,"crashed: SIGSEGV\nin fmi2Do',
@@ -147,7 +172,7 @@ def test_a_partial_file_that_is_not_this_sweeps_rows_is_refused_and_a_torn_last_
     }
     for what, text in torn.items():
         partial.write_text(text)
-        resumed = fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+        resumed = fmurunner.sweep(faulty, params, X_END, resume=True, **kwargs)
         pd.testing.assert_frame_equal(resumed, full, check_exact=True, obj=what)
         assert out.read_bytes() == complete, what
         out.unlink()
@@ -160,24 +185,19 @@ def test_failed_rows_are_kept_by_a_resume_as_written(faulty, tmp_path):
     and the file of a resumed sweep equal an uninterrupted one's, byte for byte. The points kept
     are not run again: a status planted in a kept row (spelled by the same engine) comes back."""
     params = {"fault": [0.0, 1.0, 0.0, 4.0, 0.0]}
-    metrics = {"x_end": "final(x)"}
-    out = tmp_path / "sweep.csv"
-    partial = tmp_path / "sweep.csv.partial"
-    kwargs = dict(stop_time=1.0, output_interval=0.01, threads=2, point_timeout=5.0, out=out)
-    full = fmurunner.sweep(faulty, params, metrics, **kwargs)
+    out, partial, kwargs, full, complete = finished_sweep(faulty, tmp_path, params, output_interval=0.01, point_timeout=5.0)
     assert list(full["status"] == "ok") == [True, False, True, False, True], list(full["status"])
-    complete = out.read_bytes()
     lines = complete.splitlines(keepends=True)
     out.unlink()
     # Cut after the failed point 1's row.
     partial.write_bytes(b"".join(lines[:3]))
-    resumed = fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+    resumed = fmurunner.sweep(faulty, params, X_END, resume=True, **kwargs)
     pd.testing.assert_frame_equal(resumed, full, check_exact=True)
     assert out.read_bytes() == complete
     out.unlink()
     planted = 'crashed: planted, "quoted"\nover two lines'
     partial.write_bytes(lines[0] + lines[1] + fmurunner._engine.csv_line(["1.0", "", planted]))
-    resumed = fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+    resumed = fmurunner.sweep(faulty, params, X_END, resume=True, **kwargs)
     assert resumed["status"][1] == planted and resumed["status"][3] == full["status"][3]
     assert pd.read_csv(out, keep_default_na=False)["status"][1] == planted
 
@@ -218,24 +238,19 @@ def test_a_torn_header_is_started_again_and_another_first_line_refused(faulty, t
     file, and left as it was, even with no newline after it (it was started again, its content
     lost, before)."""
     params = {"k": [0.5, 1.0]}
-    metrics = {"x_end": "final(x)"}
-    out = tmp_path / "sweep.csv"
-    partial = tmp_path / "sweep.csv.partial"
-    kwargs = dict(stop_time=1.0, threads=2, out=out)
-    full = fmurunner.sweep(faulty, params, metrics, **kwargs)
-    complete = out.read_bytes()
+    out, partial, kwargs, full, complete = finished_sweep(faulty, tmp_path, params)
     header = complete.split(b"\n")[0]
     for cut in (1, len(header) // 2, len(header)):
         out.unlink()
         partial.write_bytes(header[:cut])
-        resumed = fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+        resumed = fmurunner.sweep(faulty, params, X_END, resume=True, **kwargs)
         pd.testing.assert_frame_equal(resumed, full, check_exact=True, obj=f"header cut at {cut}")
         assert out.read_bytes() == complete
     out.unlink()
     for other in (b"speed", header[:-1] + b"\n", b"k,y"):
         partial.write_bytes(other)
         with pytest.raises(RunnerError, match="does not start with this sweep's header") as e:
-            fmurunner.sweep(faulty, params, metrics, resume=True, **kwargs)
+            fmurunner.sweep(faulty, params, X_END, resume=True, **kwargs)
         assert str(partial) in str(e.value) and partial.read_bytes() == other, other
 
 
@@ -248,16 +263,9 @@ def test_a_second_sweep_to_the_same_out_is_refused_and_a_killed_ones_lock_does_n
     writes the file. Before the lock, the second ran."""
     import signal
     import subprocess
-    import sys
     from fmurunner_helpers import RUNNER
 
-    params = {"k": [0.01 * i for i in range(1, 3001)]}
-    kwargs = dict(stop_time=10.0, output_interval=0.001, threads=2)
-    out = tmp_path / "sweep.csv"
-    partial = tmp_path / "sweep.csv.partial"
-    script = (f"import fmurunner\nfmurunner.sweep({str(faulty)!r}, {params!r}, {{'x_end': 'final(x)'}}, "
-              f"out={str(out)!r}, **{kwargs!r})\n")
-    child = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True)
+    out, partial, params, kwargs, child = start_long_sweep(faulty, tmp_path)
     try:
         wait_for_rows(partial, child)
         assert child.poll() is None, "the first sweep ended before the second started"
@@ -304,16 +312,8 @@ def test_a_sweep_interrupted_with_ctrl_c_keeps_its_rows_and_resumes(faulty, tmp_
     shell inherits SIGINT ignored, and a Python started so installs no KeyboardInterrupt handler
     (it then ran to the end and exited 0)."""
     import signal
-    import subprocess
-    import sys
-    params = {"k": [0.01 * i for i in range(1, 3001)]}
-    kwargs = dict(stop_time=10.0, output_interval=0.001, threads=2)
-    out = tmp_path / "sweep.csv"
-    partial = tmp_path / "sweep.csv.partial"
-    script = (f"import fmurunner\nfmurunner.sweep({str(faulty)!r}, {params!r}, {{'x_end': 'final(x)'}}, "
-              f"out={str(out)!r}, **{kwargs!r})\n")
-    child = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True,
-                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    out, partial, params, kwargs, child = start_long_sweep(
+        faulty, tmp_path, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     wait_for_rows(partial, child)
     assert child.poll() is None, "the sweep ended before it could be interrupted"
     child.send_signal(signal.SIGINT)

@@ -204,21 +204,21 @@ mod tests {
         (Logger::new(Some(Box::new(move |_, _, m: &str| sink.lock().expect("log lock").push(m.to_owned()))), false), log)
     }
 
-    /// [`continuous`] for model `M` at state `x`.
-    unsafe fn continuous_of<M: Model>(x: f64) -> (*mut c_void, Arc<Mutex<Vec<String>>>) {
+    /// An instance of model `M` through FMI version `V`'s generic `call` (an instantiation
+    /// function) for `interface`, its log lines collected.
+    unsafe fn instance<V: Version, M: Model>(call: &'static str, interface: Interface) -> (*mut c_void, Arc<Mutex<Vec<String>>>) {
         let (logger, log) = collected_log();
         let token = crate::table::guid::<M>();
-        let c = instantiate::<Fmi3, M>(|| {
-            Some(Request {
-                call: "fmi3InstantiateModelExchange",
-                logger,
-                name: Some("decay"),
-                setup: Ok(Setup::plain(Interface::ModelExchange)),
-                token: Some(token),
-                resources: None,
-            })
+        let c = instantiate::<V, M>(|| {
+            Some(Request { call, logger, name: Some("decay"), setup: Ok(Setup::plain(interface)), token: Some(token), resources: None })
         });
         assert!(!c.is_null());
+        (c, log)
+    }
+
+    /// [`continuous`] for model `M` at state `x`.
+    unsafe fn continuous_of<M: Model>(x: f64) -> (*mut c_void, Arc<Mutex<Vec<String>>>) {
+        let (c, log) = instance::<Fmi3, M>("fmi3InstantiateModelExchange", Interface::ModelExchange);
         assert_eq!(simple::<Fmi3, M>(c, Call::EnterInitializationMode, |i| i.enter_initialization_mode_with(None, 0.0, None)), 0);
         assert_eq!(simple::<Fmi3, M>(c, Call::ExitInitializationMode, |i| i.exit_initialization_mode()), 0);
         assert_eq!(simple::<Fmi3, M>(c, Call::EnterContinuousTimeMode, |i| i.enter_continuous_time_mode()), 0);
@@ -387,19 +387,7 @@ mod tests {
     /// collected.
     unsafe fn stepping() -> (*mut c_void, Arc<Mutex<Vec<String>>>) {
         use crate::fmi2::Fmi2;
-        let (logger, log) = collected_log();
-        let token = crate::table::guid::<Decay>();
-        let c = instantiate::<Fmi2, Decay>(|| {
-            Some(Request {
-                call: "fmi2Instantiate",
-                logger,
-                name: Some("decay"),
-                setup: Ok(Setup::plain(Interface::CoSimulation)),
-                token: Some(token),
-                resources: None,
-            })
-        });
-        assert!(!c.is_null());
+        let (c, log) = instance::<Fmi2, Decay>("fmi2Instantiate", Interface::CoSimulation);
         assert_eq!(simple::<Fmi2, Decay>(c, Call::SetupExperiment, |i| i.setup_experiment(Some(1e-10), 0.0, None)), 0);
         assert_eq!(simple::<Fmi2, Decay>(c, Call::EnterInitializationMode, |i| i.enter_initialization_mode()), 0);
         assert_eq!(simple::<Fmi2, Decay>(c, Call::ExitInitializationMode, |i| i.exit_initialization_mode()), 0);

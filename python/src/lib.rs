@@ -267,7 +267,9 @@ fn plan(
         return Err(err(format!("params['{name}'] has no values")));
     }
     let fixed = variables::parse_sets(d, &sets).map_err(err)?;
-    let metrics = MetricSet::parse(&metrics).map_err(err)?;
+    // The spec, which the sweep's record holds, has the metrics in their one spelling: a resume
+    // does not depend on how they were typed (`final(x)`, `final( x )`).
+    let metrics = MetricSet::parse(&MetricSet::parse(&metrics).map_err(err)?.metrics().canonical()).map_err(err)?;
     let spec = SweepRequest::new(grid, &fixed, ranges, metrics, None);
     let plan = spec.plan(d, identifier, interface).map_err(err)?;
     check_once_per_process(d, interface, plan.space.len).map_err(err)?;

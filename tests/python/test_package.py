@@ -268,7 +268,8 @@ def test_sweep_solver_options_are_checked():
 def test_a_sweep_to_a_file_is_not_resumed_with_other_solver_settings_or_interface(tmp_path):
     """The record beside the CSV holds the interface and the integrator's settings (in the
     sweep), so a resume that changes either is another sweep and is refused, while the same
-    settings resume (here: find the file complete and return its rows)."""
+    settings resume (here: find the file complete and return its rows), also with a metric
+    typed another way."""
     out = tmp_path / "stiff.csv"
     fmu, params, metrics = REFERENCE / "fmi2" / "VanDerPol.fmu", {"mu": [1.0, 2.0]}, {"x0_end": "final(x0)"}
     bdf = dict(interface="model-exchange", solver="bdf", stop_time=5.0)
@@ -279,6 +280,12 @@ def test_a_sweep_to_a_file_is_not_resumed_with_other_solver_settings_or_interfac
         fmurunner.sweep(fmu, params, metrics, out=out, resume=True, **{**bdf, "abs_tolerance": 1e-12})
     again = fmurunner.sweep(fmu, params, metrics, out=out, resume=True, **bdf)
     pd.testing.assert_frame_equal(again, first, check_exact=True)
+    # The metric is recorded by what it computes: typed another way, it is the same sweep;
+    # another metric is not.
+    retyped = fmurunner.sweep(fmu, params, {"x0_end": " final( x0 ) "}, out=out, resume=True, **bdf)
+    pd.testing.assert_frame_equal(retyped, first, check_exact=True)
+    with pytest.raises(fmurunner.RunnerError, match="is not from this sweep(.|\n)*x0_end=final\\(x1\\)"):
+        fmurunner.sweep(fmu, params, {"x0_end": "final(x1)"}, out=out, resume=True, **bdf)
     # Without solver options the spec is the same through either interface: the record's
     # interface tells the sweeps apart.
     other = tmp_path / "interface.csv"

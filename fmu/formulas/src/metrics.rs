@@ -250,6 +250,56 @@ impl Metrics {
         }
         self.metrics.iter().filter_map(|(_, e)| highest(e)).max()
     }
+
+    /// Each metric as `NAME=EXPR` in one spelling, whatever spaces, number spellings (`0.5`,
+    /// `5e-1`) or parentheses it was typed with: definitions that parse alike are spelled
+    /// alike, so a sweep's record can tell whether a resumed sweep asks for the same metrics.
+    pub fn canonical(&self) -> Vec<String> {
+        let source = |i: usize| &self.sources[i];
+        let leaf = |e: &Expr| match e {
+            Expr::Summary(Stat::Amplitude, i) => {
+                let s = source(*i);
+                let w = s.frequency.as_ref().map_or_else(String::new, Formula::canonical);
+                format!("amplitude({}, {:?}, {w})", s.variable, s.from)
+            }
+            Expr::Summary(stat, i) => {
+                let s = source(*i);
+                let word = STATS.iter().find(|(_, st)| st == stat).map_or("?", |(w, _)| w);
+                if s.from == f64::NEG_INFINITY {
+                    format!("{word}({})", s.variable)
+                } else {
+                    format!("{word}({}, {:?})", s.variable, s.from)
+                }
+            }
+            Expr::Mode(stat, k) => {
+                let word = MODE_STATS.iter().find(|(_, st)| st == stat).map_or("?", |(w, _)| w);
+                format!("{word}({})", k + 1)
+            }
+            _ => String::new(),
+        };
+        self.metrics.iter().map(|(name, e)| format!("{name}={}", spell(e, &leaf))).collect()
+    }
+}
+
+/// The one spelling of the definition `NAME=EXPR` ([`Metrics::canonical`]); `None` when it
+/// does not parse.
+pub fn canonical_definition(definition: &str) -> Option<String> {
+    Metrics::parse(&[definition.to_owned()]).ok()?.canonical().pop()
+}
+
+/// `e` written out with every operation parenthesized and numbers in Rust's shortest
+/// round-trip form; `leaf` spells summaries, modes and names.
+fn spell(e: &Expr, leaf: &dyn Fn(&Expr) -> String) -> String {
+    match e {
+        Expr::Number(x) => format!("{x:?}"),
+        Expr::Summary(..) | Expr::Name(_) | Expr::Mode(..) => leaf(e),
+        Expr::Call(f, args) => {
+            let args: Vec<String> = args.iter().map(|a| spell(a, leaf)).collect();
+            format!("{}({})", FUNCTIONS[*f].0, args.join(", "))
+        }
+        Expr::Negate(a) => format!("(-{})", spell(a, leaf)),
+        Expr::Binary(op, a, b) => format!("({} {op} {})", spell(a, leaf), spell(b, leaf)),
+    }
 }
 
 /// A closed-form expression of named quantities (`t`, parameters), e.g. `2*exp(-3*t)`.
@@ -268,6 +318,11 @@ impl Formula {
         let mut names = Vec::new();
         let expr = parse_all(text, Mode::Formula(&mut names))?;
         Ok(Formula { text: text.to_owned(), expr, names })
+    }
+
+    /// The expression in one spelling (as [`Metrics::canonical`]).
+    pub fn canonical(&self) -> String {
+        spell(&self.expr, &|e| if let Expr::Name(i) = e { self.names[*i].clone() } else { String::new() })
     }
 
     /// The value, given the values of [`Formula::names`] in order.
@@ -781,6 +836,39 @@ impl Parser<'_, '_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Definitions typed with other spaces, number spellings or redundant parentheses have one
+    /// spelling; definitions that compute something else (another operand order, source, start
+    /// time, frequency or mode) keep theirs apart; and a spelling parses back to itself.
+    #[test]
+    fn definitions_that_parse_alike_are_spelled_alike() {
+        let spelled = |d: &str| canonical_definition(d).unwrap_or_else(|| panic!("{d} does not parse"));
+        let alike = [
+            ["t=max(z_s)/max(z_r)", " t = ( max( z_s ) ) / max(z_r ) "],
+            ["a=final(x, 5)", "a=final(x,5.0)"],
+            ["a=-2*rms(x)", "a=-(2) * rms(x)"],
+            ["a=amplitude(x, 5, 2*pi*speed/lambda)", "a=amplitude(x,5e0, 2 * pi*speed / lambda)"],
+            ["a=damping(1) + 1e-3", "a=damping( 1 )+0.001"],
+            ["a=hypot(max(x), 2^3)", "a=hypot( max(x),(2)^3 )"],
+        ];
+        for [a, b] in alike {
+            assert_eq!(spelled(a), spelled(b), "{a} and {b}");
+            assert_eq!(spelled(&spelled(a)), spelled(a), "{a} spelled again");
+        }
+        let apart = [
+            ["a=max(x)*2", "a=2*max(x)"],
+            ["a=max(x)", "a=max(y)"],
+            ["a=max(x)", "a=max(x, 0)"],
+            ["a=max(x)", "b=max(x)"],
+            ["a=amplitude(x, 5, w)", "a=amplitude(x, 5, 2*w)"],
+            ["a=damping(1)", "a=damping(2)"],
+            ["a=1-2-3", "a=1-(2-3)"],
+        ];
+        for [a, b] in apart {
+            assert_ne!(spelled(a), spelled(b), "{a} and {b}");
+        }
+        assert_eq!(canonical_definition("a=max("), None);
+    }
 
     /// K(m) against tabulated values (K(0) = pi/2, K(1/2) = 1.854074677301372,
     /// K(sin²60°) = 2.156515647499643) and the series pi/2 (1 + m/4 + 9 m²/64) for small m.

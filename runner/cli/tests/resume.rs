@@ -1,6 +1,7 @@
 //! Durable sweeps: the finished rows are in `<out>.partial` as points finish, a sweep killed
 //! with SIGKILL at any moment continues with `--resume` and ends with exactly the bytes of an
-//! uninterrupted run, a partial file of another sweep is refused with the difference, and write
+//! uninterrupted run, a partial file of another sweep is refused with the difference (a metric
+//! typed another way is not one), and write
 //! failures (a full disk, here a file size limit) leave the rows already written intact.
 
 mod common;
@@ -156,7 +157,9 @@ fn resume_refuses_a_partial_file_of_another_sweep_and_names_the_difference() {
     assert!(err.contains("s.csv.partial holds the finished points of an earlier sweep: continue it with --resume"), "{err}");
     assert_eq!(std::fs::read(dir.path().join("s.csv.partial")).unwrap(), partial_before, "refusals change nothing");
 
+    // The same metric typed another way is the same sweep.
     let mut resume = sweep_args(f, "s.csv");
+    resume[5] = "end = final( x )";
     resume.push("--resume");
     let o = runner(dir.path(), &resume);
     assert!(stderr(&o).contains("resuming: 10 of 401 points are in s.csv.partial; running the other 391"), "{}", stderr(&o));

@@ -75,10 +75,16 @@ impl Record {
         }
         let values =
             |r: &Record, key: &str| -> Vec<String> { r.entries.iter().filter(|(k, _)| k == key).map(|(_, v)| v.clone()).collect() };
+        // A metric is compared by what it computes, not by how it was typed (`final(x)` and
+        // `final( x )` are one metric); the record keeps the text as typed.
+        let meant = |r: &Record, key: &str| -> Vec<String> {
+            let spelled = |v: String| if key == "metric" { formulas::metrics::canonical_definition(&v).unwrap_or(v) } else { v };
+            values(r, key).into_iter().map(spelled).collect()
+        };
         let shown = |v: Vec<String>| if v.is_empty() { "nothing".to_owned() } else { v.join("; ") };
         let lines: Vec<String> = keys
             .into_iter()
-            .filter(|k| values(self, k) != values(current, k))
+            .filter(|k| meant(self, k) != meant(current, k))
             .map(|k| format!("  {k}: the partial file's sweep has {}, this one {}", shown(values(self, k)), shown(values(current, k))))
             .collect();
         (!lines.is_empty()).then(|| lines.join("\n"))
@@ -374,5 +380,22 @@ mod tests {
         let diff = a.difference(&record("a.fmu", "11", &["k: 3 values", "x: 2 values"])).unwrap();
         assert!(diff.contains("fmu_sha256: the partial file's sweep has 00, this one 11"), "{diff}");
         assert!(diff.contains("param: the partial file's sweep has k: 3 values, this one k: 3 values; x: 2 values"), "{diff}");
+    }
+
+    /// A metric typed another way (spaces, `5` for `5.0`) is the same metric; another metric,
+    /// or one more, is a difference named with the texts as typed.
+    #[test]
+    fn records_compare_metrics_by_what_they_compute() {
+        let record = |metrics: &[&str]| Record { entries: metrics.iter().map(|m| ("metric".to_owned(), m.to_string())).collect() };
+        let typed = record(&["peak=max(z_s, 5)/max(z_r)", "last=final(x)"]);
+        assert_eq!(typed.difference(&record(&["peak = max( z_s, 5.0 ) / max(z_r)", "last=final( x )"])), None);
+        let diff = typed.difference(&record(&["peak=max(z_s, 6)/max(z_r)", "last=final(x)"])).unwrap();
+        assert!(
+            diff.contains(
+                "metric: the partial file's sweep has peak=max(z_s, 5)/max(z_r); last=final(x), this one peak=max(z_s, 6)/max(z_r)"
+            ),
+            "{diff}"
+        );
+        assert!(typed.difference(&record(&["peak=max(z_s, 5)/max(z_r)"])).is_some(), "a metric fewer");
     }
 }

@@ -38,6 +38,10 @@ use solvers::{Advance, Integrator, OdeSystem, SolverError};
 pub(crate) struct Request {
     vrs: Vec<u32>,
     orders: Vec<i32>,
+    /// The kept request is one variable's derivatives of orders 1 to [`MAX_ORDER`] in turn (a
+    /// polynomial coupling's, at every step): that variable, whose request is then compared
+    /// and served as fixed-size arrays, without a loop per value.
+    run: Option<u32>,
 }
 
 impl Request {
@@ -57,14 +61,31 @@ impl Request {
         self.vrs.extend_from_slice(vrs);
         self.orders.clear();
         self.orders.extend_from_slice(orders);
+        self.run = match vrs {
+            [vr, ..] if orders == RUN_ORDERS && vrs.iter().all(|v| v == vr) => Some(*vr),
+            _ => None,
+        };
     }
 
     /// Forgets the kept request (one being checked that may be refused).
     fn forget(&mut self) {
         self.vrs.clear();
         self.orders.clear();
+        self.run = None;
+    }
+
+    /// The variable of the kept request when it is [`Request::run`] and `vrs` and `orders` are
+    /// that request again (the kept request's, as [`Request::is`] finds, in a few comparisons).
+    #[inline(always)]
+    fn run_of(&self, vrs: &[u32], orders: &[i32]) -> Option<u32> {
+        let vr = self.run?;
+        let (vrs, orders) = (<&[u32; MAX_ORDER]>::try_from(vrs).ok()?, <&[i32; MAX_ORDER]>::try_from(orders).ok()?);
+        (*vrs == [vr; MAX_ORDER] && *orders == RUN_ORDERS).then_some(vr)
     }
 }
+
+/// The orders of a [`Request::run`]: 1 to [`MAX_ORDER`].
+const RUN_ORDERS: [i32; MAX_ORDER] = [1, 2, 3];
 
 /// Why an operation failed: the status to return, the message to log, and whether the
 /// instance is now broken (the front end then enters its Error state).

@@ -115,6 +115,14 @@ impl<M> Stage<M> {
     }
 }
 
+/// Sets each driven input of `stages` on `model` to its polynomial's value at `t`.
+#[inline(always)]
+pub(crate) fn set_inputs_at<M>(model: &mut M, stages: &[Stage<M>], t: f64) {
+    for input in stages {
+        (input.set)(model, horner(input.anchor, &input.coefficients, t));
+    }
+}
+
 /// The model with its driven inputs, as the solver's ODE system: each evaluation sets the
 /// inputs to their polynomials' values at its time first. The model is borrowed mutably for
 /// the step; the solver's calls take `&self`, so it sits in an `UnsafeCell` (a `RefCell`'s

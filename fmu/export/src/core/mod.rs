@@ -926,11 +926,12 @@ impl<M: Model> Core<M> {
         // moves instead of a call to memmove (measurable at one call per communication step).
         let n = M::N_STATES;
         self.x_start[..n].copy_from_slice(&self.state.x[..n]);
+        let mut reached = false;
         if self.state.t < t_end {
             // The usual step: one call of the solver that reaches t_end. Events and failures
             // continue out of line.
             match self.advance(t_end) {
-                Ok(Advance::Reached) => {}
+                Ok(Advance::Reached) => reached = true,
                 other => {
                     if let Some(end) = self.continue_after(other, t0, t_end)? {
                         return Ok(end);
@@ -938,7 +939,7 @@ impl<M: Model> Core<M> {
                 }
             }
         }
-        self.finish_step(t0, t_end)
+        self.finish_step(t0, t_end, reached)
     }
 
     /// The solver's advance from the current time towards `t_end`: the model as it is, or,
@@ -962,21 +963,25 @@ impl<M: Model> Core<M> {
         let State { model, x, t, integrator, .. } = &mut self.state;
         let integrator = integrator.as_mut().expect("the integrator exists once started");
         let outcome = integrator.advance(&interpolation::Driven::new(model, &self.stages), t, x, t_end);
-        // A step that reached t_end ends in `finish_step`, which sets them at t_end.
-        if !matches!(outcome, Ok(Advance::Reached)) {
-            self.sync_inputs();
-        }
+        // The inputs at the time reached, from the stages (`Drive::at`'s numbers, without
+        // finding the setters and dividing the coefficients again): at t_end when the step
+        // reached it, where `finish_step` then lands, told so by its caller.
+        let reached = if matches!(outcome, Ok(Advance::Reached)) { t_end } else { self.state.t };
+        interpolation::set_inputs_at(&mut self.state.model, &self.stages, reached);
+        self.state.outputs_dirty = true;
         outcome
     }
 
     /// The end of a communication step that reached `t_end`: time lands exactly on it, the
     /// model's communication-point work (a constraint projection) runs, and the step's status
-    /// is recorded. Shared by [`Core::do_step`] and [`Core::step_to_event`].
+    /// is recorded. Shared by [`Core::do_step`] and [`Core::step_to_event`]. `inputs_at_end`:
+    /// the step's last call of the solver reached `t_end`, and nothing ran since, so the driven
+    /// inputs are at their values there already ([`Core::advance_driven`]).
     #[inline(always)]
-    fn finish_step(&mut self, t0: f64, t_end: f64) -> CallResult<StepEnd> {
+    fn finish_step(&mut self, t0: f64, t_end: f64, inputs_at_end: bool) -> CallResult<StepEnd> {
         // Land exactly on the communication point whatever the solver's rounding.
         self.state.t = t_end;
-        if !self.state.drives.is_empty() {
+        if !inputs_at_end && !self.state.drives.is_empty() {
             self.sync_inputs();
         }
         // A projection here that changes x is seen by the integrator at the next step, which
@@ -1025,21 +1030,22 @@ impl<M: Model> Core<M> {
         }
         let n = M::N_STATES;
         self.x_start[..n].copy_from_slice(&self.state.x[..n]);
+        let mut reached = false;
         if self.state.t < t_end {
             match self.advance(t_end) {
-                Ok(Advance::Reached) => {}
+                Ok(Advance::Reached) => reached = true,
                 // Out of line, as in `do_step`: most steps reach t_end.
                 other => return self.stopped_short(other, t0, t_end),
             }
         }
-        self.finish_step(t0, t_end).map(StepStop::Ended)
+        self.finish_step(t0, t_end, reached).map(StepStop::Ended)
     }
 
     /// [`Core::step_to_event`] when the solver stopped at an event, or failed.
     #[inline(never)]
     fn stopped_short(&mut self, outcome: Result<Advance, SolverError>, t0: f64, t_end: f64) -> CallResult<StepStop> {
         match outcome {
-            Ok(Advance::Reached) => self.finish_step(t0, t_end).map(StepStop::Ended),
+            Ok(Advance::Reached) => self.finish_step(t0, t_end, true).map(StepStop::Ended),
             Ok(Advance::Event { fired }) => {
                 self.state.outputs_dirty = true;
                 self.state.last_successful_time = self.state.t;

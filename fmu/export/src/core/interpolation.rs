@@ -206,7 +206,7 @@ impl<M: Model> Core<M> {
     #[inline(always)]
     pub fn try_set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64]) -> bool {
         // A master's usual request, one input's three orders, as arrays.
-        if let (Some(vr), Ok(values)) = (self.input_request.run_of(vrs, orders), <&[f64; MAX_ORDER]>::try_from(values)) {
+        if let (Some(vr), Ok(values)) = (self.input_request.run_of::<MAX_ORDER>(vrs, orders), <&[f64; MAX_ORDER]>::try_from(values)) {
             let usable = values.iter().sum::<f64>().is_finite();
             if usable {
                 self.set_drive_derivatives(vr as usize, *values);

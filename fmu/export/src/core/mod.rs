@@ -38,9 +38,10 @@ use solvers::{Advance, Integrator, OdeSystem, SolverError};
 pub(crate) struct Request {
     vrs: Vec<u32>,
     orders: Vec<i32>,
-    /// The kept request is one variable's derivatives of orders 1 to [`MAX_ORDER`] in turn (a
-    /// polynomial coupling's, at every step): that variable, whose request is then compared
-    /// and served as fixed-size arrays, without a loop per value.
+    /// The kept request is one variable's derivatives of orders 1 to k in turn, k up to
+    /// [`MAX_ORDER`] (a polynomial coupling's, at every step: Jacobi's extrapolation asks for
+    /// three, Gauss-Seidel's interpolation reads one): that variable, whose request is then
+    /// compared and served as fixed-size arrays, without a loop per value.
     run: Option<u32>,
 }
 
@@ -62,7 +63,7 @@ impl Request {
         self.orders.clear();
         self.orders.extend_from_slice(orders);
         self.run = match vrs {
-            [vr, ..] if orders == RUN_ORDERS && vrs.iter().all(|v| v == vr) => Some(*vr),
+            [vr, ..] if RUN_ORDERS.get(..vrs.len()) == Some(orders) && vrs.iter().all(|v| v == vr) => Some(*vr),
             _ => None,
         };
     }
@@ -74,17 +75,18 @@ impl Request {
         self.run = None;
     }
 
-    /// The variable of the kept request when it is [`Request::run`] and `vrs` and `orders` are
-    /// that request again (the kept request's, as [`Request::is`] finds, in a few comparisons).
+    /// The variable of the kept request when it is a [`Request::run`] of `K` orders and `vrs`
+    /// and `orders` are that request again (the kept request's, as [`Request::is`] finds, in a
+    /// few comparisons).
     #[inline(always)]
-    fn run_of(&self, vrs: &[u32], orders: &[i32]) -> Option<u32> {
+    fn run_of<const K: usize>(&self, vrs: &[u32], orders: &[i32]) -> Option<u32> {
         let vr = self.run?;
-        let (vrs, orders) = (<&[u32; MAX_ORDER]>::try_from(vrs).ok()?, <&[i32; MAX_ORDER]>::try_from(orders).ok()?);
-        (*vrs == [vr; MAX_ORDER] && *orders == RUN_ORDERS).then_some(vr)
+        let (vrs, orders) = (<&[u32; K]>::try_from(vrs).ok()?, <&[i32; K]>::try_from(orders).ok()?);
+        (self.vrs.len() == K && *vrs == [vr; K] && orders[..] == RUN_ORDERS[..K]).then_some(vr)
     }
 }
 
-/// The orders of a [`Request::run`]: 1 to [`MAX_ORDER`].
+/// The orders of a [`Request::run`]: 1 to k.
 const RUN_ORDERS: [i32; MAX_ORDER] = [1, 2, 3];
 
 /// Why an operation failed: the status to return, the message to log, and whether the
@@ -302,8 +304,8 @@ pub struct Core<M: Model> {
     jacobians: derivatives::Jacobians,
     /// The output derivatives' buffers and lifted model, kept from call to call.
     trajectory: derivatives::Trajectory,
-    /// The driven inputs as a driven step's stages evaluate them (rebuilt at every such step,
-    /// kept for its buffer).
+    /// The driven inputs as a driven step's stages evaluate them, when there are two or more
+    /// (rebuilt at every such step, kept for its buffer; one is built on the stack).
     stages: Vec<interpolation::Stage<M>>,
     /// The last valid `set_input_derivatives` request (its value references and orders).
     input_request: Request,
@@ -958,16 +960,27 @@ impl<M: Model> Core<M> {
     #[inline(never)]
     fn advance_driven(&mut self, t_end: f64) -> Result<Advance, SolverError> {
         let rows = &self.table.rows;
-        self.stages.clear();
-        self.stages.extend(self.state.drives.iter().map(|d| interpolation::Stage::of(d, rows)));
+        // The usual one driven input's stage on the stack, without the vector's bookkeeping.
+        let one;
+        let stages: &[interpolation::Stage<M>] = match &self.state.drives[..] {
+            [drive] => {
+                one = [interpolation::Stage::of(drive, rows)];
+                &one
+            }
+            drives => {
+                self.stages.clear();
+                self.stages.extend(drives.iter().map(|d| interpolation::Stage::of(d, rows)));
+                &self.stages
+            }
+        };
         let State { model, x, t, integrator, .. } = &mut self.state;
         let integrator = integrator.as_mut().expect("the integrator exists once started");
-        let outcome = integrator.advance(&interpolation::Driven::new(model, &self.stages), t, x, t_end);
+        let outcome = integrator.advance(&interpolation::Driven::new(model, stages), t, x, t_end);
         // The inputs at the time reached, from the stages (`Drive::at`'s numbers, without
         // finding the setters and dividing the coefficients again): at t_end when the step
         // reached it, where `finish_step` then lands, told so by its caller.
         let reached = if matches!(outcome, Ok(Advance::Reached)) { t_end } else { self.state.t };
-        interpolation::set_inputs_at(&mut self.state.model, &self.stages, reached);
+        interpolation::set_inputs_at(&mut self.state.model, stages, reached);
         self.state.outputs_dirty = true;
         outcome
     }

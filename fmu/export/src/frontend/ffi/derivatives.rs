@@ -436,6 +436,9 @@ mod tests {
             assert_eq!(set(c, &[1, 2, 3], &[0.0, 0.0, 0.0]), 0);
             assert_eq!(rates(c, &[x, y, x], &[1, 1, 2]), (0, vec![-5.5, -33.0, 11.0]), "u held");
             assert_eq!(set(c, &[1, 2, 3], &[0.5, 1.0, -1.0]), 0);
+            // One output's first derivative (a Gauss-Seidel master's request), also served in place.
+            assert_eq!(rates(c, &[x], &[1]), (0, vec![-5.5]), "a new request: the general path");
+            assert_eq!(rates(c, &[x], &[1]), (0, vec![-5.5]), "in place");
             let lines = log.lock().unwrap().clone();
             assert!(lines.is_empty(), "{lines:?}");
 

@@ -1097,10 +1097,15 @@ fn pass_rates(
         return Ok(());
     }
     driving(c);
+    // The failure made only when there is one (a closure passed to map_err had its captures
+    // stored at every call).
     let fail = |e: String| failure(components, c, t, format!("{e} (setting {} with their derivatives)", inputs.rate_names.join(", ")));
     if let Some(from) = inputs.direct {
         // One extrapolated input without conversion: its source's rates as they are.
-        return instance.set_input_derivatives(&inputs.rate_vrs, &inputs.rate_orders, &rates[from][..inputs.rate_vrs.len()]).map_err(fail);
+        return match instance.set_input_derivatives(&inputs.rate_vrs, &inputs.rate_orders, &rates[from][..inputs.rate_vrs.len()]) {
+            Ok(()) => Ok(()),
+            Err(e) => Err(fail(e)),
+        };
     }
     let (derivatives, interpolated) = passed.split_at_mut(inputs.rate_vrs.len());
     if !inputs.interpolated.is_empty() {
@@ -1127,7 +1132,10 @@ fn pass_rates(
             at += 1;
         }
     }
-    instance.set_input_derivatives(&inputs.rate_vrs, &inputs.rate_orders, derivatives).map_err(fail)
+    match instance.set_input_derivatives(&inputs.rate_vrs, &inputs.rate_orders, derivatives) {
+        Ok(()) => Ok(()),
+        Err(e) => Err(fail(e)),
+    }
 }
 
 /// The Taylor coefficients at the step's start (first, second and third derivatives) of the

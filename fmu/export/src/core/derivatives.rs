@@ -552,10 +552,40 @@ impl<M: Model> Core<M> {
     #[inline(always)]
     pub fn try_output_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &mut [f64]) -> Option<bool> {
         let lifting = M::lifting()?;
+        // A master's usual requests, one output's orders 1 to 3 (Jacobi's extrapolation) or its
+        // first derivative (Gauss-Seidel's interpolation), as arrays.
+        let run = match vrs.len() {
+            1 => self.try_output_run::<1>(lifting, vrs, orders, values),
+            MAX_ORDER => self.try_output_run::<MAX_ORDER>(lifting, vrs, orders, values),
+            _ => None,
+        };
+        if let Some(served) = run {
+            return served;
+        }
         if values.len() != vrs.len() || !self.trajectory.request.is(vrs, orders) {
             return None;
         }
         self.planned_output_derivatives(lifting, values).ok().filter(|&finite| finite)
+    }
+
+    /// [`Core::try_output_derivatives`] when the request is the kept [`super::Request::run`]
+    /// of `K` orders (`None` otherwise): its one output's rates, of orders 1 to `K`.
+    #[inline(always)]
+    fn try_output_run<const K: usize>(
+        &mut self,
+        lifting: crate::model::Lifting<M>,
+        vrs: &[u32],
+        orders: &[i32],
+        values: &mut [f64],
+    ) -> Option<Option<bool>> {
+        self.trajectory.request.run_of::<K>(vrs, orders)?;
+        let values = <&mut [f64; K]>::try_from(values).ok()?;
+        if !self.rates_current() && self.evaluate_trajectory(lifting).is_err() {
+            return Some(None);
+        }
+        let Some(rates) = self.trajectory.rates.first() else { return Some(None) };
+        values.copy_from_slice(&rates[..K]);
+        Some(values.iter().sum::<f64>().is_finite().then_some(true))
     }
 
     /// The output derivatives of the kept plan (`self.trajectory`, made for the request) into

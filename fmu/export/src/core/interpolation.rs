@@ -115,6 +115,14 @@ impl<M> Stage<M> {
     }
 }
 
+/// Sets each driven input of `stages` on `model` to its polynomial's value at `t`.
+#[inline(always)]
+pub(crate) fn set_inputs_at<M>(model: &mut M, stages: &[Stage<M>], t: f64) {
+    for input in stages {
+        (input.set)(model, horner(input.anchor, &input.coefficients, t));
+    }
+}
+
 /// The model with its driven inputs, as the solver's ODE system: each evaluation sets the
 /// inputs to their polynomials' values at its time first. The model is borrowed mutably for
 /// the step; the solver's calls take `&self`, so it sits in an `UnsafeCell` (a `RefCell`'s
@@ -197,6 +205,14 @@ impl<M: Model> Core<M> {
     /// point, and finite values. False, nothing changed, otherwise (the full call explains).
     #[inline(always)]
     pub fn try_set_input_derivatives(&mut self, vrs: &[u32], orders: &[i32], values: &[f64]) -> bool {
+        // A master's usual request, one input's three orders, as arrays.
+        if let (Some(vr), Ok(values)) = (self.input_request.run_of::<MAX_ORDER>(vrs, orders), <&[f64; MAX_ORDER]>::try_from(values)) {
+            let usable = values.iter().sum::<f64>().is_finite();
+            if usable {
+                self.set_drive_derivatives(vr as usize, *values);
+            }
+            return usable;
+        }
         // Finite as a sum is: a NaN or an infinity among them makes it one (one pass, no branch
         // per value).
         let usable = values.len() == vrs.len() && self.input_request.is(vrs, orders) && values.iter().sum::<f64>().is_finite();
@@ -234,6 +250,24 @@ impl<M: Model> Core<M> {
         }
         self.version += 1;
         if changed {
+            if let Some(integrator) = self.state.integrator.as_mut() {
+                integrator.invalidate();
+            }
+        }
+    }
+
+    /// Input `row`'s derivatives of orders 1 to [`MAX_ORDER`] are `derivatives` (checked): as
+    /// [`Core::apply_input_derivatives`] sets them one by one, the three at once.
+    #[inline(always)]
+    fn set_drive_derivatives(&mut self, row: usize, derivatives: [f64; MAX_ORDER]) {
+        let i = self.drive_at(row, self.state.t);
+        let old = std::mem::replace(&mut self.state.drives[i].derivatives, derivatives);
+        // An input with no derivative left is held, as one that never had any.
+        if derivatives.contains(&0.0) {
+            self.state.drives.retain(|d| d.derivatives != [0.0; MAX_ORDER]);
+        }
+        self.version += 1;
+        if old.map(f64::to_bits) != derivatives.map(f64::to_bits) {
             if let Some(integrator) = self.state.integrator.as_mut() {
                 integrator.invalidate();
             }

@@ -38,6 +38,11 @@ use solvers::{Advance, Integrator, OdeSystem, SolverError};
 pub(crate) struct Request {
     vrs: Vec<u32>,
     orders: Vec<i32>,
+    /// The kept request is one variable's derivatives of orders 1 to k in turn, k up to
+    /// [`MAX_ORDER`] (a polynomial coupling's, at every step: Jacobi's extrapolation asks for
+    /// three, Gauss-Seidel's interpolation reads one): that variable, whose request is then
+    /// compared and served as fixed-size arrays, without a loop per value.
+    run: Option<u32>,
 }
 
 impl Request {
@@ -57,14 +62,32 @@ impl Request {
         self.vrs.extend_from_slice(vrs);
         self.orders.clear();
         self.orders.extend_from_slice(orders);
+        self.run = match vrs {
+            [vr, ..] if RUN_ORDERS.get(..vrs.len()) == Some(orders) && vrs.iter().all(|v| v == vr) => Some(*vr),
+            _ => None,
+        };
     }
 
     /// Forgets the kept request (one being checked that may be refused).
     fn forget(&mut self) {
         self.vrs.clear();
         self.orders.clear();
+        self.run = None;
+    }
+
+    /// The variable of the kept request when it is a [`Request::run`] of `K` orders and `vrs`
+    /// and `orders` are that request again (the kept request's, as [`Request::is`] finds, in a
+    /// few comparisons).
+    #[inline(always)]
+    fn run_of<const K: usize>(&self, vrs: &[u32], orders: &[i32]) -> Option<u32> {
+        let vr = self.run?;
+        let (vrs, orders) = (<&[u32; K]>::try_from(vrs).ok()?, <&[i32; K]>::try_from(orders).ok()?);
+        (self.vrs.len() == K && *vrs == [vr; K] && orders[..] == RUN_ORDERS[..K]).then_some(vr)
     }
 }
+
+/// The orders of a [`Request::run`]: 1 to k.
+const RUN_ORDERS: [i32; MAX_ORDER] = [1, 2, 3];
 
 /// Why an operation failed: the status to return, the message to log, and whether the
 /// instance is now broken (the front end then enters its Error state).
@@ -281,8 +304,8 @@ pub struct Core<M: Model> {
     jacobians: derivatives::Jacobians,
     /// The output derivatives' buffers and lifted model, kept from call to call.
     trajectory: derivatives::Trajectory,
-    /// The driven inputs as a driven step's stages evaluate them (rebuilt at every such step,
-    /// kept for its buffer).
+    /// The driven inputs as a driven step's stages evaluate them, when there are two or more
+    /// (rebuilt at every such step, kept for its buffer; one is built on the stack).
     stages: Vec<interpolation::Stage<M>>,
     /// The last valid `set_input_derivatives` request (its value references and orders).
     input_request: Request,
@@ -905,11 +928,12 @@ impl<M: Model> Core<M> {
         // moves instead of a call to memmove (measurable at one call per communication step).
         let n = M::N_STATES;
         self.x_start[..n].copy_from_slice(&self.state.x[..n]);
+        let mut reached = false;
         if self.state.t < t_end {
             // The usual step: one call of the solver that reaches t_end. Events and failures
             // continue out of line.
             match self.advance(t_end) {
-                Ok(Advance::Reached) => {}
+                Ok(Advance::Reached) => reached = true,
                 other => {
                     if let Some(end) = self.continue_after(other, t0, t_end)? {
                         return Ok(end);
@@ -917,7 +941,7 @@ impl<M: Model> Core<M> {
                 }
             }
         }
-        self.finish_step(t0, t_end)
+        self.finish_step(t0, t_end, reached)
     }
 
     /// The solver's advance from the current time towards `t_end`: the model as it is, or,
@@ -936,26 +960,41 @@ impl<M: Model> Core<M> {
     #[inline(never)]
     fn advance_driven(&mut self, t_end: f64) -> Result<Advance, SolverError> {
         let rows = &self.table.rows;
-        self.stages.clear();
-        self.stages.extend(self.state.drives.iter().map(|d| interpolation::Stage::of(d, rows)));
+        // The usual one driven input's stage on the stack, without the vector's bookkeeping.
+        let one;
+        let stages: &[interpolation::Stage<M>] = match &self.state.drives[..] {
+            [drive] => {
+                one = [interpolation::Stage::of(drive, rows)];
+                &one
+            }
+            drives => {
+                self.stages.clear();
+                self.stages.extend(drives.iter().map(|d| interpolation::Stage::of(d, rows)));
+                &self.stages
+            }
+        };
         let State { model, x, t, integrator, .. } = &mut self.state;
         let integrator = integrator.as_mut().expect("the integrator exists once started");
-        let outcome = integrator.advance(&interpolation::Driven::new(model, &self.stages), t, x, t_end);
-        // A step that reached t_end ends in `finish_step`, which sets them at t_end.
-        if !matches!(outcome, Ok(Advance::Reached)) {
-            self.sync_inputs();
-        }
+        let outcome = integrator.advance(&interpolation::Driven::new(model, stages), t, x, t_end);
+        // The inputs at the time reached, from the stages (`Drive::at`'s numbers, without
+        // finding the setters and dividing the coefficients again): at t_end when the step
+        // reached it, where `finish_step` then lands, told so by its caller.
+        let reached = if matches!(outcome, Ok(Advance::Reached)) { t_end } else { self.state.t };
+        interpolation::set_inputs_at(&mut self.state.model, stages, reached);
+        self.state.outputs_dirty = true;
         outcome
     }
 
     /// The end of a communication step that reached `t_end`: time lands exactly on it, the
     /// model's communication-point work (a constraint projection) runs, and the step's status
-    /// is recorded. Shared by [`Core::do_step`] and [`Core::step_to_event`].
+    /// is recorded. Shared by [`Core::do_step`] and [`Core::step_to_event`]. `inputs_at_end`:
+    /// the step's last call of the solver reached `t_end`, and nothing ran since, so the driven
+    /// inputs are at their values there already ([`Core::advance_driven`]).
     #[inline(always)]
-    fn finish_step(&mut self, t0: f64, t_end: f64) -> CallResult<StepEnd> {
+    fn finish_step(&mut self, t0: f64, t_end: f64, inputs_at_end: bool) -> CallResult<StepEnd> {
         // Land exactly on the communication point whatever the solver's rounding.
         self.state.t = t_end;
-        if !self.state.drives.is_empty() {
+        if !inputs_at_end && !self.state.drives.is_empty() {
             self.sync_inputs();
         }
         // A projection here that changes x is seen by the integrator at the next step, which
@@ -1004,21 +1043,22 @@ impl<M: Model> Core<M> {
         }
         let n = M::N_STATES;
         self.x_start[..n].copy_from_slice(&self.state.x[..n]);
+        let mut reached = false;
         if self.state.t < t_end {
             match self.advance(t_end) {
-                Ok(Advance::Reached) => {}
+                Ok(Advance::Reached) => reached = true,
                 // Out of line, as in `do_step`: most steps reach t_end.
                 other => return self.stopped_short(other, t0, t_end),
             }
         }
-        self.finish_step(t0, t_end).map(StepStop::Ended)
+        self.finish_step(t0, t_end, reached).map(StepStop::Ended)
     }
 
     /// [`Core::step_to_event`] when the solver stopped at an event, or failed.
     #[inline(never)]
     fn stopped_short(&mut self, outcome: Result<Advance, SolverError>, t0: f64, t_end: f64) -> CallResult<StepStop> {
         match outcome {
-            Ok(Advance::Reached) => self.finish_step(t0, t_end).map(StepStop::Ended),
+            Ok(Advance::Reached) => self.finish_step(t0, t_end, true).map(StepStop::Ended),
             Ok(Advance::Event { fired }) => {
                 self.state.outputs_dirty = true;
                 self.state.last_successful_time = self.state.t;

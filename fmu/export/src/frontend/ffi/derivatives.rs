@@ -427,6 +427,18 @@ mod tests {
             // Both in place, the new input derivatives seen: u' = 0.5 gives y' = -32.5, x'' = 11.5.
             assert_eq!(set(c, &[1, 2, 3], &[0.5, 1.0, -1.0]), 0);
             assert_eq!(rates(c, &[x, y, x], &[1, 1, 2]), (0, vec![-5.5, -32.5, 11.5]), "in place, the new polynomial");
+            // One output's three orders (a polynomial master's request, served as an array in
+            // place): what the general path gave for it.
+            let general = rates(c, &[y, y, y], &[1, 2, 3]);
+            assert_eq!(general.0, 0, "a new request: the general path");
+            assert_eq!(rates(c, &[y, y, y], &[1, 2, 3]), general, "in place");
+            // Zero derivatives set in place: u held again, x'' = -k x' = 11, y' = 2 x x' = -33.
+            assert_eq!(set(c, &[1, 2, 3], &[0.0, 0.0, 0.0]), 0);
+            assert_eq!(rates(c, &[x, y, x], &[1, 1, 2]), (0, vec![-5.5, -33.0, 11.0]), "u held");
+            assert_eq!(set(c, &[1, 2, 3], &[0.5, 1.0, -1.0]), 0);
+            // One output's first derivative (a Gauss-Seidel master's request), also served in place.
+            assert_eq!(rates(c, &[x], &[1]), (0, vec![-5.5]), "a new request: the general path");
+            assert_eq!(rates(c, &[x], &[1]), (0, vec![-5.5]), "in place");
             let lines = log.lock().unwrap().clone();
             assert!(lines.is_empty(), "{lines:?}");
 

@@ -1275,10 +1275,11 @@ where
     }
     let t = seeded(pass.t, (lanes > n).then_some(n));
     lifted.derivatives(t, x, dx);
-    for (k, d) in dx.iter().enumerate() {
-        match d.eps.0.as_ref() {
-            Some(e) => e.iter().take(lanes).enumerate().for_each(|(l, v)| out[l * n + k] = *v),
-            None => (0..lanes).for_each(|l| out[l * n + k] = 0.0),
+    // Column by column, each a slice of the states' length and at most N columns: no bounds
+    // check per value (indexing out[l * n + k] cost quarter_car about 100 instructions more).
+    for (l, column) in out.chunks_exact_mut(n).enumerate().take(N) {
+        for (out, d) in column.iter_mut().zip(dx.iter()) {
+            *out = d.eps.0.as_ref().map_or(0.0, |e| e[l]);
         }
     }
     Ok(())

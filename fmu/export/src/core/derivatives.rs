@@ -1375,10 +1375,13 @@ where
 /// column by column, answered from [`states`]'s one pass) against the general path
 /// ([`Core::directional_derivative`], whose blocks come from [`forward`]) at `points` (model,
 /// time, states: its discrete state and regime as the run had them there): the same values
-/// to the bit, in Continuous-Time Mode, with the solver's columns asked first at one point
-/// and the general ones first at the next (the states moved by 1e-3 relative), so that
-/// neither path can answer from the other's block or from a stale one. Model Exchange through
-/// the instance's core, as the C functions reach it. The columns compared.
+/// to the bit, in Continuous-Time Mode. At each point, on one instance: the solver's columns
+/// first; then, the states moved by 1e-3 relative, the general ones first; then, moved again,
+/// against one general call per column that seeds every state (0 but for the column's);
+/// then at the same time and states after each Real input is set to another value, and after
+/// an event update: so neither path answers from the other's block, nor from one of another
+/// point, input or regime. Model Exchange through the instance's core, as the C functions
+/// reach it. The columns compared.
 pub fn check_solver_block<M: Model>(points: &[(M, f64, Vec<f64>)]) -> Result<usize, String> {
     let names = super::Names { setup: "setup", exit_initialization: "exit", real: "Real", integer: "Integer" };
     let mut compared = 0;
@@ -1400,45 +1403,89 @@ pub fn check_solver_block<M: Model>(points: &[(M, f64, Vec<f64>)]) -> Result<usi
         };
         let derivatives = find(&|slot| matches!(slot, Slot::Derivative(_)))?;
         let states = find(&|slot| matches!(slot, Slot::Model(Access::State(_))))?;
-        let n = M::N_STATES;
-        for (round, solver_first) in [true, false].into_iter().enumerate() {
+        let inputs: Vec<u32> = (0..rows.len())
+            .filter(|&i| rows[i].causality == Causality::Input && rows[i].base_type == BaseType::Real && rows[i].field.is_some())
+            .map(|i| i as u32)
+            .collect();
+        let request = SolverRequest { derivatives: &derivatives, states: &states };
+        for (round, order) in [Order::SolverFirst, Order::GeneralFirst, Order::AllSeeded].into_iter().enumerate() {
             let moved: Vec<f64> = x.iter().map(|v| v + round as f64 * 1e-3 * v.abs().max(1.0)).collect();
             core.set_time(*t).map_err(|e| e.message)?;
             core.set_continuous_states(&moved).map_err(|e| e.message)?;
-            let mut general = vec![0.0; n * n];
-            let mut solver = vec![0.0; n * n];
-            for pass in [solver_first, !solver_first] {
-                for (j, &known) in states.iter().enumerate() {
-                    let column = &mut if pass { &mut solver } else { &mut general }[j * n..][..n];
-                    if pass {
-                        // The first call of a new request is the general path's, which checks it.
-                        if core.jacobians.asked != derivatives {
-                            core.directional_derivative(&derivatives, &[known], &[1.0], column, Mode::ContinuousTime, "check")
-                                .map_err(|e| e.message)?;
-                        }
-                        match core.try_directional_derivative(&derivatives, &[known], &[1.0], column, Mode::ContinuousTime) {
-                            Some(true) => {}
-                            other => return Err(format!("t = {t}: the solver's column {j} was not answered in place: {other:?}")),
-                        }
-                    } else {
-                        core.directional_derivative(&derivatives, &[known], &[1.0], column, Mode::ContinuousTime, "check")
-                            .map_err(|e| e.message)?;
-                    }
-                }
-            }
-            let j = &core.jacobians;
-            if j.state_columns <= LANES && !(j.solver_columns > 0 && j.asked_derivatives && j.solver_block_current) {
-                return Err(format!("t = {t}: the solver's columns did not come from the solver's block"));
-            }
-            if solver.iter().map(|v| v.to_bits()).ne(general.iter().map(|v| v.to_bits())) {
-                return Err(format!(
-                    "t = {t}, x = {moved:?}: the solver's d(der x)/dx (by columns) {solver:?}, the general path's {general:?}"
-                ));
-            }
-            compared += n;
+            compared += request.compare(&mut core, order, &format!("t = {t}, x = {moved:?}"))?;
+        }
+        for &input in &inputs {
+            let mut value = [0.0];
+            core.get_real(&[input], &mut value, super::Phase::ContinuousTime).map_err(|e| e.message)?;
+            core.set_real(&[input], &[value[0] * 1.5 + 0.25], super::Phase::ContinuousTime, "ContinuousTimeMode").map_err(|e| e.message)?;
+            let name = core.table.rows[input as usize].name;
+            compared += request.compare(&mut core, Order::SolverFirst, &format!("t = {t}, after '{name}' was set"))?;
+        }
+        let update = core.event_update().map_err(|e| e.message)?;
+        if !update.terminate_simulation {
+            core.enter_continuous_time().map_err(|e| e.message)?;
+            compared += request.compare(&mut core, Order::SolverFirst, &format!("t = {t}, after an event update"))?;
         }
     }
     Ok(compared)
+}
+
+/// Which path [`check_solver_block`] asks first at a point, or the general path by calls
+/// that seed every state.
+#[derive(Clone, Copy, PartialEq)]
+enum Order {
+    SolverFirst,
+    GeneralFirst,
+    AllSeeded,
+}
+
+/// The value references of an implicit solver's request: the state derivatives and the
+/// states, in the states' order.
+struct SolverRequest<'a> {
+    derivatives: &'a [u32],
+    states: &'a [u32],
+}
+
+impl SolverRequest<'_> {
+    /// d(der x)/dx at `core`'s point by the solver's path and by the general one (in `order`),
+    /// compared to the bit; `at` says where, for the message. The columns compared.
+    fn compare<M: Model>(&self, core: &mut Core<M>, order: Order, at: &str) -> Result<usize, String> {
+        let n = self.states.len();
+        let mut general = vec![0.0; n * n];
+        let mut solver = vec![0.0; n * n];
+        let solver_first = order == Order::SolverFirst;
+        for by_solver in [solver_first, !solver_first] {
+            for (j, &known) in self.states.iter().enumerate() {
+                let column = &mut if by_solver { &mut solver } else { &mut general }[j * n..][..n];
+                if by_solver {
+                    // The first call of a new request is the general path's, which checks it.
+                    if core.jacobians.asked != self.derivatives {
+                        core.directional_derivative(self.derivatives, &[known], &[1.0], column, Mode::ContinuousTime, "check")
+                            .map_err(|e| e.message)?;
+                    }
+                    match core.try_directional_derivative(self.derivatives, &[known], &[1.0], column, Mode::ContinuousTime) {
+                        Some(true) => {}
+                        other => return Err(format!("{at}: the solver's column {j} was not answered in place: {other:?}")),
+                    }
+                } else if order == Order::AllSeeded {
+                    let seed: Vec<f64> = (0..n).map(|i| if i == j { 1.0 } else { 0.0 }).collect();
+                    core.directional_derivative(self.derivatives, self.states, &seed, column, Mode::ContinuousTime, "check")
+                        .map_err(|e| e.message)?;
+                } else {
+                    core.directional_derivative(self.derivatives, &[known], &[1.0], column, Mode::ContinuousTime, "check")
+                        .map_err(|e| e.message)?;
+                }
+            }
+        }
+        let j = &core.jacobians;
+        if j.state_columns <= LANES && !(j.solver_columns > 0 && j.asked_derivatives && j.solver_block_current) {
+            return Err(format!("{at}: the solver's columns did not come from the solver's block"));
+        }
+        if solver.iter().map(|v| v.to_bits()).ne(general.iter().map(|v| v.to_bits())) {
+            return Err(format!("{at}: the solver's d(der x)/dx (by columns) {solver:?}, the general path's {general:?}"));
+        }
+        Ok(n)
+    }
 }
 
 #[cfg(test)]

@@ -560,6 +560,7 @@ fn variables(input: &DeriveInput) -> Result<Tokens> {
                         refresh: <Self as ::fmu_export::Lift>::refresh,
                         derived_current: <Self as ::fmu_export::Lift>::derived_current,
                         forward: ::fmu_export::core::derivatives::forward::<Self>,
+                        states: ::fmu_export::core::derivatives::states::<Self>,
                         trajectory: ::fmu_export::core::derivatives::trajectory::<Self>,
                     })
                 }

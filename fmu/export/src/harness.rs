@@ -260,7 +260,7 @@ pub fn jacobian<M: Model>(model: &M, t: f64, x: &[f64], equations: Stage) -> Jac
         .enumerate()
         .collect();
     let mut values = Vec::new();
-    field_values(&table.rows, &knowns, &seeds, model, &mut values);
+    field_values(&table.rows, &knowns, &field_places(&seeds), model, &mut values);
     let initialization = equations == Stage::Initialization;
     let pass = Pass {
         t,
@@ -380,6 +380,9 @@ pub struct DerivativeCheck {
     pub kinks: usize,
     /// The largest |exact - difference| over its bound.
     pub worst: f64,
+    /// Columns of d(der x)/dx by the implicit solver's path found equal to the general
+    /// path's, to the bit ([`crate::core::derivatives::check_solver_block`]).
+    pub solver_columns: usize,
 }
 
 /// Checks model `M`'s exact derivatives against central differences of its own `f64`
@@ -448,6 +451,12 @@ pub fn check_derivatives<M: Model>() -> Result<DerivativeCheck, String> {
             }
         }
     }
+    // About 20 of the run's points: each is a new instance, and the paths' agreement does not
+    // depend on where (beyond the regime, which the run's points visit).
+    let continuous: Vec<_> = points.iter().filter(|p| p.3 == Stage::ContinuousTime).collect();
+    let every = continuous.len().div_ceil(20).max(1);
+    let solver_points: Vec<(M, f64, Vec<f64>)> = continuous.iter().step_by(every).map(|(m, t, x, _)| (m.clone(), *t, x.clone())).collect();
+    report.solver_columns = crate::core::derivatives::check_solver_block(&solver_points)?;
     if report.kinks * 10 > report.entries {
         return Err(format!("{} of {} entries are at kinks: too few derivatives were compared", report.kinks, report.entries));
     }

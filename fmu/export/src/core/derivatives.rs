@@ -133,6 +133,10 @@ pub(crate) struct Jacobians {
     seeds: Vec<Known>,
     /// The places of the knowns that are model fields ([`field_places`]).
     fields: Vec<usize>,
+    /// The columns of the states' block when it is an implicit solver's d(der x)/dx (the
+    /// states in order, then at most the time, no field among them, one pass wide; else 0):
+    /// such a block at a new point is [`states`]'s one pass, kept in `solver_block`.
+    solver_columns: usize,
     unknowns: Vec<usize>,
     derivative_block: Vec<(usize, Unknown)>,
     other_block: Vec<(usize, Unknown)>,
@@ -163,6 +167,15 @@ pub(crate) struct Jacobians {
     /// Where their rows start in `values` (`asked_at` times the knowns' count).
     asked_rows: Vec<usize>,
     asked_blocks: Blocks,
+    /// The asked unknowns are the state derivatives, all and in order: the columns of
+    /// `solver_block` are theirs.
+    asked_derivatives: bool,
+    /// d(der x)/d(known) for the first `solver_columns` knowns, column by column (`n` values
+    /// each, in the derivatives' order), at the point, when `solver_block_current`: what an
+    /// implicit solver's unit-seed calls read, computed by [`states`] in one pass without
+    /// the general blocks' bookkeeping. Apart from `values` (its own `done` flags).
+    solver_block: Vec<f64>,
+    solver_block_current: bool,
 }
 
 /// The row blocks of [`Jacobians`] a call's unknowns are in (state derivatives, others), or
@@ -202,6 +215,25 @@ impl Jacobians {
     }
 }
 
+impl Jacobians {
+    /// [`Jacobians::column_times`] from the implicit solver's block (the asked unknowns are
+    /// the state derivatives in order): the same sums.
+    #[inline(always)]
+    fn solver_column_times(&self, column: usize, seed: f64, sensitivity: &mut [f64]) -> bool {
+        let n = sensitivity.len();
+        // From the column's start: its end is the zip's (a range's checks cost 10 a call).
+        let values = self.solver_block.get(column * n..).unwrap_or_default();
+        let mut probe = if values.len() >= n { 0.0 } else { f64::NAN };
+        for (out, &value) in sensitivity.iter_mut().zip(values) {
+            let mut v = 0.0;
+            v += value * seed;
+            probe += v * 0.0;
+            *out = v;
+        }
+        probe == 0.0
+    }
+}
+
 impl<M: Model> Core<M> {
     /// The layout of `mode`'s knowns and unknowns (made when the mode changes).
     fn jacobian_layout(&mut self, mode: Mode) {
@@ -212,6 +244,8 @@ impl<M: Model> Core<M> {
         let rows = &self.table.rows;
         j.mode = Some(mode);
         j.point = None;
+        j.solver_block_current = false;
+        j.asked_derivatives = false;
         j.asked.clear();
         j.asked_at.clear();
         j.asked_rows.clear();
@@ -240,6 +274,14 @@ impl<M: Model> Core<M> {
         let states = j.knowns.iter().filter(|&&i| is_state(i)).count();
         let fields = j.seeds[states..].iter().any(|s| matches!(s, Known::Field(_)));
         j.state_columns = if fields { states } else { j.knowns.len() };
+        let columns = &j.seeds[..j.state_columns];
+        let solver = mode != Mode::Initialization
+            && states == M::N_STATES
+            && (1..=LANES).contains(&columns.len())
+            && columns.iter().enumerate().all(|(l, k)| *k == if l < states { Known::State(l) } else { Known::Time });
+        j.solver_columns = if solver { columns.len() } else { 0 };
+        // Only the fields' values are read at a new point; the other knowns' stay 0.
+        j.known_values = vec![0.0; j.knowns.len()];
         j.is_derivative = j.unknowns.iter().map(|&row| matches!(rows[row].slot, Slot::Derivative(_))).collect();
         let target = |row: usize| match (&rows[row].slot, rows[row].field) {
             (Slot::Derivative(k), _) => Unknown::Derivative(*k),
@@ -279,6 +321,11 @@ impl<M: Model> Core<M> {
                 }
             }
             let j = &mut self.jacobians;
+            let derivative = |(k, &vr): (usize, &u32)| {
+                let place = j.unknown_at[vr as usize] as usize;
+                j.derivative_block.iter().any(|&(p, u)| p == place && u == Unknown::Derivative(k))
+            };
+            j.asked_derivatives = unknowns.len() == self.state.x.len() && unknowns.iter().enumerate().all(derivative);
             j.asked.clear();
             j.asked.extend_from_slice(unknowns);
             j.asked_at.clear();
@@ -382,15 +429,28 @@ impl<M: Model> Core<M> {
         let j = &self.jacobians;
         let ([k], [s]) = (knowns, seed) else { return None };
         let column = j.place(*k, false)?;
-        let checked =
-            j.mode == Some(mode) && mode != Mode::Initialization && sensitivity.len() == unknowns.len() && j.asked.as_slice() == unknowns;
+        let checked = j.mode == Some(mode)
+            && mode != Mode::Initialization
+            && sensitivity.len() == unknowns.len()
+            && j.asked.len() == unknowns.len()
+            // Compared in line, without a branch per value: the few unknowns of a small model
+            // cost less than bcmp's call (18 instructions a column for two).
+            && j.asked.iter().zip(unknowns).fold(true, |same, (a, b)| same & (a == b));
         if !checked {
             return None;
+        }
+        let at_point = self.at_jacobians_point();
+        if j.asked_derivatives && column < j.solver_columns {
+            // An implicit solver's column: its block in one pass at a new point, then read.
+            if !(j.solver_block_current && at_point) {
+                self.solver_block(at_point).ok()?;
+            }
+            return Some(self.jacobians.solver_column_times(column, *s, sensitivity));
         }
         let group = usize::from(column >= j.state_columns);
         let rows = j.asked_blocks;
         let blocks_done = (j.done[0][group] || !rows[0]) && (j.done[1][group] || !rows[1]);
-        if !(blocks_done && self.at_jacobians_point()) {
+        if !(blocks_done && at_point) {
             // The first column of its block at a new point: the call is the last one's but
             // for its known, so only the blocks are made. A failure goes to the general path
             // to be explained.
@@ -399,6 +459,52 @@ impl<M: Model> Core<M> {
             self.jacobian_blocks(rows, columns, mode).ok()?;
         }
         Some(self.jacobians.column_times(column, *s, sensitivity))
+    }
+
+    /// The implicit solver's block ([`Jacobians::solver_block`]) at the current point,
+    /// `at_point` when the point is the general blocks' already: one pass of [`states`], the
+    /// same numbers and arithmetic as [`Core::jacobian_blocks`]'s pass for the states' block.
+    #[inline(never)]
+    fn solver_block(&mut self, at_point: bool) -> CallResult {
+        let Some(lifting) = M::lifting() else {
+            return Err(Failure::error("this FMU's model is written on f64 alone: it provides no exact derivatives"));
+        };
+        if !at_point {
+            self.new_jacobians_point();
+        }
+        let j = &mut self.jacobians;
+        let pass = Pass {
+            t: self.state.t,
+            x: &self.state.x,
+            knowns: &j.seeds,
+            fields: &j.fields,
+            values: &j.known_values,
+            seeded: 0..j.solver_columns,
+            unknowns: &j.derivative_block,
+            evaluates: j.derivative_evaluates,
+            initialization: false,
+            version: self.version,
+        };
+        j.solver_block.resize(j.solver_columns * self.state.x.len(), 0.0);
+        (lifting.states)(&self.state.model, &pass, &mut j.lifted, &mut j.solver_block)
+            .map_err(|e| Failure::error(format!("the parameters were refused: {e}")))?;
+        j.solver_block_current = true;
+        Ok(())
+    }
+
+    /// Makes the current point the blocks' (none computed there yet): its version, time and
+    /// states, and the values of the knowns that are model fields.
+    #[inline(always)]
+    fn new_jacobians_point(&mut self) {
+        let j = &mut self.jacobians;
+        j.point = Some((self.version, self.state.t.to_bits()));
+        j.x.clear();
+        j.x.extend(self.state.x.iter().map(|v| v.to_bits()));
+        // Not cleared: a block is read only once computed, and computing writes it whole.
+        j.values.resize(j.unknowns.len() * j.knowns.len(), 0.0);
+        field_values(&self.table.rows, &j.knowns, &j.fields, &self.state.model, &mut j.known_values);
+        j.done = Default::default();
+        j.solver_block_current = false;
     }
 
     /// True when the cached Jacobian blocks were computed at the current point: the same
@@ -478,17 +584,10 @@ impl<M: Model> Core<M> {
             // The parameters checked and the initial state computed as the values are read.
             self.prepare_read(super::Phase::Initializing)?;
         }
-        let at_point = self.at_jacobians_point();
-        let j = &mut self.jacobians;
-        if !at_point {
-            j.point = Some((self.version, self.state.t.to_bits()));
-            j.x.clear();
-            j.x.extend(self.state.x.iter().map(|v| v.to_bits()));
-            // Not cleared: a block is read only once computed, and computing writes it whole.
-            j.values.resize(j.unknowns.len() * j.knowns.len(), 0.0);
-            field_values(&self.table.rows, &j.knowns, &j.seeds, &self.state.model, &mut j.known_values);
-            j.done = Default::default();
+        if !self.at_jacobians_point() {
+            self.new_jacobians_point();
         }
+        let j = &mut self.jacobians;
         let groups = [0..j.state_columns, j.state_columns..j.knowns.len()];
         for (row, derivatives) in [(0, true), (1, false)] {
             if !rows[row] {
@@ -1007,17 +1106,15 @@ impl KeptLift {
 }
 
 /// Per known: the value of an input or parameter (a model field) in `model`, else 0, into
-/// `out`: what a pass seeds it with.
-pub fn field_values<M>(rows: &[Row<M>], knowns: &[usize], seeds: &[Known], model: &M, out: &mut Vec<f64>) {
-    out.clear();
-    // The seed first: only a field's row is looked at.
-    out.extend(knowns.iter().zip(seeds).map(|(&row, seed)| match seed {
-        Known::Field(_) => match rows[row].slot {
-            Slot::Model(Access::Real { get, .. }) => get(model),
-            _ => 0.0,
-        },
-        _ => 0.0,
-    }));
+/// `out` (one value per known): what a pass seeds it with. Only the places `fields`
+/// ([`field_places`]) are written; the others stay as they are (0).
+pub fn field_values<M>(rows: &[Row<M>], knowns: &[usize], fields: &[usize], model: &M, out: &mut Vec<f64>) {
+    out.resize(knowns.len(), 0.0);
+    for &i in fields {
+        if let Slot::Model(Access::Real { get, .. }) = rows[knowns[i]].slot {
+            out[i] = get(model);
+        }
+    }
 }
 
 /// The places among `knowns` of the model fields: what a pass gives their values and seeds
@@ -1143,6 +1240,82 @@ where
     }
 }
 
+/// The block d(der x)/d(known) of an implicit solver's pass, column by column into `out`
+/// (`out[l * n + k]`: state derivative `k` in the pass's known `l`, `n` states): `pass` seeds
+/// the states in order, then at most the time (no field; the fields among the knowns get
+/// their values unseeded), and reads state derivatives, in one pass of as many lanes as
+/// [`forward`] takes for it: the same numbers and arithmetic, so the same values to the bit,
+/// without the general pass's loops over chunks and knowns. Any other pass is refused.
+/// `#[derive(Variables)]` points [`crate::model::Lifting`] here.
+pub fn states<M: Model + Lift>(model: &M, pass: &Pass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
+where
+    M::Over<DualSVec64<2>>: Send + 'static,
+    M::Over<DualSVec64<4>>: Send + 'static,
+    M::Over<DualSVec64<6>>: Send + 'static,
+    M::Over<DualSVec64<LANES>>: Send + 'static,
+{
+    let n = M::N_STATES;
+    let lanes = pass.seeded.len();
+    let seeds = pass.knowns.get(..lanes).unwrap_or_default();
+    let solver = pass.seeded.start == 0
+        && !pass.initialization
+        && pass.evaluates == Evaluates { derivatives: true, outputs: false }
+        && pass.x.len() == n
+        && out.len() == lanes * n
+        && (n..=n + 1).contains(&lanes)
+        && seeds.iter().enumerate().all(|(l, k)| *k == if l < n { Known::State(l) } else { Known::Time });
+    match lanes {
+        _ if !solver => Err(ModelError("not an implicit solver's pass: the states in order, then at most the time".into())),
+        1..=2 => states_in::<M, 2>(model, pass, kept, out),
+        3..=4 => states_in::<M, 4>(model, pass, kept, out),
+        5..=6 => states_in::<M, 6>(model, pass, kept, out),
+        7..=LANES => states_in::<M, LANES>(model, pass, kept, out),
+        _ => Err(ModelError(format!("an implicit solver's pass is at most {LANES} knowns wide"))),
+    }
+}
+
+/// [`states`] in dual numbers of `N` lanes, `pass` checked to be one of its passes.
+fn states_in<M: Model + Lift, const N: usize>(model: &M, pass: &Pass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
+where
+    M::Over<DualSVec64<N>>: Send + 'static,
+{
+    let Lifted { model: lifted, x, dx } = kept.get::<M, DualSVec64<N>>(model, pass.version);
+    // As `forward_in`: the fields hold their values, unseeded (none is among this pass's
+    // knowns); a kept lift holds them already unless another block seeded one since.
+    let mut changed = false;
+    for &i in pass.fields {
+        if let Known::Field(f) = pass.knowns[i] {
+            let field = M::field(lifted, f);
+            if !holds(field, pass.values[i], None) {
+                *field = seeded(pass.values[i], None);
+                changed = true;
+            }
+        }
+    }
+    if changed {
+        M::refresh_over(lifted);
+    }
+    // The model's constant number of states: the loops below have a known length.
+    let n = M::N_STATES;
+    let lanes = pass.seeded.len();
+    x.resize(n, DualSVec64::from(0.0));
+    dx.resize(n, DualSVec64::from(0.0));
+    let (x, dx) = (&mut x[..n], &mut dx[..n]);
+    for (l, (x, &v)) in x.iter_mut().zip(&pass.x[..n]).enumerate() {
+        *x = seeded(v, Some(l));
+    }
+    let t = seeded(pass.t, (lanes > n).then_some(n));
+    lifted.derivatives(t, x, dx);
+    // Column by column, each a slice of the states' length and at most N columns: no bounds
+    // check per value (indexing out[l * n + k] cost quarter_car about 100 instructions more).
+    for (l, column) in out.chunks_exact_mut(n).enumerate().take(N) {
+        for (out, d) in column.iter_mut().zip(dx.iter()) {
+            *out = d.eps.0.as_ref().map_or(0.0, |e| e[l]);
+        }
+    }
+    Ok(())
+}
+
 /// [`forward`] in passes of `N` knowns each.
 fn forward_in<M: Model + Lift, const N: usize>(model: &M, pass: &Pass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
 where
@@ -1226,6 +1399,124 @@ where
         }
     }
     Ok(())
+}
+
+/// Checks model `M`'s implicit-solver path ([`Core::try_directional_derivative`] with the
+/// state derivatives as unknowns and one state as known, as an importer asks for d(der x)/dx
+/// column by column, answered from [`states`]'s one pass) against the general path
+/// ([`Core::directional_derivative`], whose blocks come from [`forward`]) at `points` (model,
+/// time, states: its discrete state and regime as the run had them there): the same values
+/// to the bit, in Continuous-Time Mode. At each point, on one instance: the solver's columns
+/// first; then, the states moved by 1e-3 relative, the general ones first; then, moved again,
+/// against one general call per column that seeds every state (0 but for the column's);
+/// then at the same time and states after each Real input is set to another value, and after
+/// an event update: so neither path answers from the other's block, nor from one of another
+/// point, input or regime. Model Exchange through the instance's core, as the C functions
+/// reach it. The columns compared.
+pub fn check_solver_block<M: Model>(points: &[(M, f64, Vec<f64>)]) -> Result<usize, String> {
+    let names = super::Names { setup: "setup", exit_initialization: "exit", real: "Real", integer: "Integer" };
+    let mut compared = 0;
+    for (model, t, x) in points {
+        let mut core = Core::<M>::new("check", crate::logging::Logger::new(None, false), names);
+        core.setup(None, 0.0, None).map_err(|e| e.message)?;
+        core.start_exchange().map_err(|e| e.message)?;
+        core.state.model = model.clone();
+        let rows = &core.table.rows;
+        let find = |want: &dyn Fn(&Slot<M>) -> bool| -> Result<Vec<u32>, String> {
+            (0..M::N_STATES)
+                .map(|k| {
+                    let at = rows
+                        .iter()
+                        .position(|r| want(&r.slot) && matches!(r.slot, Slot::Derivative(j) | Slot::Model(Access::State(j)) if j == k));
+                    at.map(|i| i as u32).ok_or_else(|| format!("state {k} has no variable"))
+                })
+                .collect()
+        };
+        let derivatives = find(&|slot| matches!(slot, Slot::Derivative(_)))?;
+        let states = find(&|slot| matches!(slot, Slot::Model(Access::State(_))))?;
+        let inputs: Vec<u32> = (0..rows.len())
+            .filter(|&i| rows[i].causality == Causality::Input && rows[i].base_type == BaseType::Real && rows[i].field.is_some())
+            .map(|i| i as u32)
+            .collect();
+        let request = SolverRequest { derivatives: &derivatives, states: &states };
+        for (round, order) in [Order::SolverFirst, Order::GeneralFirst, Order::AllSeeded].into_iter().enumerate() {
+            let moved: Vec<f64> = x.iter().map(|v| v + round as f64 * 1e-3 * v.abs().max(1.0)).collect();
+            core.set_time(*t).map_err(|e| e.message)?;
+            core.set_continuous_states(&moved).map_err(|e| e.message)?;
+            compared += request.compare(&mut core, order, &format!("t = {t}, x = {moved:?}"))?;
+        }
+        for &input in &inputs {
+            let mut value = [0.0];
+            core.get_real(&[input], &mut value, super::Phase::ContinuousTime).map_err(|e| e.message)?;
+            core.set_real(&[input], &[value[0] * 1.5 + 0.25], super::Phase::ContinuousTime, "ContinuousTimeMode").map_err(|e| e.message)?;
+            let name = core.table.rows[input as usize].name;
+            compared += request.compare(&mut core, Order::SolverFirst, &format!("t = {t}, after '{name}' was set"))?;
+        }
+        let update = core.event_update().map_err(|e| e.message)?;
+        if !update.terminate_simulation {
+            core.enter_continuous_time().map_err(|e| e.message)?;
+            compared += request.compare(&mut core, Order::SolverFirst, &format!("t = {t}, after an event update"))?;
+        }
+    }
+    Ok(compared)
+}
+
+/// Which path [`check_solver_block`] asks first at a point, or the general path by calls
+/// that seed every state.
+#[derive(Clone, Copy, PartialEq)]
+enum Order {
+    SolverFirst,
+    GeneralFirst,
+    AllSeeded,
+}
+
+/// The value references of an implicit solver's request: the state derivatives and the
+/// states, in the states' order.
+struct SolverRequest<'a> {
+    derivatives: &'a [u32],
+    states: &'a [u32],
+}
+
+impl SolverRequest<'_> {
+    /// d(der x)/dx at `core`'s point by the solver's path and by the general one (in `order`),
+    /// compared to the bit; `at` says where, for the message. The columns compared.
+    fn compare<M: Model>(&self, core: &mut Core<M>, order: Order, at: &str) -> Result<usize, String> {
+        let n = self.states.len();
+        let mut general = vec![0.0; n * n];
+        let mut solver = vec![0.0; n * n];
+        let solver_first = order == Order::SolverFirst;
+        for by_solver in [solver_first, !solver_first] {
+            for (j, &known) in self.states.iter().enumerate() {
+                let column = &mut if by_solver { &mut solver } else { &mut general }[j * n..][..n];
+                if by_solver {
+                    // The first call of a new request is the general path's, which checks it.
+                    if core.jacobians.asked != self.derivatives {
+                        core.directional_derivative(self.derivatives, &[known], &[1.0], column, Mode::ContinuousTime, "check")
+                            .map_err(|e| e.message)?;
+                    }
+                    match core.try_directional_derivative(self.derivatives, &[known], &[1.0], column, Mode::ContinuousTime) {
+                        Some(true) => {}
+                        other => return Err(format!("{at}: the solver's column {j} was not answered in place: {other:?}")),
+                    }
+                } else if order == Order::AllSeeded {
+                    let seed: Vec<f64> = (0..n).map(|i| if i == j { 1.0 } else { 0.0 }).collect();
+                    core.directional_derivative(self.derivatives, self.states, &seed, column, Mode::ContinuousTime, "check")
+                        .map_err(|e| e.message)?;
+                } else {
+                    core.directional_derivative(self.derivatives, &[known], &[1.0], column, Mode::ContinuousTime, "check")
+                        .map_err(|e| e.message)?;
+                }
+            }
+        }
+        let j = &core.jacobians;
+        if j.state_columns <= LANES && !(j.solver_columns > 0 && j.asked_derivatives && j.solver_block_current) {
+            return Err(format!("{at}: the solver's columns did not come from the solver's block"));
+        }
+        if solver.iter().map(|v| v.to_bits()).ne(general.iter().map(|v| v.to_bits())) {
+            return Err(format!("{at}: the solver's d(der x)/dx (by columns) {solver:?}, the general path's {general:?}"));
+        }
+        Ok(n)
+    }
 }
 
 #[cfg(test)]
@@ -1458,6 +1749,116 @@ pub(crate) mod tests {
         let mut states = [0.0];
         core.continuous_states(&mut states, false).unwrap();
         assert_eq!(states, [1.5]);
+    }
+
+    /// An implicit solver's column: unknowns the state derivatives, one state seeded, answered
+    /// in place from the solver's block ([`super::states`]); its value.
+    fn solver_column<M: Model>(core: &mut Core<M>, unknowns: &[u32], known: u32) -> f64 {
+        let mut out = [0.0];
+        assert_eq!(core.try_directional_derivative(unknowns, &[known], &[1.0], &mut out, Mode::ContinuousTime), Some(true));
+        assert!(core.jacobians.solver_block_current, "answered from the solver's block");
+        out[0]
+    }
+
+    /// The implicit solver's block is kept while the point stays: an input set (Continuous-Time
+    /// Mode) or a tunable parameter set (Event Mode) between two of its Jacobians at the same
+    /// time and states must give the new one (a stale block would repeat the old one). By
+    /// hand: d der(x)/dx = -k u, exactly.
+    #[test]
+    fn the_solver_block_follows_a_set_at_the_same_states() {
+        let mut core = Core::<Scaled>::new("scaled", Logger::new(None, false), NAMES);
+        core.setup(None, 0.0, None).unwrap();
+        core.start_exchange().unwrap();
+        core.set_continuous_states(&[1.5]).unwrap();
+        let row = |name: &str| core.table().rows.iter().position(|r| r.name == name).unwrap() as u32;
+        let (der, x, k, u) = (row("der(x)"), row("x"), row("k"), row("u"));
+        // The request is checked by the general path first, as the C function's first call is.
+        let mut out = [0.0];
+        core.directional_derivative(&[der], &[x], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [-1.0]);
+        assert_eq!(solver_column(&mut core, &[der], x), -1.0);
+        core.set_real(&[u], &[3.0], Phase::ContinuousTime, "ContinuousTimeMode").unwrap();
+        assert_eq!(solver_column(&mut core, &[der], x), -6.0);
+        core.set_real(&[k], &[5.0], Phase::Event, "EventMode").unwrap();
+        assert_eq!(solver_column(&mut core, &[der], x), -15.0);
+        let mut states = [0.0];
+        core.continuous_states(&mut states, false).unwrap();
+        assert_eq!(states, [1.5], "the states did not move: the Jacobians differ by the sets alone");
+    }
+
+    /// x' = -c x with c = 1 until x falls through 1, then 3 (latched at the event): an event
+    /// changes the equations' regime without moving time or states.
+    #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+    #[variables(states = S)]
+    struct Latch<T = f64> {
+        /// Rate constant before the event
+        #[parameter]
+        c: T,
+        /// The event has fired
+        #[output]
+        latched: bool,
+    }
+
+    impl Default for Latch {
+        fn default() -> Self {
+            Latch { c: 1.0, latched: false }
+        }
+    }
+
+    impl<T: Scalar> Equations<T> for Latch<T> {
+        fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError> {
+            S { x: T::from(2.0) }.store(x);
+            Ok(())
+        }
+
+        fn derivatives(&self, _t: T, x: &[T], dx: &mut [T]) {
+            let S { x } = S::load(x);
+            let c = if self.latched { self.c * T::from(3.0) } else { self.c };
+            S { x: -c * x }.store(dx);
+        }
+    }
+
+    impl Model for Latch {
+        const N_STATES: usize = 1;
+        const N_EVENT_INDICATORS: usize = 1;
+
+        fn info() -> ModelInfo {
+            ModelInfo { identifier: "latch", description: "", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
+        }
+
+        fn event_indicators(&self, _t: f64, x: &[f64], z: &mut [f64]) {
+            z[0] = x[0] - 1.0;
+        }
+
+        fn on_event(&mut self, _t: f64, _x: &mut [f64], fired: &[bool]) -> Result<EventOutcome, ModelError> {
+            self.latched |= fired[0];
+            Ok(EventOutcome::Continue)
+        }
+    }
+
+    /// An event between two of the implicit solver's Jacobians at the same time and states
+    /// gives the new regime's: d der(x)/dx = -1 before, -3 after (a stale block would repeat
+    /// -1). Continuous-Time Mode on both sides, so only the event tells the blocks apart.
+    #[test]
+    fn the_solver_block_follows_an_event_at_the_same_states() {
+        let mut core = Core::<Latch>::new("latch", Logger::new(None, false), NAMES);
+        core.setup(None, 0.0, None).unwrap();
+        core.start_exchange().unwrap();
+        let row = |name: &str| core.table().rows.iter().position(|r| r.name == name).unwrap() as u32;
+        let (der, x) = (row("der(x)"), row("x"));
+        // x fell from 2 through 1: the indicator changed sign since the start.
+        core.set_continuous_states(&[0.5]).unwrap();
+        let mut out = [0.0];
+        core.directional_derivative(&[der], &[x], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [-1.0]);
+        assert_eq!(solver_column(&mut core, &[der], x), -1.0);
+        core.event_update().unwrap();
+        core.enter_continuous_time().unwrap();
+        assert!(core.state.model.latched, "the event fired");
+        assert_eq!(solver_column(&mut core, &[der], x), -3.0);
+        let mut states = [0.0];
+        core.continuous_states(&mut states, false).unwrap();
+        assert_eq!(states, [0.5], "the states did not move");
     }
 
     /// At initialization the parameters are knowns and the state an unknown: x = x0, so

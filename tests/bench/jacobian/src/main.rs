@@ -105,6 +105,33 @@
 //! mass_spring_damper), the call's four pointers tested without short-circuits (no change), the
 //! read-out element by element again (+33 quarter_car, -10 mass_spring_damper).
 //!
+//! Seventh round, measured 2026-12-06 at 340a2ad: the implicit solver's block answered apart
+//! (fmu/export `states`, `Core::solver_block`): when the unknowns are the state derivatives in
+//! order and the known one state, the FMU computes d(der x)/d(x[, t]) at a new point in one
+//! dual pass with no general bookkeeping (the kept lift, the states seeded in order, the
+//! derivatives, the block read out column by column) and answers every column from it; the
+//! values are the general path's to the bit (checked at about 20 points of every model's run,
+//! and after an input set and an event there, by `check_derivatives`). Instructions per
+//! Jacobian at a new point (FMI 2.0), before (a467f53) -> after, against n + 1 evaluations:
+//! quarter_car 3,780 -> 3,556 against 2,114 (1.68; FMI 3.0 3,848 -> 3,624 against 2,113),
+//! second_order 1,697 -> 1,541 against 943 (1.63), mass_spring_damper 1,737 -> 1,522 against
+//! 838 (1.82), pendulum 1,829 -> 1,645 against 1,093 (1.51): missed for every FMU. Where
+//! mass_spring_damper's 1,522 go: the importer 537 (533 for the evaluations: the same), the FMU
+//! 979: two fmi2GetDirectionalDerivative calls of 187 (checks of the instance, state, mode,
+//! request and point, then the column), the one dual pass 544 (its set-up 118, seeding and
+//! read-out 249, the input's value 67, the model's acceleration in dual numbers 110), the time
+//! and states 61; the evaluations cost the FMU 304 in all (57 per fmi2GetDerivatives).
+//! quarter_car: the FMU 2,333 (five calls of 247, the pass 1,028 of which the model 319), the
+//! importer 1,214 (1,086 for the evaluations). With one call per column (FMI's interface) and
+//! one dual pass per point, the FMU's side alone exceeds the evaluations of these models, whose
+//! right-hand sides are a few multiplications. In time (`cargo run --release -p
+//! jacobian_bench`, load average 2.9): 0.91 to 1.38, met for quarter_car (0.91, 0.99) and
+//! through FMI 3.0 for second_order (1.00) and pendulum (0.97), missed by 0 to 3 % for
+//! second_order and pendulum through FMI 2.0 and by 35 to 38 % for mass_spring_damper;
+//! interleaved with main's FMUs at that load, two rounds: 0.93 to 1.39 against main's 1.00 to
+//! 1.50. Earlier at load average 2.8 under another job, three rounds: 1.14 to 1.89 against
+//! main's 1.03 to 2.30, the noise larger than the difference.
+//!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0
 //! FMUs of second_order, mass_spring_damper, quarter_car and pendulum in target/, built by
 //! `runner build`). For a profiler: `jacobian_bench --one SOURCE FMU` takes one batch of

@@ -79,17 +79,19 @@ def test_the_car_integrates_its_input_polynomial():
     slave.freeInstance()
 
 
+@pytest.mark.parametrize("order", [3, 1])
 @pytest.mark.parametrize("model", MODELS)
-def test_outputs_read_beside_their_derivatives_are_the_f64_outputs(model):
+def test_outputs_read_beside_their_derivatives_are_the_f64_outputs(model, order):
     """A master that reads an FMU's output derivatives at every step gets the outputs themselves
     from the same pass (the toolkit's third-order dual numbers, Taylor3, whose value parts are
-    f64's operations), not from a second evaluation in f64. Every Real variable read that way
-    must be, to the bit, what the FMU gives without the derivatives: each model with output
-    derivatives, stepped at its default interval (300 steps, or to the end of its experiment or
-    of the run) twice from the same start, once reading every Real variable alone and once
-    reading them and then the derivatives of order 3 of every continuous output. An input that
-    interpolates gets the same derivatives in both runs, so the pass also carries driven inputs.
-    No tolerance: one ulp off anywhere fails."""
+    f64's operations), not from a second evaluation in f64: a Jacobi master's orders 1 to 3 and
+    a Gauss-Seidel master's first derivative alike (the Taylor3 pass then stops at order 1).
+    Every Real variable read that way must be, to the bit, what the FMU gives without the
+    derivatives: each model with output derivatives, stepped at its default interval (300 steps,
+    or to the end of its experiment or of the run) twice from the same start, once reading every
+    Real variable alone and once reading them and then the derivatives of order `order` of every
+    continuous output. An input that interpolates gets the same derivatives in both runs, so the
+    pass also carries driven inputs. No tolerance: one ulp off anywhere fails."""
     md = read_model_description(str(fmu_path(model, "2.0")))
     if (md.coSimulation.maxOutputDerivativeOrder or 0) < 3:
         pytest.skip(f"{model} gives no output derivatives of order 3")
@@ -116,7 +118,7 @@ def test_outputs_read_beside_their_derivatives_are_the_f64_outputs(model):
                 break
             rows.append(struct.pack(f"{len(everything)}d", *slave.getReal(everything)))
             if with_derivatives and outputs:
-                slave.getRealOutputDerivatives(outputs, [3] * len(outputs))
+                slave.getRealOutputDerivatives(outputs, [order] * len(outputs))
         slave.terminate()
         slave.freeInstance()
         return rows

@@ -534,7 +534,7 @@ pub trait Equations<T: Scalar> {
     fn derivatives(&self, t: T, x: &[T], dx: &mut [T]);
 
     /// Computes the output fields from the current time and state. Only the fields of the
-    /// table's computed variables: while a master reads output derivatives of order 3 at every
+    /// table's computed variables: while a master reads output derivatives (of any order) at every
     /// step, the toolkit gives the `f64` model those fields from the same evaluation in dual
     /// numbers (`core::derivatives::Trajectory::shares_outputs`) instead of calling this in `f64`.
     fn outputs(&mut self, _t: T, _x: &[T]) {}

@@ -570,7 +570,9 @@ impl<'a> Bound<'a> {
                 i.direct = (factor == 1.0).then_some(from);
             }
         }
-        let interpolates = inputs.iter().any(|i| i.rates.iter().any(|r| r.interpolate));
+        let mut interpolates: Vec<usize> = inputs.iter().flat_map(|i| i.rates.iter().filter(|r| r.interpolate).map(|r| r.from)).collect();
+        interpolates.sort_unstable();
+        interpolates.dedup();
         let coupled = inputs.iter().any(|i| !i.rates.is_empty());
         let recorded = recorded.map(|r| r.iter().map(|&c| slot_of[c]).collect());
         let returns_early = components.iter().map(returns_early).collect();
@@ -647,9 +649,11 @@ impl<'a> Bound<'a> {
         let jacobi = self.master == Master::Jacobi;
         for i in 0..n {
             let (t, t_next) = (grid.time_of(i, n), grid.time_of(i + 1, n));
-            if plan.interpolates {
-                start_values.copy_from_slice(&values);
-                start_rates.copy_from_slice(&rates);
+            // Only the interpolated sources' values at the start are read (here and when
+            // synchronizing): copying all of them called memcpy twice a step.
+            for &slot in &plan.interpolates {
+                start_values[slot] = values[slot];
+                start_rates[slot] = rates[slot];
             }
             let start = Start { values: &start_values, rates: &start_rates, h: t_next - t };
             let mut early = None;
@@ -898,9 +902,9 @@ struct Plan<'a> {
     rates: Vec<RateReads>,
     /// Some connection passes a polynomial (else the hold's code alone runs).
     coupled: bool,
-    /// Some input interpolates between a source's values at both ends of a step (Gauss-Seidel):
-    /// the values at the step's start are kept.
-    interpolates: bool,
+    /// The slots of the sources some input interpolates from, between their values at both ends
+    /// of a step (Gauss-Seidel): their values and derivatives at the step's start are kept.
+    interpolates: Vec<usize>,
     /// The slots of the recorded columns, in the caller's order (`None`: the values are the
     /// columns).
     recorded: Option<Vec<usize>>,
@@ -1103,6 +1107,16 @@ fn pass_rates(
     if let Some(from) = inputs.direct {
         // One extrapolated input without conversion: its source's rates as they are.
         return match instance.set_input_derivatives(&inputs.rate_vrs, &inputs.rate_orders, &rates[from][..inputs.rate_vrs.len()]) {
+            Ok(()) => Ok(()),
+            Err(e) => Err(fail(e)),
+        };
+    }
+    if let [r @ Rate { interpolate: true, .. }] = &inputs.rates[..] {
+        // One interpolated input (Gauss-Seidel's usual one), as below without the buffers: its
+        // source's value at the step's start and the cubic's derivatives.
+        instance.set_reals(&[r.vr], &[r.factor * start.values[r.from] + r.offset]).map_err(fail)?;
+        let d = hermite(start.values[r.from], start.rates[r.from][0], values[r.from], rates[r.from][0], start.h).map(|x| r.factor * x);
+        return match instance.set_input_derivatives(&inputs.rate_vrs, &inputs.rate_orders, &d[..r.order]) {
             Ok(()) => Ok(()),
             Err(e) => Err(fail(e)),
         };

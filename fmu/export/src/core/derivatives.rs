@@ -737,9 +737,9 @@ impl<M: Model> Core<M> {
     }
 
     /// Brings the outputs up to date with the current point. A master that asks for output
-    /// derivatives at every communication step (the kept plan, of order 3: [`Taylor3`], whose
-    /// values are `f64`'s to the bit) reads the outputs there too: they come from the same pass
-    /// as their derivatives, which the next [`Core::output_derivatives`] then serves, instead of
+    /// derivatives at every communication step (the kept plan, of any order, in [`Taylor3`],
+    /// whose values are `f64`'s to the bit) reads the outputs there too: they come from the
+    /// same pass as their derivatives, which the next [`Core::output_derivatives`] serves, instead of
     /// from a second evaluation of the model's outputs in `f64` (on the road, its sine and
     /// cosine again). Should the pass fail, `Model::outputs` in `f64`. Called only with
     /// [`Trajectory::shares_outputs`] (the other reads take the `f64` outputs in line).
@@ -799,10 +799,11 @@ impl Trajectory {
         self.request.keep(vrs, orders);
         self.reads_fields = self.outputs.iter().any(|u| matches!(u, Unknown::Field(_)));
         self.order = orders.iter().map(|&o| o as usize).max().unwrap_or(0);
-        // The pass serves the f64 outputs when it runs in Taylor3 (values f64's to the bit) and
-        // every value `Model::outputs` computes is a Real field the pass has.
+        // The pass serves the f64 outputs when every value `Model::outputs` computes is a Real
+        // field the pass has: it then runs in Taylor3 (values f64's to the bit) whatever the
+        // order asked for, a Gauss-Seidel master's first derivative too.
         self.shared.clear();
-        let mut shares = self.order == MAX_ORDER;
+        let mut shares = true;
         for (row, _) in rows.iter().zip(&table.computed).filter(|(_, &computed)| computed) {
             match (&row.slot, row.field) {
                 (Slot::Model(Access::Real { .. }), Some(field)) => self.shared.push(field),
@@ -849,8 +850,8 @@ pub struct Trajectory {
     at: Vec<u32>,
     /// The highest order asked for: the pass evaluates in dual numbers of that order (one
     /// pass of the right-hand side per order for the states' derivatives), and the rates
-    /// above it are 0 (an importer that passes first derivatives only costs one pass, in
-    /// first-order dual numbers).
+    /// above it are not read (an importer that passes first derivatives only costs one pass,
+    /// in first-order dual numbers, or in [`Taylor3`] when that pass also gives the outputs).
     pub order: usize,
     /// The last valid request `outputs` was made for: value references and orders.
     request: super::Request,
@@ -872,7 +873,9 @@ pub struct Trajectory {
 /// and inputs become dual numbers in the one direction of time (time's derivative 1, the
 /// inputs' theirs), with as many derivative parts as the highest order asked for
 /// (`pass.order`: [`Dual64`] for first derivatives, [`Dual2_64`] for second, third-order
-/// [`Taylor3`] otherwise, whose constants cost less; the rates above it are 0). The states' derivatives come from the
+/// [`Taylor3`] otherwise, whose constants cost less, and whenever the pass shares the outputs;
+/// the rates above it are 0, but in a Taylor3 pass of a lower order, where they are no
+/// derivatives and never read). The states' derivatives come from the
 /// right-hand side itself, one order per pass: x' = f(x, u, t); the k-th derivative of f
 /// along the trajectory needs the states' derivatives up to k only, so the pass with those
 /// known gives x^(k+1) as f's k-th derivative part. The outputs, evaluated on the completed
@@ -887,10 +890,14 @@ where
     M::Over<Dual2_64>: Send + 'static,
     M::Over<Taylor3>: Send + 'static,
 {
-    match pass.order {
-        0 | 1 => trajectory_in::<M, Dual64>(model, x, pass),
-        2 => trajectory_in::<M, Dual2_64>(model, x, pass),
-        _ => trajectory_in::<M, Taylor3>(model, x, pass),
+    // One call of the Taylor3 pass for every order it serves: it and the model's equations are
+    // then inlined here (a frame and a call less, 35 instructions a step on the road).
+    if pass.shares_outputs || pass.order > 2 {
+        trajectory_in::<M, Taylor3>(model, x, pass)
+    } else if pass.order == 2 {
+        trajectory_in::<M, Dual2_64>(model, x, pass)
+    } else {
+        trajectory_in::<M, Dual64>(model, x, pass)
     }
 }
 
@@ -922,14 +929,12 @@ where
     for (lifted_x, &v) in xs.iter_mut().zip(x) {
         *lifted_x = D::from(v);
     }
-    // Per state: its derivatives of orders 1 to D::ORDER, found one order per pass and given to
-    // the state's dual number for the next.
-    for order in 0..D::ORDER {
-        lifted.derivatives(t, xs, dx);
-        for ((d, x), r) in dx.iter().zip(xs.iter_mut()).zip(rates.iter_mut()) {
-            r[order] = d.part(order);
-            x.set_part(order + 1, r[order]);
-        }
+    // Taylor3 serving a lower order (to share the outputs) leaves the parts above it 0 in the
+    // states, and wrong in the outputs' rates: no request reads those (`Trajectory::at`).
+    match pass.order {
+        0 | 1 => state_rates::<M::Over<D>, D, 1>(lifted, t, xs, dx, rates),
+        2 => state_rates::<M::Over<D>, D, 2>(lifted, t, xs, dx, rates),
+        _ => state_rates::<M::Over<D>, D, MAX_ORDER>(lifted, t, xs, dx, rates),
     }
     if pass.reads_fields || pass.shares_outputs {
         lifted.outputs(t, xs);
@@ -950,6 +955,20 @@ where
         _ => [0.0; MAX_ORDER],
     }));
     Ok(())
+}
+
+/// Per state: its derivatives of orders 1 to `P` (`D::ORDER` at most), found one order per
+/// pass of the right-hand side and given to the state's dual number for the next. `P` a
+/// constant: the loop unrolled, each part found by its place.
+#[inline(always)]
+fn state_rates<L: Equations<D>, D: Taylor, const P: usize>(lifted: &L, t: D, xs: &mut [D], dx: &mut [D], rates: &mut [Rates]) {
+    for order in 0..P.min(D::ORDER) {
+        lifted.derivatives(t, xs, dx);
+        for ((d, x), r) in dx.iter().zip(xs.iter_mut()).zip(rates.iter_mut()) {
+            r[order] = d.part(order);
+            x.set_part(order + 1, r[order]);
+        }
+    }
 }
 
 /// The dual numbers [`trajectory`] evaluates in: derivatives of orders 1 to `ORDER` along
@@ -2195,7 +2214,9 @@ pub(crate) mod tests {
 
     /// A request of lower orders finds the states' derivatives up to its highest order only,
     /// and gives the same numbers as the full request for those orders, to the bit (the
-    /// values by hand above: u = 0.5 driven by u' = 0.25, u'' = 0.5, u''' = -1).
+    /// values by hand above: u = 0.5 driven by u' = 0.25, u'' = 0.5, u''' = -1). Decay's
+    /// outputs are Real fields: the first-order request runs the Taylor3 pass that also gives
+    /// them, stopped at order 1.
     #[test]
     fn lower_orders_are_those_of_the_full_request() {
         let mut core = stepping();
@@ -2205,6 +2226,7 @@ pub(crate) mod tests {
         core.output_derivatives(&[x, y], &[1, 1], &mut out, "test").unwrap();
         assert_eq!(out, [-5.5, -32.75]);
         assert_eq!(core.trajectory.order, 1);
+        assert!(core.trajectory.shares_outputs, "order 1 from the Taylor3 pass that gives the outputs, stopped at order 1");
         core.output_derivatives(&[y, x], &[2, 1], &mut out, "test").unwrap();
         assert_eq!(out, [128.5, -5.5]);
         assert_eq!(core.trajectory.order, 2);

@@ -922,8 +922,7 @@ where
     // known length, without bounds checks, unrolled for a few states.
     let n = M::N_STATES;
     let x = &x[..n];
-    xs.resize(n, D::from(0.0));
-    dx.resize(n, D::from(0.0));
+    // The buffers are made with `n` states when lifted ([`KeptLift::lift`]), and stay so.
     pass.state_rates.resize(n, [0.0; MAX_ORDER]);
     let (xs, dx, rates) = (&mut xs[..n], &mut dx[..n], &mut pass.state_rates[..n]);
     for (lifted_x, &v) in xs.iter_mut().zip(x) {
@@ -944,16 +943,19 @@ where
             *M::field::<f64>(model, f) = M::field::<D>(lifted, f).part(0);
         }
     }
-    pass.rates.clear();
-    pass.rates.extend(pass.outputs.iter().map(|unknown| match *unknown {
-        Unknown::State(k) => {
-            let mut r = [0.0; MAX_ORDER];
-            r[..D::ORDER].copy_from_slice(&rates[k][..D::ORDER]);
-            r
-        }
-        Unknown::Field(f) => M::field::<D>(lifted, f).rates(),
-        _ => [0.0; MAX_ORDER],
-    }));
+    // Written in place: the request's outputs are the same from pass to pass.
+    pass.rates.resize(pass.outputs.len(), [0.0; MAX_ORDER]);
+    for (r, unknown) in pass.rates.iter_mut().zip(&pass.outputs) {
+        *r = match *unknown {
+            Unknown::State(k) => {
+                let mut r = [0.0; MAX_ORDER];
+                r[..D::ORDER].copy_from_slice(&rates[k][..D::ORDER]);
+                r
+            }
+            Unknown::Field(f) => M::field::<D>(lifted, f).rates(),
+            _ => [0.0; MAX_ORDER],
+        };
+    }
     Ok(())
 }
 
@@ -1109,7 +1111,9 @@ impl KeptLift {
     where
         M::Over<D>: Send + 'static,
     {
-        let lifted = Lifted { model: model.lift::<D>(), x: Vec::<D>::new(), dx: Vec::new() };
+        // The states' buffers at their constant length: a pass then need not resize them.
+        let zero = || vec![D::from(0.0); M::N_STATES];
+        let lifted = Lifted { model: model.lift::<D>(), x: zero(), dx: zero() };
         let entry = (std::any::TypeId::of::<Lifted<M::Over<D>, D>>(), version, Box::new(lifted) as Box<dyn std::any::Any + Send>);
         match found {
             Some(at) => {

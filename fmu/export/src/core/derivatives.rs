@@ -213,9 +213,7 @@ impl Jacobians {
         }
         probe == 0.0
     }
-}
 
-impl Jacobians {
     /// [`Jacobians::column_times`] from the implicit solver's block (the asked unknowns are
     /// the state derivatives in order): the same sums.
     #[inline(always)]
@@ -1303,21 +1301,8 @@ where
     M::Over<DualSVec64<N>>: Send + 'static,
 {
     let Lifted { model: lifted, x, dx } = kept.get::<M, DualSVec64<N>>(model, pass.version);
-    // As `forward_in`: the fields hold their values, unseeded (none is among this pass's
-    // knowns); a kept lift holds them already unless another block seeded one since.
-    let mut changed = false;
-    for &i in pass.fields {
-        if let Known::Field(f) = pass.knowns[i] {
-            let field = M::field(lifted, f);
-            if !holds(field, pass.values[i], None) {
-                *field = seeded(pass.values[i], None);
-                changed = true;
-            }
-        }
-    }
-    if changed {
-        M::refresh_over(lifted);
-    }
+    // No field is among this pass's knowns: they all get their values unseeded.
+    give_fields::<M, N>(lifted, pass, &pass.seeded);
     // The model's constant number of states: the loops below have a known length.
     let n = M::N_STATES;
     let lanes = pass.seeded.len();
@@ -1337,6 +1322,27 @@ where
         }
     }
     Ok(())
+}
+
+/// Every field known of `pass` gets its value in `lifted`, seeded in the pass's `lanes` and
+/// unseeded otherwise. A kept lift already holds the last pass's: only a change is written, and
+/// then the derived fields are computed again.
+#[inline(always)]
+fn give_fields<M: Model + Lift, const N: usize>(lifted: &mut M::Over<DualSVec64<N>>, pass: &Pass, lanes: &std::ops::Range<usize>) {
+    let mut changed = false;
+    for &i in pass.fields {
+        if let Known::Field(f) = pass.knowns[i] {
+            let lane = lanes.contains(&i).then(|| i - lanes.start);
+            let field = M::field(lifted, f);
+            if !holds(field, pass.values[i], lane) {
+                *field = seeded(pass.values[i], lane);
+                changed = true;
+            }
+        }
+    }
+    if changed {
+        M::refresh_over(lifted);
+    }
 }
 
 /// [`forward`] in passes of `N` knowns each.
@@ -1361,23 +1367,7 @@ where
             // The last chunk's `initial_state` may have changed the model's fields.
             *lifted = model.lift();
         }
-        // Every field known gets its value now, seeded in this pass's lanes and unseeded
-        // otherwise. A kept lift already holds the last pass's: only a change is written and
-        // the derived fields computed again.
-        let mut changed = false;
-        for &i in pass.fields {
-            if let Known::Field(f) = pass.knowns[i] {
-                let lane = lanes.contains(&i).then(|| i - lanes.start);
-                let field = M::field(lifted, f);
-                if !holds(field, pass.values[i], lane) {
-                    *field = seeded(pass.values[i], lane);
-                    changed = true;
-                }
-            }
-        }
-        if changed {
-            M::refresh_over(lifted);
-        }
+        give_fields::<M, N>(lifted, pass, &lanes);
         let mut t = DualSVec64::from(pass.t);
         x.clear();
         // The usual chunk, an implicit solver's: the states first and in order, each seeded as
@@ -2078,8 +2068,7 @@ pub(crate) mod tests {
 
     /// The output derivatives of order 3, in `Taylor3` (whose constants skip num-dual's zero
     /// parts), are those num-dual's `Dual3_64` gives for the same pass, to 16 ulps of the
-    /// output's largest; the input
-    /// held, then driven (u' = 0.25, u'' = -0.5, u''' = 1.5). Not to the bit: a quotient's value
+    /// output's largest; the input held, then driven (u' = 0.25, u'' = -0.5, u''' = 1.5). Not to the bit: a quotient's value
     /// in `Taylor3` is f64's `a / b` where num-dual's is `a * (1 / b)` (see `crate::taylor3`),
     /// which moves the last bit of a value part, here `2 pi / w` and `u a / w`, and of what is
     /// computed from it, which sums with cancellation carry on (6 ulps of the value seen). None

@@ -244,16 +244,7 @@ impl<M: Model> Core<M> {
                 k += 1;
             }
         }
-        // An input with no derivative left is held, as one that never had any.
-        if zeroed {
-            self.state.drives.retain(|d| d.derivatives != [0.0; MAX_ORDER]);
-        }
-        self.version += 1;
-        if changed {
-            if let Some(integrator) = self.state.integrator.as_mut() {
-                integrator.invalidate();
-            }
-        }
+        self.drives_set(changed, zeroed);
     }
 
     /// Input `row`'s derivatives of orders 1 to [`MAX_ORDER`] are `derivatives` (checked): as
@@ -262,12 +253,19 @@ impl<M: Model> Core<M> {
     fn set_drive_derivatives(&mut self, row: usize, derivatives: [f64; MAX_ORDER]) {
         let i = self.drive_at(row, self.state.t);
         let old = std::mem::replace(&mut self.state.drives[i].derivatives, derivatives);
-        // An input with no derivative left is held, as one that never had any.
-        if derivatives.contains(&0.0) {
+        self.drives_set(old.map(f64::to_bits) != derivatives.map(f64::to_bits), derivatives.contains(&0.0));
+    }
+
+    /// After input derivatives were set: an input with no derivative left is held, as one that
+    /// never had any (looked for when a value set was `zeroed`), what was derived from the
+    /// instance is stale, and the solver restarts when a value `changed`.
+    #[inline(always)]
+    fn drives_set(&mut self, changed: bool, zeroed: bool) {
+        if zeroed {
             self.state.drives.retain(|d| d.derivatives != [0.0; MAX_ORDER]);
         }
         self.version += 1;
-        if old.map(f64::to_bits) != derivatives.map(f64::to_bits) {
+        if changed {
             if let Some(integrator) = self.state.integrator.as_mut() {
                 integrator.invalidate();
             }

@@ -152,9 +152,11 @@ pub(crate) struct Jacobians {
     x: Vec<u64>,
     /// Row-major: unknowns x knowns.
     values: Vec<f64>,
-    /// Per known: an input's or parameter's value at the point (read at every new point: a
-    /// driven input moves without a set), else 0.
+    /// Per known: an input's or parameter's value at the point, else 0.
     known_values: Vec<f64>,
+    /// The instance's version `known_values` were read at, when no input was driven then
+    /// ([`Core::new_jacobians_point`]); `None` when they are to be read at the next new point.
+    fields_read_at: Option<u64>,
     /// The model lifted into the passes' dual numbers, kept while the version stays.
     lifted: KeptLift,
     /// Per row block (derivatives, others) and column block (states, others): computed at
@@ -280,6 +282,7 @@ impl<M: Model> Core<M> {
         j.solver_columns = if solver { columns.len() } else { 0 };
         // Only the fields' values are read at a new point; the other knowns' stay 0.
         j.known_values = vec![0.0; j.knowns.len()];
+        j.fields_read_at = None;
         j.is_derivative = j.unknowns.iter().map(|&row| matches!(rows[row].slot, Slot::Derivative(_))).collect();
         let target = |row: usize| match (&rows[row].slot, rows[row].field) {
             (Slot::Derivative(k), _) => Unknown::Derivative(*k),
@@ -500,7 +503,16 @@ impl<M: Model> Core<M> {
         j.x.extend(self.state.x.iter().map(|v| v.to_bits()));
         // Not cleared: a block is read only once computed, and computing writes it whole.
         j.values.resize(j.unknowns.len() * j.knowns.len(), 0.0);
-        field_values(&self.table.rows, &j.knowns, &j.fields, &self.state.model, &mut j.known_values);
+        // While no input is driven, every write of a model field moves the version (a set, an
+        // event, initialization, a reset, a restored state, input derivatives, the model's
+        // communication-point work; `outputs` writes computed fields, never a known): the
+        // values read at this version still hold. A driven input moves inside a step without
+        // a set, and input derivatives set (a version moved) make one driven: read then.
+        let held = self.state.drives.is_empty();
+        if !(held && j.fields_read_at == Some(self.version)) {
+            field_values(&self.table.rows, &j.knowns, &j.fields, &self.state.model, &mut j.known_values);
+            j.fields_read_at = held.then_some(self.version);
+        }
         j.done = Default::default();
         j.solver_block_current = false;
     }
@@ -1434,6 +1446,8 @@ pub fn check_solver_block<M: Model>(points: &[(M, f64, Vec<f64>)]) -> Result<usi
         core.setup(None, 0.0, None).map_err(|e| e.message)?;
         core.start_exchange().map_err(|e| e.message)?;
         core.state.model = model.clone();
+        // A write of the model's fields: what was derived from them is stale.
+        core.version += 1;
         let rows = &core.table.rows;
         let find = |want: &dyn Fn(&Slot<M>) -> bool| -> Result<Vec<u32>, String> {
             (0..M::N_STATES)
@@ -1797,6 +1811,39 @@ pub(crate) mod tests {
         let mut states = [0.0];
         core.continuous_states(&mut states, false).unwrap();
         assert_eq!(states, [1.5], "the states did not move: the Jacobians differ by the sets alone");
+    }
+
+    /// A driven input moves inside a Co-Simulation step without a set (the version stays):
+    /// the implicit solver's block after a step must take the input's value at the step's end,
+    /// in Step Mode and in (FMI 3.0's) Event Mode alike, while the field values read at an
+    /// unchanged version serve only when no input is driven. u = 0.5 + t (u' = 1), k = 2: d
+    /// der(x)/dx = -k u = -1 at t = 0, -2 at t = 0.5, -3 at t = 1, exactly.
+    #[test]
+    fn the_solver_block_follows_a_driven_input_through_a_step() {
+        let mut core = Core::<Scaled>::new("scaled", Logger::new(None, false), NAMES);
+        core.setup(Some(1e-10), 0.0, None).unwrap();
+        core.start().unwrap();
+        let row = |name: &str| core.table().rows.iter().position(|r| r.name == name).unwrap() as u32;
+        let (der, x, u) = (row("der(x)"), row("x"), row("u"));
+        core.set_input_derivatives(&[u], &[1], &[1.0], "test").unwrap();
+        let column = |core: &mut Core<Scaled>, mode: Mode| {
+            let mut out = [0.0];
+            if core.jacobians.asked != [der] || core.jacobians.mode != Some(mode) {
+                core.directional_derivative(&[der], &[x], &[1.0], &mut out, mode, "test").unwrap();
+            }
+            assert_eq!(core.try_directional_derivative(&[der], &[x], &[1.0], &mut out, mode), Some(true));
+            assert!(core.jacobians.solver_block_current, "answered from the solver's block");
+            out[0]
+        };
+        for mode in [Mode::Step, Mode::Event] {
+            let t = core.time();
+            let before = column(&mut core, mode);
+            let version = core.version;
+            core.do_step(t, 0.5).unwrap();
+            assert_eq!(core.version, version, "the step set nothing: only the driven input moved");
+            let after = column(&mut core, mode);
+            assert_eq!((before, after), (-2.0 * (0.5 + t), -2.0 * (1.0 + t)), "{}", mode.name());
+        }
     }
 
     /// x' = -c x with c = 1 until x falls through 1, then 3 (latched at the event): an event

@@ -280,6 +280,11 @@ impl<M: Model> Core<M> {
             && (1..=LANES).contains(&columns.len())
             && columns.iter().enumerate().all(|(l, k)| *k == if l < states { Known::State(l) } else { Known::Time });
         j.solver_columns = if solver { columns.len() } else { 0 };
+        // Sized once per layout: a new point only overwrites what it computes.
+        j.values.clear();
+        j.values.resize(j.unknowns.len() * j.knowns.len(), 0.0);
+        j.solver_block.clear();
+        j.solver_block.resize(j.solver_columns * M::N_STATES, 0.0);
         // Only the fields' values are read at a new point; the other knowns' stay 0.
         j.known_values = vec![0.0; j.knowns.len()];
         j.fields_read_at = None;
@@ -486,7 +491,6 @@ impl<M: Model> Core<M> {
             initialization: false,
             version: self.version,
         };
-        j.solver_block.resize(j.solver_columns * self.state.x.len(), 0.0);
         (lifting.states)(&self.state.model, &pass, &mut j.lifted, &mut j.solver_block)
             .map_err(|e| Failure::error(format!("the parameters were refused: {e}")))?;
         j.solver_block_current = true;
@@ -499,10 +503,13 @@ impl<M: Model> Core<M> {
     fn new_jacobians_point(&mut self) {
         let j = &mut self.jacobians;
         j.point = Some((self.version, self.state.t.to_bits()));
-        j.x.clear();
-        j.x.extend(self.state.x.iter().map(|v| v.to_bits()));
-        // Not cleared: a block is read only once computed, and computing writes it whole.
-        j.values.resize(j.unknowns.len() * j.knowns.len(), 0.0);
+        // Over the model's constant number of states (a loop of known length): states of
+        // another count never match (`at_jacobians_point` compares the lengths).
+        let n = M::N_STATES;
+        j.x.resize(n, 0);
+        for (bits, v) in j.x[..n].iter_mut().zip(&self.state.x) {
+            *bits = v.to_bits();
+        }
         // While no input is driven, every write of a model field moves the version (a set, an
         // event, initialization, a reset, a restored state, input derivatives, the model's
         // communication-point work; `outputs` writes computed fields, never a known): the

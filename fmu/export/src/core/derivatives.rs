@@ -1303,7 +1303,10 @@ where
         && pass.x.len() == n
         && out.len() == lanes * n
         && (n..=n + 1).contains(&lanes)
-        && seeds.iter().enumerate().all(|(l, k)| *k == if l < n { Known::State(l) } else { Known::Time });
+        // The states over their constant count, without a branch per state (a loop that
+        // unrolls), then the time if seeded.
+        && seeds.get(..n).is_some_and(|states| states.iter().enumerate().fold(true, |ok, (l, k)| ok & (*k == Known::State(l))))
+        && seeds.get(n).is_none_or(|k| *k == Known::Time);
     match lanes {
         _ if !solver => Err(ModelError("not an implicit solver's pass: the states in order, then at most the time".into())),
         1..=2 => states_in::<M, 2>(model, pass, kept, out),

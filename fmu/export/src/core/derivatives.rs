@@ -1323,8 +1323,9 @@ where
     M::Over<DualSVec64<N>>: Send + 'static,
 {
     let Lifted { model: lifted, x, dx } = kept.get::<M, DualSVec64<N>>(model, pass.version);
-    // No field is among this pass's knowns: they all get their values unseeded.
-    give_fields::<M, N>(lifted, pass, &pass.seeded);
+    // No field is among this pass's seeded knowns (checked): they all get their values
+    // unseeded, said by an empty range the compiler sees (no lane to find per field).
+    give_fields::<M, N>(lifted, pass, &(0..0));
     // The model's constant number of states: the loops below have a known length.
     let n = M::N_STATES;
     let lanes = pass.seeded.len();

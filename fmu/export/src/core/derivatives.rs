@@ -152,9 +152,11 @@ pub(crate) struct Jacobians {
     x: Vec<u64>,
     /// Row-major: unknowns x knowns.
     values: Vec<f64>,
-    /// Per known: an input's or parameter's value at the point (read at every new point: a
-    /// driven input moves without a set), else 0.
+    /// Per known: an input's or parameter's value at the point, else 0.
     known_values: Vec<f64>,
+    /// The instance's version `known_values` were read at, when no input was driven then
+    /// ([`Core::new_jacobians_point`]); `None` when they are to be read at the next new point.
+    fields_read_at: Option<u64>,
     /// The model lifted into the passes' dual numbers, kept while the version stays.
     lifted: KeptLift,
     /// Per row block (derivatives, others) and column block (states, others): computed at
@@ -184,6 +186,16 @@ type Blocks = [bool; 2];
 
 /// Not a known or unknown of the mode.
 const ABSENT: u32 = u32::MAX;
+
+/// The value references `a` and `b` (of the same length) are the same: two at a time (one
+/// 64-bit compare) and the odd one apart, without a branch per value (by fours: a loop more to
+/// set up for a model of two states, mass_spring_damper +10 instructions per Jacobian).
+#[inline(always)]
+fn same_references(a: &[u32], b: &[u32]) -> bool {
+    let ((a_pairs, a_odd), (b_pairs, b_odd)) = (a.as_chunks::<2>(), b.as_chunks::<2>());
+    let pairs = a_pairs.iter().zip(b_pairs).fold(true, |same, (x, y)| same & (x == y));
+    pairs & a_odd.iter().zip(b_odd).fold(true, |same, (x, y)| same & (x == y))
+}
 
 impl Jacobians {
     /// The place of row `vr` among the unknowns (`unknown`) or the knowns.
@@ -278,8 +290,14 @@ impl<M: Model> Core<M> {
             && (1..=LANES).contains(&columns.len())
             && columns.iter().enumerate().all(|(l, k)| *k == if l < states { Known::State(l) } else { Known::Time });
         j.solver_columns = if solver { columns.len() } else { 0 };
+        // Sized once per layout: a new point only overwrites what it computes.
+        j.values.clear();
+        j.values.resize(j.unknowns.len() * j.knowns.len(), 0.0);
+        j.solver_block.clear();
+        j.solver_block.resize(j.solver_columns * M::N_STATES, 0.0);
         // Only the fields' values are read at a new point; the other knowns' stay 0.
         j.known_values = vec![0.0; j.knowns.len()];
+        j.fields_read_at = None;
         j.is_derivative = j.unknowns.iter().map(|&row| matches!(rows[row].slot, Slot::Derivative(_))).collect();
         let target = |row: usize| match (&rows[row].slot, rows[row].field) {
             (Slot::Derivative(k), _) => Unknown::Derivative(*k),
@@ -432,8 +450,8 @@ impl<M: Model> Core<M> {
             && sensitivity.len() == unknowns.len()
             && j.asked.len() == unknowns.len()
             // Compared in line, without a branch per value: the few unknowns of a small model
-            // cost less than bcmp's call (18 instructions a column for two).
-            && j.asked.iter().zip(unknowns).fold(true, |same, (a, b)| same & (a == b));
+            // cost less than bcmp's call (18 instructions a column for two); two at a time.
+            && same_references(&j.asked, unknowns);
         if !checked {
             return None;
         }
@@ -483,7 +501,6 @@ impl<M: Model> Core<M> {
             initialization: false,
             version: self.version,
         };
-        j.solver_block.resize(j.solver_columns * self.state.x.len(), 0.0);
         (lifting.states)(&self.state.model, &pass, &mut j.lifted, &mut j.solver_block)
             .map_err(|e| Failure::error(format!("the parameters were refused: {e}")))?;
         j.solver_block_current = true;
@@ -496,11 +513,23 @@ impl<M: Model> Core<M> {
     fn new_jacobians_point(&mut self) {
         let j = &mut self.jacobians;
         j.point = Some((self.version, self.state.t.to_bits()));
-        j.x.clear();
-        j.x.extend(self.state.x.iter().map(|v| v.to_bits()));
-        // Not cleared: a block is read only once computed, and computing writes it whole.
-        j.values.resize(j.unknowns.len() * j.knowns.len(), 0.0);
-        field_values(&self.table.rows, &j.knowns, &j.fields, &self.state.model, &mut j.known_values);
+        // Over the model's constant number of states (a loop of known length): states of
+        // another count never match (`at_jacobians_point` compares the lengths).
+        let n = M::N_STATES;
+        j.x.resize(n, 0);
+        for (bits, v) in j.x[..n].iter_mut().zip(&self.state.x) {
+            *bits = v.to_bits();
+        }
+        // While no input is driven, every write of a model field moves the version (a set, an
+        // event, initialization, a reset, a restored state, input derivatives, the model's
+        // communication-point work; `outputs` writes computed fields, never a known): the
+        // values read at this version still hold. A driven input moves inside a step without
+        // a set, and input derivatives set (a version moved) make one driven: read then.
+        let held = self.state.drives.is_empty();
+        if !(held && j.fields_read_at == Some(self.version)) {
+            field_values(&self.table.rows, &j.knowns, &j.fields, &self.state.model, &mut j.known_values);
+            j.fields_read_at = held.then_some(self.version);
+        }
         j.done = Default::default();
         j.solver_block_current = false;
     }
@@ -1284,7 +1313,10 @@ where
         && pass.x.len() == n
         && out.len() == lanes * n
         && (n..=n + 1).contains(&lanes)
-        && seeds.iter().enumerate().all(|(l, k)| *k == if l < n { Known::State(l) } else { Known::Time });
+        // The states over their constant count, without a branch per state (a loop that
+        // unrolls), then the time if seeded.
+        && seeds.get(..n).is_some_and(|states| states.iter().enumerate().fold(true, |ok, (l, k)| ok & (*k == Known::State(l))))
+        && seeds.get(n).is_none_or(|k| *k == Known::Time);
     match lanes {
         _ if !solver => Err(ModelError("not an implicit solver's pass: the states in order, then at most the time".into())),
         1..=2 => states_in::<M, 2>(model, pass, kept, out),
@@ -1301,8 +1333,9 @@ where
     M::Over<DualSVec64<N>>: Send + 'static,
 {
     let Lifted { model: lifted, x, dx } = kept.get::<M, DualSVec64<N>>(model, pass.version);
-    // No field is among this pass's knowns: they all get their values unseeded.
-    give_fields::<M, N>(lifted, pass, &pass.seeded);
+    // No field is among this pass's seeded knowns (checked): they all get their values
+    // unseeded, said by an empty range the compiler sees (no lane to find per field).
+    give_fields::<M, N>(lifted, pass, &(0..0));
     // The model's constant number of states: the loops below have a known length.
     let n = M::N_STATES;
     let lanes = pass.seeded.len();
@@ -1434,6 +1467,8 @@ pub fn check_solver_block<M: Model>(points: &[(M, f64, Vec<f64>)]) -> Result<usi
         core.setup(None, 0.0, None).map_err(|e| e.message)?;
         core.start_exchange().map_err(|e| e.message)?;
         core.state.model = model.clone();
+        // A write of the model's fields: what was derived from them is stale.
+        core.version += 1;
         let rows = &core.table.rows;
         let find = |want: &dyn Fn(&Slot<M>) -> bool| -> Result<Vec<u32>, String> {
             (0..M::N_STATES)
@@ -1797,6 +1832,39 @@ pub(crate) mod tests {
         let mut states = [0.0];
         core.continuous_states(&mut states, false).unwrap();
         assert_eq!(states, [1.5], "the states did not move: the Jacobians differ by the sets alone");
+    }
+
+    /// A driven input moves inside a Co-Simulation step without a set (the version stays):
+    /// the implicit solver's block after a step must take the input's value at the step's end,
+    /// in Step Mode and in (FMI 3.0's) Event Mode alike, while the field values read at an
+    /// unchanged version serve only when no input is driven. u = 0.5 + t (u' = 1), k = 2: d
+    /// der(x)/dx = -k u = -1 at t = 0, -2 at t = 0.5, -3 at t = 1, exactly.
+    #[test]
+    fn the_solver_block_follows_a_driven_input_through_a_step() {
+        let mut core = Core::<Scaled>::new("scaled", Logger::new(None, false), NAMES);
+        core.setup(Some(1e-10), 0.0, None).unwrap();
+        core.start().unwrap();
+        let row = |name: &str| core.table().rows.iter().position(|r| r.name == name).unwrap() as u32;
+        let (der, x, u) = (row("der(x)"), row("x"), row("u"));
+        core.set_input_derivatives(&[u], &[1], &[1.0], "test").unwrap();
+        let column = |core: &mut Core<Scaled>, mode: Mode| {
+            let mut out = [0.0];
+            if core.jacobians.asked != [der] || core.jacobians.mode != Some(mode) {
+                core.directional_derivative(&[der], &[x], &[1.0], &mut out, mode, "test").unwrap();
+            }
+            assert_eq!(core.try_directional_derivative(&[der], &[x], &[1.0], &mut out, mode), Some(true));
+            assert!(core.jacobians.solver_block_current, "answered from the solver's block");
+            out[0]
+        };
+        for mode in [Mode::Step, Mode::Event] {
+            let t = core.time();
+            let before = column(&mut core, mode);
+            let version = core.version;
+            core.do_step(t, 0.5).unwrap();
+            assert_eq!(core.version, version, "the step set nothing: only the driven input moved");
+            let after = column(&mut core, mode);
+            assert_eq!((before, after), (-2.0 * (0.5 + t), -2.0 * (1.0 + t)), "{}", mode.name());
+        }
     }
 
     /// x' = -c x with c = 1 until x falls through 1, then 3 (latched at the event): an event

@@ -1015,7 +1015,11 @@ impl<M: Model> Core<M> {
                 self.state.last_step_status = Status::Ok;
                 Ok(StepEnd::Completed)
             }
-            Ok(EventOutcome::Stop { reason }) => self.stop_early(t0, &reason),
+            Ok(EventOutcome::Stop { reason }) => {
+                // The model's work may have changed its fields before it ended the experiment.
+                self.version += 1;
+                self.stop_early(t0, &reason)
+            }
             Err(e) => Err(self.fail_step(t0, format!("the model failed at t = {t_end}: {e}"))),
         }
     }

@@ -132,6 +132,17 @@
 //! 1.50. Earlier at load average 2.8 under another job, three rounds: 1.14 to 1.89 against
 //! main's 1.03 to 2.30, the noise larger than the difference.
 //!
+//! Eighth round, measured 2026-12-07 at 55652f3 (the FMU's side: the field knowns' values read
+//! at a new point only when the version moved or an input is driven, the blocks sized once per
+//! layout, the solver pass's check over the model's constant count of states, its fields given
+//! with no lane to find, the column's request compared two value references at a time;
+//! docs/benchmarks.md), instructions per Jacobian at a new point (FMI 2.0), b44721b -> 55652f3,
+//! against n + 1 evaluations: mass_spring_damper 1,497 -> 1,391 against 838 (1.66), quarter_car
+//! 3,578 -> 3,334 against 2,114 (1.58), second_order 1,542 -> 1,427 against 943 (1.51),
+//! pendulum 1,646 -> 1,530 against 1,093 (1.40): missed. In time, one run at load average 2 (at
+//! 037c91b): 0.93 to 1.26, met for 6 of the 8 FMUs (mass_spring_damper 1.25 and 1.26 missed);
+//! one at load average 3 (at 55652f3): 0.91 to 1.60, the load's noise larger than the change.
+//!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0
 //! FMUs of second_order, mass_spring_damper, quarter_car and pendulum in target/, built by
 //! `runner build`, then the Reference FMUs' VanDerPol as the native peer, measured and not

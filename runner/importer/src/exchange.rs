@@ -310,6 +310,23 @@ impl<'s, C: Exchange, const N: usize> System<'s, C, N> {
             *self.last_discard.borrow_mut() = Some(trouble);
         }
     }
+
+    /// One `GetDirectionalDerivative` of every derivative along `seed` on `knowns` into
+    /// `column`, at the point the FMU holds; false on a status other than OK and Warning
+    /// (recorded; `column` is then not to be used). Non-finite values are recorded too.
+    #[inline(always)]
+    fn sensitivity(&self, t: f64, structure: &StateStructure, (knowns, seed): (&[u32], &[f64]), column: &mut [f64]) -> bool {
+        trace::enter(C::NAMES.get_directional_derivative.0, t);
+        let status = self.calls.directional_derivative(&structure.derivatives, knowns, seed, column);
+        if !accepted(status) {
+            self.trouble(C::NAMES.get_directional_derivative.1, t, status, false);
+            return false;
+        }
+        if !all_finite(column) {
+            self.non_finite(C::NAMES.get_directional_derivative.1, t, "sensitivity", column, false);
+        }
+        true
+    }
 }
 
 /// OK or Warning.
@@ -413,13 +430,63 @@ impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
             }
             (&scratch.knowns, &scratch.seed)
         };
-        trace::enter(C::NAMES.get_directional_derivative.0, t);
-        let status = self.calls.directional_derivative(&structure.derivatives, knowns, seed, column);
-        if !accepted(status) {
-            self.trouble(C::NAMES.get_directional_derivative.1, t, status, false);
+        if !self.sensitivity(t, structure, (knowns, seed), column) {
             out.fill(f64::NAN);
-        } else if !all_finite(column) {
-            self.non_finite(C::NAMES.get_directional_derivative.1, t, "sensitivity", column, false);
+        }
+    }
+
+    /// The columns of one Jacobian at one point: the time and states set once (and again
+    /// only after a refused call, as `directional_derivative` would), then one
+    /// `GetDirectionalDerivative` per group. A single state's column passes that state's
+    /// reference and a constant unit seed (no scan of a seed vector), a group its states
+    /// through the kept buffers. Failures are recorded as for `directional_derivative`.
+    fn directional_columns<G: AsRef<[usize]>>(
+        &self,
+        t: f64,
+        x: &[f64],
+        groups: &[G],
+        (_, out): (&mut [f64], &mut [f64]),
+        mut column: impl FnMut(&[usize], &[f64]),
+    ) {
+        let nx = self.dim();
+        let structure = match self.structure {
+            Some(s) if self.directional && x.len() >= nx && out.len() >= nx => s,
+            _ => {
+                out.fill(f64::NAN);
+                groups.iter().for_each(|group| column(group.as_ref(), out));
+                return;
+            }
+        };
+        let (x, values) = (&x[..nx], &mut out[..nx]);
+        let mut scratch = self.scratch.borrow_mut();
+        let scratch = &mut **scratch;
+        let mut placed = false;
+        for group in groups {
+            let group = group.as_ref();
+            if !placed {
+                placed = self.place(t, x);
+            }
+            let knowns = match group[..] {
+                [j] => structure.states.get(j..=j),
+                _ => {
+                    scratch.knowns.clear();
+                    scratch.knowns.extend(group.iter().filter_map(|&j| structure.states.get(j)));
+                    scratch.seed.clear();
+                    scratch.seed.resize(group.len(), 1.0);
+                    (scratch.knowns.len() == group.len()).then_some(&scratch.knowns[..])
+                }
+            };
+            let seed = if group.len() == 1 { &[1.0][..] } else { &scratch.seed[..] };
+            match knowns {
+                Some(knowns) if placed => {
+                    if !self.sensitivity(t, structure, (knowns, seed), values) {
+                        values.fill(f64::NAN);
+                        placed = false;
+                    }
+                }
+                _ => values.fill(f64::NAN),
+            }
+            column(group, values);
         }
     }
 
@@ -460,6 +527,9 @@ pub struct ModelExchange<C> {
     /// What the runner's implicit methods' Jacobians reuse between calls, lent to each
     /// [`System`].
     jacobian_scratch: JacobianScratch,
+    /// tests/bench/jacobian's column groups, one per state, kept as the solver keeps its own.
+    #[cfg(feature = "bench-hooks")]
+    bench_groups: Vec<[usize; 1]>,
 }
 
 /// `f::<C, N>(args)` with `N` the number of states `nx`: the sizes of the lab's models and of
@@ -521,6 +591,8 @@ impl<C: Exchange> ModelExchange<C> {
             x: vec![0.0; nx],
             next_event_time: None,
             jacobian_scratch: JacobianScratch::default(),
+            #[cfg(feature = "bench-hooks")]
+            bench_groups: Vec::new(),
         }
     }
 
@@ -1073,6 +1145,64 @@ mod tests {
         assert!(column[0] == 2.0 && column[1].is_nan(), "{column:?}");
         let discard = sys.last_discard.borrow().clone().expect("the value is recorded");
         assert_eq!(discard.message, "fmi2GetDirectionalDerivative at t = 0.5 returned sensitivity[1] = NaN");
+        assert!(sys.poisoned.borrow().is_none());
+    }
+
+    /// The implicit solver's Jacobian (`directional_columns`): the time and states set once
+    /// for all its columns, a single state's column with that state alone as the known, a
+    /// group with its states in order, each column compared exactly with the analytic
+    /// Jacobian (the products are exact in binary).
+    #[test]
+    fn the_columns_of_a_jacobian_set_the_point_once() {
+        let fmu = Quadratic::default();
+        let structure = StateStructure { states: STATES.to_vec(), derivatives: DERIVATIVES.to_vec(), pattern: None };
+        let mut scratch = JacobianScratch::default();
+        let sys = System::<Quadratic, 2>::new(&fmu, (2, 1), Some(&structure), &mut scratch);
+        let (mut seed, mut out) = ([0.0; 2], [0.0; 2]);
+        let mut columns = Vec::new();
+        let groups = [vec![0], vec![1], vec![0, 1]];
+        sys.directional_columns(0.5, &[2.0, 3.0], &groups, (&mut seed, &mut out), |group, column| {
+            columns.push((group.to_vec(), fmu.knowns.borrow().clone(), column.to_vec()));
+        });
+        assert_eq!(
+            columns,
+            [(vec![0], vec![10], vec![3.0, 4.0]), (vec![1], vec![11], vec![2.0, 0.0]), (vec![0, 1], vec![10, 11], vec![5.0, 4.0])]
+        );
+        assert_eq!((fmu.t.get(), fmu.x.get(), fmu.times_set.get(), fmu.states_set.get()), (0.5, [2.0, 3.0], 1, 1));
+        assert!(sys.last_discard.borrow().is_none() && sys.poisoned.borrow().is_none());
+    }
+
+    /// A refused column of the solver's Jacobian is NaN and recorded as a Discard (the
+    /// integrator may retry), and the next column sets the states again rather than trust the
+    /// FMU that refused; a non-finite value is named and keeps the point.
+    #[test]
+    fn a_refused_column_of_a_jacobian_is_nan_and_the_next_places_again() {
+        let fmu = Quadratic::default();
+        let structure = StateStructure { states: STATES.to_vec(), derivatives: DERIVATIVES.to_vec(), pattern: None };
+        let mut scratch = JacobianScratch::default();
+        let sys = System::<Quadratic, 2>::new(&fmu, (2, 1), Some(&structure), &mut scratch);
+        let (mut seed, mut out) = ([0.0; 2], [0.0; 2]);
+        let mut columns = Vec::new();
+        fmu.refuse.set(true);
+        sys.directional_columns(0.0, &[2.0, 3.0], &[vec![0], vec![1]], (&mut seed, &mut out), |_, column| {
+            columns.push((column.to_vec(), fmu.states_set.get()));
+            fmu.refuse.set(false);
+        });
+        assert!(columns[0].0.iter().all(|v| v.is_nan()) && columns[0].1 == 1, "{columns:?}");
+        assert_eq!(columns[1], (vec![2.0, 0.0], 2));
+        let discard = sys.last_discard.borrow_mut().take().expect("the Discard is recorded");
+        assert_eq!(discard.status, DISCARD);
+        assert!(discard.message.starts_with("fmi2GetDirectionalDerivative at t = 0 returned status"), "{}", discard.message);
+        assert!(sys.poisoned.borrow().is_none());
+
+        fmu.nan.set(true);
+        columns.clear();
+        sys.directional_columns(1.0, &[2.0, 3.0], &[vec![0], vec![1]], (&mut seed, &mut out), |_, column| {
+            columns.push((column.to_vec(), fmu.states_set.get()));
+        });
+        assert!(columns[0].0[0] == 3.0 && columns[0].0[1].is_nan() && columns[1].0[0] == 2.0 && columns[1].1 == 3, "{columns:?}");
+        let discard = sys.last_discard.borrow().clone().expect("the value is recorded");
+        assert_eq!(discard.message, "fmi2GetDirectionalDerivative at t = 1 returned sensitivity[1] = NaN");
         assert!(sys.poisoned.borrow().is_none());
     }
 }

@@ -186,21 +186,18 @@ struct Trouble {
     message: String,
 }
 
-/// What the implicit methods' Jacobian reuses from one `directional_derivative` call to the
-/// next, kept by the [`ModelExchange`] and lent to each [`System`] so that no call allocates: the
-/// knowns and seed of a group of columns, and the states the FMU holds from the last call.
+/// What the implicit methods' Jacobian reuses from one group of columns to the next, kept by
+/// the [`ModelExchange`] and lent to each [`System`] so that no call allocates: the knowns and
+/// seed of a group.
 #[derive(Debug, Default)]
 struct JacobianScratch {
     knowns: Vec<u32>,
     seed: Vec<f64>,
-    /// The states set for the last directional derivative (valid while the System's
-    /// `jacobian_point` says so).
-    x: Vec<f64>,
 }
 
 /// The FMU seen as the integrator's ODE system: every right-hand side sets the time (when it
 /// changed) and the states and asks for the derivatives; every indicator evaluation likewise.
-/// The columns of one Jacobian by directional derivatives set them once.
+/// The columns of one Jacobian by directional derivatives (`directional_columns`) set them once.
 /// A failing call cannot return an error through `OdeSystem`: it records the trouble and
 /// returns NaN, on which the integrator stops (an Error or Fatal poisons every later call, so
 /// the FMU is not called again).
@@ -225,13 +222,8 @@ struct System<'s, C, const N: usize> {
     poisoned: RefCell<Option<Trouble>>,
     /// The last Discard or non-finite derivative (the integrator may retry a smaller step).
     last_discard: RefCell<Option<Trouble>>,
-    /// The seed buffers, and the states of the last directional derivative.
+    /// The seed buffers of a group of columns.
     scratch: RefCell<&'s mut JacobianScratch>,
-    /// The FMU holds the time `time_set` and the states `scratch.x` of the last directional
-    /// derivative, and nothing has been called since but directional derivatives: the next
-    /// column of the same Jacobian need not set them again. Cleared by every `place` and every
-    /// trouble.
-    jacobian_point: Cell<bool>,
 }
 
 impl<'s, C: Exchange, const N: usize> System<'s, C, N> {
@@ -250,14 +242,12 @@ impl<'s, C: Exchange, const N: usize> System<'s, C, N> {
             poisoned: RefCell::new(None),
             last_discard: RefCell::new(None),
             scratch: RefCell::new(scratch),
-            jacobian_point: Cell::new(false),
         }
     }
 
     /// Sets time and states for an evaluation at (t, x); false once poisoned or on failure.
     #[inline(always)]
     fn place(&self, t: f64, x: &[f64]) -> bool {
-        self.jacobian_point.set(false);
         if self.stopped.get() {
             return false;
         }
@@ -287,7 +277,6 @@ impl<'s, C: Exchange, const N: usize> System<'s, C, N> {
     #[cold]
     #[inline(never)]
     fn trouble(&self, call: &str, t: f64, status: c_int, discard_stops: bool) {
-        self.jacobian_point.set(false);
         let reason = self.calls.log().take_reason().unwrap_or_else(|| crate::logging::NO_REASON.to_owned());
         let trouble = Trouble { status, message: format!("{call} at t = {t} returned {}: {reason}", C::status_name(status)) };
         if status == DISCARD && !discard_stops {
@@ -341,12 +330,6 @@ fn all_finite(values: &[f64]) -> bool {
     values.iter().fold(true, |ok, v| ok & v.is_finite())
 }
 
-/// The same values bit for bit (-0 is not 0, a NaN is itself), as many as `a` has.
-#[inline(always)]
-fn same_bits(a: &[f64], b: &[f64]) -> bool {
-    a.iter().zip(b).fold(true, |same, (a, b)| same & (a.to_bits() == b.to_bits()))
-}
-
 impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
     #[inline(always)]
     fn dim(&self) -> usize {
@@ -387,9 +370,8 @@ impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
     }
 
     /// One `GetDirectionalDerivative` of every derivative with respect to the states seeded
-    /// in `v` (a group of Jacobian columns); a failure is recorded as for the derivatives.
-    /// The time and states are set unless the FMU still holds them from the previous call (the
-    /// previous column of the same Jacobian), bit for bit.
+    /// in `v` (any seed; the implicit methods call `directional_columns`) at (t, x), which it
+    /// sets first; a failure is recorded as for the derivatives.
     fn directional_derivative(&self, t: f64, x: &[f64], v: &[f64], out: &mut [f64]) {
         let nx = self.dim();
         let structure = match self.structure {
@@ -399,44 +381,25 @@ impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
                 return;
             }
         };
-        // Slices of the states' length (a constant with `N`): the loops below unroll.
-        let (x, v, column) = (&x[..nx], &v[..nx], &mut out[..nx]);
-        let mut scratch = self.scratch.borrow_mut();
-        let scratch = &mut **scratch;
-        let held = self.jacobian_point.get() && t == self.time_set.get() && scratch.x.len() == nx && same_bits(&scratch.x, x);
-        if !held {
-            if !self.place(t, x) {
-                out.fill(f64::NAN);
-                return;
-            }
-            scratch.x.clear();
-            scratch.x.extend_from_slice(x);
-            self.jacobian_point.set(true);
+        if !self.place(t, &x[..nx]) {
+            out.fill(f64::NAN);
+            return;
         }
-        // The seeded states: a unit seed (one column, the implicit methods' usual call) as
-        // slices of the states and of `v`, a group through the kept buffers. The first seeded
-        // state found, the rest checked to be zero without a branch per value (one pass that
-        // counted every value took 34 instructions per column of five, this about 20).
-        let first = v.iter().position(|s| *s != 0.0).unwrap_or(nx);
-        let unit = first < nx && v[first + 1..].iter().fold(true, |zero, s| zero & (*s == 0.0));
-        let (knowns, seed): (&[u32], &[f64]) = if unit {
-            (&structure.states[first..=first], &v[first..=first])
-        } else {
-            scratch.knowns.clear();
-            scratch.seed.clear();
-            for (vr, s) in structure.states.iter().zip(v).filter(|(_, s)| **s != 0.0) {
-                scratch.knowns.push(*vr);
-                scratch.seed.push(*s);
-            }
-            (&scratch.knowns, &scratch.seed)
-        };
-        if !self.sensitivity(t, structure, (knowns, seed), column) {
+        let mut scratch = self.scratch.borrow_mut();
+        let JacobianScratch { knowns, seed } = &mut **scratch;
+        knowns.clear();
+        seed.clear();
+        for (vr, s) in structure.states.iter().zip(&v[..nx]).filter(|(_, s)| **s != 0.0) {
+            knowns.push(*vr);
+            seed.push(*s);
+        }
+        if !self.sensitivity(t, structure, (knowns, seed), &mut out[..nx]) {
             out.fill(f64::NAN);
         }
     }
 
     /// The columns of one Jacobian at one point: the time and states set once (and again
-    /// only after a refused call, as `directional_derivative` would), then one
+    /// only after a refused call: the FMU that refused is not trusted to hold them), then one
     /// `GetDirectionalDerivative` per group. A single state's column passes that state's
     /// reference and a constant unit seed (no scan of a seed vector), a group its states
     /// through the kept buffers. Failures are recorded as for `directional_derivative`.
@@ -1065,52 +1028,39 @@ mod tests {
         }
     }
 
-    /// The columns of one Jacobian set the time and states once; a Jacobian at other states,
-    /// or after any other call that placed the FMU elsewhere (derivatives, event indicators),
-    /// or at another time, sets them again and is the one at its own point, compared exactly
-    /// with the analytic Jacobian (the products are exact in binary).
+    /// A directional derivative on its own (any seed) sets the time and states and is taken
+    /// there, whatever was called before, compared exactly with the analytic Jacobian (the
+    /// products are exact in binary); its knowns are the seeded states, in order.
     #[test]
-    fn a_jacobian_sets_its_states_once_and_is_taken_where_it_is_asked_for() {
+    fn a_directional_derivative_is_taken_where_it_is_asked_for() {
         let fmu = Quadratic::default();
         let structure = StateStructure { states: STATES.to_vec(), derivatives: DERIVATIVES.to_vec(), pattern: None };
         let mut scratch = JacobianScratch::default();
         let sys = System::<Quadratic, 2>::new(&fmu, (2, 1), Some(&structure), &mut scratch);
         assert!(sys.provides_directional_derivative());
         let (a, b) = ([2.0, 3.0], [5.0, 7.0]);
-        let (mut column, mut f, mut z) = ([0.0; 2], [0.0; 2], [0.0; 1]);
+        let (mut column, mut f) = ([0.0; 2], [0.0; 2]);
         let mut jacobian_column = |t: f64, x: &[f64; 2], seed: [f64; 2], states_set: usize, expected: [f64; 2]| {
             sys.directional_derivative(t, x, &seed, &mut column);
             assert_eq!(column, expected, "at t = {t}, x = {x:?}, seed {seed:?}");
             assert_eq!((fmu.t.get(), fmu.x.get(), fmu.states_set.get()), (t, *x, states_set), "at t = {t}, x = {x:?}, seed {seed:?}");
         };
-        // Both columns at a: the states set once, each known alone.
         jacobian_column(0.0, &a, [1.0, 0.0], 1, [3.0, 4.0]);
         assert_eq!(*fmu.knowns.borrow(), [10]);
-        jacobian_column(0.0, &a, [0.0, 1.0], 1, [2.0, 0.0]);
+        jacobian_column(0.0, &b, [0.0, 1.0], 2, [5.0, 0.0]);
         assert_eq!(*fmu.knowns.borrow(), [11]);
-        // The states changed, nothing called in between: the Jacobian at b.
-        jacobian_column(0.0, &b, [1.0, 0.0], 2, [7.0, 10.0]);
         // The derivatives at a in between: b again, not the FMU's a.
         sys.rhs(0.0, &a, &mut f);
         assert_eq!((f, fmu.states_set.get()), ([6.0, 4.0], 3));
-        jacobian_column(0.0, &b, [0.0, 1.0], 4, [5.0, 0.0]);
-        // The event indicators at a in between likewise.
-        sys.event_indicators(0.0, &a, &mut z);
-        assert_eq!((z, fmu.states_set.get()), ([2.0], 5));
-        jacobian_column(0.0, &b, [1.0, 0.0], 6, [7.0, 10.0]);
-        // Another time, the same states: time and states set.
-        jacobian_column(1.0, &b, [1.0, 0.0], 7, [7.0, 10.0]);
-        assert_eq!(fmu.times_set.get(), 2);
-        // A group of both columns, seeded through the buffer, at the point held.
-        jacobian_column(1.0, &b, [1.0, 1.0], 7, [12.0, 10.0]);
-        assert_eq!(*fmu.knowns.borrow(), [10, 11]);
-        jacobian_column(1.0, &b, [0.0, 2.0], 7, [10.0, 0.0]);
+        // Another time; two states seeded, one seeded by 2.
+        jacobian_column(1.0, &b, [1.0, 1.0], 4, [12.0, 10.0]);
+        assert_eq!((fmu.knowns.borrow().clone(), fmu.times_set.get()), (vec![10, 11], 2));
+        jacobian_column(1.0, &b, [0.0, 2.0], 5, [10.0, 0.0]);
         assert_eq!(*fmu.knowns.borrow(), [11]);
     }
 
     /// A refused directional derivative is recorded as before (the Discard the integrator may
-    /// retry, NaN out), and the next column sets the states again rather than trust the FMU
-    /// that refused.
+    /// retry, NaN out), and the next sets the states again.
     #[test]
     fn a_refused_column_is_recorded_and_the_next_sets_the_states_again() {
         let fmu = Quadratic::default();
@@ -1128,7 +1078,7 @@ mod tests {
         assert!(sys.poisoned.borrow().is_none());
         fmu.refuse.set(false);
         sys.directional_derivative(0.0, &[2.0, 3.0], &[0.0, 1.0], &mut column);
-        assert_eq!((column, fmu.states_set.get()), ([2.0, 0.0], 2));
+        assert_eq!((column, fmu.states_set.get()), ([2.0, 0.0], 3));
     }
 
     /// A directional derivative that is not finite is recorded naming the value (the

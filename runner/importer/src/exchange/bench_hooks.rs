@@ -41,8 +41,8 @@ impl<C: Exchange> ModelExchange<C> {
 }
 
 /// One group per state, as the solver's without a sparsity pattern, made once (out of line:
-/// in line, its allocation made the differences' path of `solver_jacobian` 50 instructions
-/// dearer per Jacobian).
+/// in line, its allocation made the differences' path of `solver_jacobian` up to 75
+/// instructions dearer per Jacobian).
 #[cold]
 #[inline(never)]
 fn unit_groups(groups: &mut Vec<[usize; 1]>, n: usize) {

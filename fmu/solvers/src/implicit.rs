@@ -81,6 +81,9 @@ pub(super) struct Work {
     /// Column groups (each evaluated by one call) and, per column, the rows that depend on it.
     pub(super) groups: Vec<Vec<usize>>,
     pub(super) column_rows: Vec<Vec<usize>>,
+    /// The groups again when each is a single column (else empty): a system's directional
+    /// derivatives are then called with groups whose length is known to be one.
+    pub(super) unit_groups: Vec<[usize; 1]>,
     /// The Jacobian's scratch vectors (state, derivatives, increments), of length n.
     pub(super) v: [Vec<f64>; 3],
 }
@@ -99,8 +102,16 @@ impl Implicit {
             self.differences = vec![0.0; (super::bdf::MAX_ORDER + 3) * n];
         }
         let (groups, column_rows) = column_groups(n, sys.jacobian_pattern());
-        self.work =
-            Work { ready: true, lu: vec![0.0; n * n], pivots: vec![0; n], groups, column_rows, v: std::array::from_fn(|_| vec![0.0; n]) };
+        let unit_groups = groups.iter().map(|g| g[..].try_into()).collect::<Result<Vec<[usize; 1]>, _>>().unwrap_or_default();
+        self.work = Work {
+            ready: true,
+            lu: vec![0.0; n * n],
+            pivots: vec![0; n],
+            groups,
+            column_rows,
+            unit_groups,
+            v: std::array::from_fn(|_| vec![0.0; n]),
+        };
         if self.c_lu != 0.0 && self.jac_valid {
             let rate = self.rate;
             self.factor(self.c_lu);
@@ -215,7 +226,7 @@ impl Implicit {
     fn evaluate_jacobian<S: OdeSystem>(&mut self, sys: &S, t: f64, x: &[f64], f: &[f64], h: f64, rtol: f64, atol: f64) -> bool {
         let n = x.len();
         let directional = sys.provides_directional_derivative();
-        let Work { groups, column_rows, v, .. } = &mut self.work;
+        let Work { groups, column_rows, unit_groups, v, .. } = &mut self.work;
         let [xs, fs, inc] = v;
         let weight = |j: usize| super::adaptive::weight(atol, rtol, x[j], x[j]);
         let min_inc = if directional {
@@ -229,15 +240,26 @@ impl Implicit {
             }
         };
         self.jac.fill(0.0);
-        for group in groups.iter() {
-            if directional {
-                xs.fill(0.0);
+        if directional {
+            // One call for all the columns, so the system places the point once.
+            let jac = &mut self.jac;
+            let store = |group: &[usize], column: &[f64]| {
                 for &j in group {
-                    xs[j] = 1.0;
+                    for &i in &column_rows[j] {
+                        jac[i * n + j] = column[i];
+                    }
                 }
-                sys.directional_derivative(t, x, xs, fs);
-                self.n_directional += 1;
+            };
+            let scratch = (&mut xs[..], &mut fs[..]);
+            if unit_groups.len() == groups.len() {
+                sys.directional_columns(t, x, unit_groups, scratch, store);
             } else {
+                sys.directional_columns(t, x, groups, scratch, store);
+            }
+            self.n_directional += groups.len() as u64;
+            self.n_jacobian_columns += groups.len() as u64;
+        } else {
+            for group in groups.iter() {
                 xs.copy_from_slice(x);
                 for &j in group {
                     inc[j] = (f64::EPSILON.sqrt() * x[j].abs()).max(min_inc * weight(j));
@@ -246,11 +268,11 @@ impl Implicit {
                     inc[j] = xs[j] - x[j];
                 }
                 sys.rhs(t, xs, fs);
-            }
-            self.n_jacobian_columns += 1;
-            for &j in group {
-                for &i in &column_rows[j] {
-                    self.jac[i * n + j] = if directional { fs[i] } else { (fs[i] - f[i]) / inc[j] };
+                self.n_jacobian_columns += 1;
+                for &j in group {
+                    for &i in &column_rows[j] {
+                        self.jac[i * n + j] = (fs[i] - f[i]) / inc[j];
+                    }
                 }
             }
         }

@@ -65,6 +65,32 @@ pub trait OdeSystem {
     fn directional_derivative(&self, _t: f64, _x: &[f64], _v: &[f64], out: &mut [f64]) {
         out.fill(f64::NAN);
     }
+    /// The implicit methods' Jacobian by directional derivatives: for each group of `groups`
+    /// (states seeded together with 1, the others 0), in order, df/dx(t, x) · seed handed to
+    /// `column(group, values)` (NaN where it cannot be evaluated). `seed` and `out` are
+    /// scratch of `dim()` values. The default makes one `directional_derivative` per group; a
+    /// system whose point is costly to place (an FMU) places it once for all the columns.
+    ///
+    /// Generic in the group's type so that the implicit methods' usual groups, one column each
+    /// (`[usize; 1]`), compile to a loop with no general case in it.
+    fn directional_columns<G: AsRef<[usize]>>(
+        &self,
+        t: f64,
+        x: &[f64],
+        groups: &[G],
+        (seed, out): (&mut [f64], &mut [f64]),
+        mut column: impl FnMut(&[usize], &[f64]),
+    ) {
+        for group in groups {
+            let group = group.as_ref();
+            seed.fill(0.0);
+            for &j in group {
+                seed[j] = 1.0;
+            }
+            self.directional_derivative(t, x, seed, out);
+            column(group, out);
+        }
+    }
 }
 
 /// Integration method.

@@ -394,6 +394,63 @@ fn jacobians_by_differences_and_directional_derivatives_agree_with_the_analytic_
     }
 }
 
+/// Directional derivatives by groups of columns (the tridiagonal chain's three, through
+/// `directional_columns` with several states a group) give the Jacobian of the columns one at a
+/// time (the unit groups, the pattern left out) to the bit, and both the analytic one: in a
+/// group each row has one seeded state, so its product is that entry times one plus zeros.
+#[test]
+fn grouped_directional_columns_give_the_column_by_column_jacobian() {
+    /// The chain with its exact Jacobian products, with or without its pattern.
+    struct Exact<'a>(&'a Chain, bool);
+    impl Exact<'_> {
+        fn entry(&self, x: &[f64], i: usize, j: usize) -> f64 {
+            let n = self.0.n;
+            match j {
+                _ if j == i => -2e3 * x[i] - (i as f64 + 1.0),
+                _ if j + 1 == i => 10.0 * if i + 1 < n { x[i + 1] } else { 0.5 },
+                _ if j == i + 1 => 10.0 * if i > 0 { x[i - 1] } else { 1.0 },
+                _ => 0.0,
+            }
+        }
+    }
+    impl OdeSystem for Exact<'_> {
+        fn dim(&self) -> usize {
+            self.0.n
+        }
+        fn rhs(&self, t: f64, x: &[f64], dx: &mut [f64]) {
+            self.0.rhs(t, x, dx)
+        }
+        fn jacobian_pattern(&self) -> Option<&[Vec<usize>]> {
+            self.1.then_some(&self.0.pattern[..])
+        }
+        fn provides_directional_derivative(&self) -> bool {
+            true
+        }
+        fn directional_derivative(&self, _t: f64, x: &[f64], v: &[f64], out: &mut [f64]) {
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = self.0.pattern[i].iter().map(|&j| self.entry(x, i, j) * v[j]).sum();
+            }
+        }
+    }
+    let chain = Chain::new(10);
+    let x: Vec<f64> = (0..10).map(|i| 0.1 + 0.01 * i as f64).collect();
+    let mut f = vec![0.0; 10];
+    chain.rhs(0.0, &x, &mut f);
+    let jacobian = |sys: &Exact| {
+        let mut im = Implicit::default();
+        im.prepare(sys, 10);
+        assert!(im.setup(sys, 0.0, &x, &f, 1e-3, 1e-3, 1e-6, 1e-10));
+        (im.jac, im.n_jacobian_columns, im.n_directional)
+    };
+    let (grouped, by_column) = (jacobian(&Exact(&chain, true)), jacobian(&Exact(&chain, false)));
+    assert_eq!((grouped.1, grouped.2, by_column.1, by_column.2), (3, 3, 10, 10));
+    assert_eq!(grouped.0, by_column.0);
+    let exact = Exact(&chain, true);
+    for (k, got) in grouped.0.iter().enumerate() {
+        assert_eq!(*got, exact.entry(&x, k / 10, k % 10), "J[{}][{}]", k / 10, k % 10);
+    }
+}
+
 /// Column grouping from the dependency pattern: a tridiagonal Jacobian of 10 columns takes 3
 /// evaluations, and the grouped differences equal the column-by-column ones.
 #[test]

@@ -186,21 +186,18 @@ struct Trouble {
     message: String,
 }
 
-/// What the implicit methods' Jacobian reuses from one `directional_derivative` call to the
-/// next, kept by the [`ModelExchange`] and lent to each [`System`] so that no call allocates: the
-/// knowns and seed of a group of columns, and the states the FMU holds from the last call.
+/// What the implicit methods' Jacobian reuses from one group of columns to the next, kept by
+/// the [`ModelExchange`] and lent to each [`System`] so that no call allocates: the knowns and
+/// seed of a group.
 #[derive(Debug, Default)]
 struct JacobianScratch {
     knowns: Vec<u32>,
     seed: Vec<f64>,
-    /// The states set for the last directional derivative (valid while the System's
-    /// `jacobian_point` says so).
-    x: Vec<f64>,
 }
 
 /// The FMU seen as the integrator's ODE system: every right-hand side sets the time (when it
 /// changed) and the states and asks for the derivatives; every indicator evaluation likewise.
-/// The columns of one Jacobian by directional derivatives set them once.
+/// The columns of one Jacobian by directional derivatives (`directional_columns`) set them once.
 /// A failing call cannot return an error through `OdeSystem`: it records the trouble and
 /// returns NaN, on which the integrator stops (an Error or Fatal poisons every later call, so
 /// the FMU is not called again).
@@ -225,13 +222,8 @@ struct System<'s, C, const N: usize> {
     poisoned: RefCell<Option<Trouble>>,
     /// The last Discard or non-finite derivative (the integrator may retry a smaller step).
     last_discard: RefCell<Option<Trouble>>,
-    /// The seed buffers, and the states of the last directional derivative.
+    /// The seed buffers of a group of columns.
     scratch: RefCell<&'s mut JacobianScratch>,
-    /// The FMU holds the time `time_set` and the states `scratch.x` of the last directional
-    /// derivative, and nothing has been called since but directional derivatives: the next
-    /// column of the same Jacobian need not set them again. Cleared by every `place` and every
-    /// trouble.
-    jacobian_point: Cell<bool>,
 }
 
 impl<'s, C: Exchange, const N: usize> System<'s, C, N> {
@@ -250,14 +242,12 @@ impl<'s, C: Exchange, const N: usize> System<'s, C, N> {
             poisoned: RefCell::new(None),
             last_discard: RefCell::new(None),
             scratch: RefCell::new(scratch),
-            jacobian_point: Cell::new(false),
         }
     }
 
     /// Sets time and states for an evaluation at (t, x); false once poisoned or on failure.
     #[inline(always)]
     fn place(&self, t: f64, x: &[f64]) -> bool {
-        self.jacobian_point.set(false);
         if self.stopped.get() {
             return false;
         }
@@ -287,7 +277,6 @@ impl<'s, C: Exchange, const N: usize> System<'s, C, N> {
     #[cold]
     #[inline(never)]
     fn trouble(&self, call: &str, t: f64, status: c_int, discard_stops: bool) {
-        self.jacobian_point.set(false);
         let reason = self.calls.log().take_reason().unwrap_or_else(|| crate::logging::NO_REASON.to_owned());
         let trouble = Trouble { status, message: format!("{call} at t = {t} returned {}: {reason}", C::status_name(status)) };
         if status == DISCARD && !discard_stops {
@@ -310,6 +299,23 @@ impl<'s, C: Exchange, const N: usize> System<'s, C, N> {
             *self.last_discard.borrow_mut() = Some(trouble);
         }
     }
+
+    /// One `GetDirectionalDerivative` of every derivative along `seed` on `knowns` into
+    /// `column`, at the point the FMU holds; false on a status other than OK and Warning
+    /// (recorded; `column` is then not to be used). Non-finite values are recorded too.
+    #[inline(always)]
+    fn sensitivity(&self, t: f64, structure: &StateStructure, (knowns, seed): (&[u32], &[f64]), column: &mut [f64]) -> bool {
+        trace::enter(C::NAMES.get_directional_derivative.0, t);
+        let status = self.calls.directional_derivative(&structure.derivatives, knowns, seed, column);
+        if !accepted(status) {
+            self.trouble(C::NAMES.get_directional_derivative.1, t, status, false);
+            return false;
+        }
+        if !all_finite(column) {
+            self.non_finite(C::NAMES.get_directional_derivative.1, t, "sensitivity", column, false);
+        }
+        true
+    }
 }
 
 /// OK or Warning.
@@ -322,12 +328,6 @@ fn accepted(status: c_int) -> bool {
 #[inline(always)]
 fn all_finite(values: &[f64]) -> bool {
     values.iter().fold(true, |ok, v| ok & v.is_finite())
-}
-
-/// The same values bit for bit (-0 is not 0, a NaN is itself), as many as `a` has.
-#[inline(always)]
-fn same_bits(a: &[f64], b: &[f64]) -> bool {
-    a.iter().zip(b).fold(true, |same, (a, b)| same & (a.to_bits() == b.to_bits()))
 }
 
 impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
@@ -370,9 +370,8 @@ impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
     }
 
     /// One `GetDirectionalDerivative` of every derivative with respect to the states seeded
-    /// in `v` (a group of Jacobian columns); a failure is recorded as for the derivatives.
-    /// The time and states are set unless the FMU still holds them from the previous call (the
-    /// previous column of the same Jacobian), bit for bit.
+    /// in `v` (any seed; the implicit methods call `directional_columns`) at (t, x), which it
+    /// sets first; a failure is recorded as for the derivatives.
     fn directional_derivative(&self, t: f64, x: &[f64], v: &[f64], out: &mut [f64]) {
         let nx = self.dim();
         let structure = match self.structure {
@@ -382,44 +381,75 @@ impl<C: Exchange, const N: usize> OdeSystem for System<'_, C, N> {
                 return;
             }
         };
-        // Slices of the states' length (a constant with `N`): the loops below unroll.
-        let (x, v, column) = (&x[..nx], &v[..nx], &mut out[..nx]);
+        if !self.place(t, &x[..nx]) {
+            out.fill(f64::NAN);
+            return;
+        }
         let mut scratch = self.scratch.borrow_mut();
-        let scratch = &mut **scratch;
-        let held = self.jacobian_point.get() && t == self.time_set.get() && scratch.x.len() == nx && same_bits(&scratch.x, x);
-        if !held {
-            if !self.place(t, x) {
+        let JacobianScratch { knowns, seed } = &mut **scratch;
+        knowns.clear();
+        seed.clear();
+        for (vr, s) in structure.states.iter().zip(&v[..nx]).filter(|(_, s)| **s != 0.0) {
+            knowns.push(*vr);
+            seed.push(*s);
+        }
+        if !self.sensitivity(t, structure, (knowns, seed), &mut out[..nx]) {
+            out.fill(f64::NAN);
+        }
+    }
+
+    /// The columns of one Jacobian at one point: the time and states set once (and again
+    /// only after a refused call: the FMU that refused is not trusted to hold them), then one
+    /// `GetDirectionalDerivative` per group. A single state's column passes that state's
+    /// reference and a constant unit seed (no scan of a seed vector), a group its states
+    /// through the kept buffers. Failures are recorded as for `directional_derivative`.
+    fn directional_columns<G: AsRef<[usize]>>(
+        &self,
+        t: f64,
+        x: &[f64],
+        groups: &[G],
+        (_, out): (&mut [f64], &mut [f64]),
+        mut column: impl FnMut(&[usize], &[f64]),
+    ) {
+        let nx = self.dim();
+        let structure = match self.structure {
+            Some(s) if self.directional && x.len() >= nx && out.len() >= nx => s,
+            _ => {
                 out.fill(f64::NAN);
+                groups.iter().for_each(|group| column(group.as_ref(), out));
                 return;
             }
-            scratch.x.clear();
-            scratch.x.extend_from_slice(x);
-            self.jacobian_point.set(true);
-        }
-        // The seeded states: a unit seed (one column, the implicit methods' usual call) as
-        // slices of the states and of `v`, a group through the kept buffers. The first seeded
-        // state found, the rest checked to be zero without a branch per value (one pass that
-        // counted every value took 34 instructions per column of five, this about 20).
-        let first = v.iter().position(|s| *s != 0.0).unwrap_or(nx);
-        let unit = first < nx && v[first + 1..].iter().fold(true, |zero, s| zero & (*s == 0.0));
-        let (knowns, seed): (&[u32], &[f64]) = if unit {
-            (&structure.states[first..=first], &v[first..=first])
-        } else {
-            scratch.knowns.clear();
-            scratch.seed.clear();
-            for (vr, s) in structure.states.iter().zip(v).filter(|(_, s)| **s != 0.0) {
-                scratch.knowns.push(*vr);
-                scratch.seed.push(*s);
-            }
-            (&scratch.knowns, &scratch.seed)
         };
-        trace::enter(C::NAMES.get_directional_derivative.0, t);
-        let status = self.calls.directional_derivative(&structure.derivatives, knowns, seed, column);
-        if !accepted(status) {
-            self.trouble(C::NAMES.get_directional_derivative.1, t, status, false);
-            out.fill(f64::NAN);
-        } else if !all_finite(column) {
-            self.non_finite(C::NAMES.get_directional_derivative.1, t, "sensitivity", column, false);
+        let (x, values) = (&x[..nx], &mut out[..nx]);
+        let mut scratch = self.scratch.borrow_mut();
+        let scratch = &mut **scratch;
+        let mut placed = false;
+        for group in groups {
+            let group = group.as_ref();
+            if !placed {
+                placed = self.place(t, x);
+            }
+            let knowns = match group[..] {
+                [j] => structure.states.get(j..=j),
+                _ => {
+                    scratch.knowns.clear();
+                    scratch.knowns.extend(group.iter().filter_map(|&j| structure.states.get(j)));
+                    scratch.seed.clear();
+                    scratch.seed.resize(group.len(), 1.0);
+                    (scratch.knowns.len() == group.len()).then_some(&scratch.knowns[..])
+                }
+            };
+            let seed = if group.len() == 1 { &[1.0][..] } else { &scratch.seed[..] };
+            match knowns {
+                Some(knowns) if placed => {
+                    if !self.sensitivity(t, structure, (knowns, seed), values) {
+                        values.fill(f64::NAN);
+                        placed = false;
+                    }
+                }
+                _ => values.fill(f64::NAN),
+            }
+            column(group, values);
         }
     }
 
@@ -460,6 +490,9 @@ pub struct ModelExchange<C> {
     /// What the runner's implicit methods' Jacobians reuse between calls, lent to each
     /// [`System`].
     jacobian_scratch: JacobianScratch,
+    /// tests/bench/jacobian's column groups, one per state, kept as the solver keeps its own.
+    #[cfg(feature = "bench-hooks")]
+    bench_groups: Vec<[usize; 1]>,
 }
 
 /// `f::<C, N>(args)` with `N` the number of states `nx`: the sizes of the lab's models and of
@@ -521,6 +554,8 @@ impl<C: Exchange> ModelExchange<C> {
             x: vec![0.0; nx],
             next_event_time: None,
             jacobian_scratch: JacobianScratch::default(),
+            #[cfg(feature = "bench-hooks")]
+            bench_groups: Vec::new(),
         }
     }
 
@@ -993,52 +1028,39 @@ mod tests {
         }
     }
 
-    /// The columns of one Jacobian set the time and states once; a Jacobian at other states,
-    /// or after any other call that placed the FMU elsewhere (derivatives, event indicators),
-    /// or at another time, sets them again and is the one at its own point, compared exactly
-    /// with the analytic Jacobian (the products are exact in binary).
+    /// A directional derivative on its own (any seed) sets the time and states and is taken
+    /// there, whatever was called before, compared exactly with the analytic Jacobian (the
+    /// products are exact in binary); its knowns are the seeded states, in order.
     #[test]
-    fn a_jacobian_sets_its_states_once_and_is_taken_where_it_is_asked_for() {
+    fn a_directional_derivative_is_taken_where_it_is_asked_for() {
         let fmu = Quadratic::default();
         let structure = StateStructure { states: STATES.to_vec(), derivatives: DERIVATIVES.to_vec(), pattern: None };
         let mut scratch = JacobianScratch::default();
         let sys = System::<Quadratic, 2>::new(&fmu, (2, 1), Some(&structure), &mut scratch);
         assert!(sys.provides_directional_derivative());
         let (a, b) = ([2.0, 3.0], [5.0, 7.0]);
-        let (mut column, mut f, mut z) = ([0.0; 2], [0.0; 2], [0.0; 1]);
+        let (mut column, mut f) = ([0.0; 2], [0.0; 2]);
         let mut jacobian_column = |t: f64, x: &[f64; 2], seed: [f64; 2], states_set: usize, expected: [f64; 2]| {
             sys.directional_derivative(t, x, &seed, &mut column);
             assert_eq!(column, expected, "at t = {t}, x = {x:?}, seed {seed:?}");
             assert_eq!((fmu.t.get(), fmu.x.get(), fmu.states_set.get()), (t, *x, states_set), "at t = {t}, x = {x:?}, seed {seed:?}");
         };
-        // Both columns at a: the states set once, each known alone.
         jacobian_column(0.0, &a, [1.0, 0.0], 1, [3.0, 4.0]);
         assert_eq!(*fmu.knowns.borrow(), [10]);
-        jacobian_column(0.0, &a, [0.0, 1.0], 1, [2.0, 0.0]);
+        jacobian_column(0.0, &b, [0.0, 1.0], 2, [5.0, 0.0]);
         assert_eq!(*fmu.knowns.borrow(), [11]);
-        // The states changed, nothing called in between: the Jacobian at b.
-        jacobian_column(0.0, &b, [1.0, 0.0], 2, [7.0, 10.0]);
         // The derivatives at a in between: b again, not the FMU's a.
         sys.rhs(0.0, &a, &mut f);
         assert_eq!((f, fmu.states_set.get()), ([6.0, 4.0], 3));
-        jacobian_column(0.0, &b, [0.0, 1.0], 4, [5.0, 0.0]);
-        // The event indicators at a in between likewise.
-        sys.event_indicators(0.0, &a, &mut z);
-        assert_eq!((z, fmu.states_set.get()), ([2.0], 5));
-        jacobian_column(0.0, &b, [1.0, 0.0], 6, [7.0, 10.0]);
-        // Another time, the same states: time and states set.
-        jacobian_column(1.0, &b, [1.0, 0.0], 7, [7.0, 10.0]);
-        assert_eq!(fmu.times_set.get(), 2);
-        // A group of both columns, seeded through the buffer, at the point held.
-        jacobian_column(1.0, &b, [1.0, 1.0], 7, [12.0, 10.0]);
-        assert_eq!(*fmu.knowns.borrow(), [10, 11]);
-        jacobian_column(1.0, &b, [0.0, 2.0], 7, [10.0, 0.0]);
+        // Another time; two states seeded, one seeded by 2.
+        jacobian_column(1.0, &b, [1.0, 1.0], 4, [12.0, 10.0]);
+        assert_eq!((fmu.knowns.borrow().clone(), fmu.times_set.get()), (vec![10, 11], 2));
+        jacobian_column(1.0, &b, [0.0, 2.0], 5, [10.0, 0.0]);
         assert_eq!(*fmu.knowns.borrow(), [11]);
     }
 
     /// A refused directional derivative is recorded as before (the Discard the integrator may
-    /// retry, NaN out), and the next column sets the states again rather than trust the FMU
-    /// that refused.
+    /// retry, NaN out), and the next sets the states again.
     #[test]
     fn a_refused_column_is_recorded_and_the_next_sets_the_states_again() {
         let fmu = Quadratic::default();
@@ -1056,7 +1078,7 @@ mod tests {
         assert!(sys.poisoned.borrow().is_none());
         fmu.refuse.set(false);
         sys.directional_derivative(0.0, &[2.0, 3.0], &[0.0, 1.0], &mut column);
-        assert_eq!((column, fmu.states_set.get()), ([2.0, 0.0], 2));
+        assert_eq!((column, fmu.states_set.get()), ([2.0, 0.0], 3));
     }
 
     /// A directional derivative that is not finite is recorded naming the value (the
@@ -1073,6 +1095,64 @@ mod tests {
         assert!(column[0] == 2.0 && column[1].is_nan(), "{column:?}");
         let discard = sys.last_discard.borrow().clone().expect("the value is recorded");
         assert_eq!(discard.message, "fmi2GetDirectionalDerivative at t = 0.5 returned sensitivity[1] = NaN");
+        assert!(sys.poisoned.borrow().is_none());
+    }
+
+    /// The implicit solver's Jacobian (`directional_columns`): the time and states set once
+    /// for all its columns, a single state's column with that state alone as the known, a
+    /// group with its states in order, each column compared exactly with the analytic
+    /// Jacobian (the products are exact in binary).
+    #[test]
+    fn the_columns_of_a_jacobian_set_the_point_once() {
+        let fmu = Quadratic::default();
+        let structure = StateStructure { states: STATES.to_vec(), derivatives: DERIVATIVES.to_vec(), pattern: None };
+        let mut scratch = JacobianScratch::default();
+        let sys = System::<Quadratic, 2>::new(&fmu, (2, 1), Some(&structure), &mut scratch);
+        let (mut seed, mut out) = ([0.0; 2], [0.0; 2]);
+        let mut columns = Vec::new();
+        let groups = [vec![0], vec![1], vec![0, 1]];
+        sys.directional_columns(0.5, &[2.0, 3.0], &groups, (&mut seed, &mut out), |group, column| {
+            columns.push((group.to_vec(), fmu.knowns.borrow().clone(), column.to_vec()));
+        });
+        assert_eq!(
+            columns,
+            [(vec![0], vec![10], vec![3.0, 4.0]), (vec![1], vec![11], vec![2.0, 0.0]), (vec![0, 1], vec![10, 11], vec![5.0, 4.0])]
+        );
+        assert_eq!((fmu.t.get(), fmu.x.get(), fmu.times_set.get(), fmu.states_set.get()), (0.5, [2.0, 3.0], 1, 1));
+        assert!(sys.last_discard.borrow().is_none() && sys.poisoned.borrow().is_none());
+    }
+
+    /// A refused column of the solver's Jacobian is NaN and recorded as a Discard (the
+    /// integrator may retry), and the next column sets the states again rather than trust the
+    /// FMU that refused; a non-finite value is named and keeps the point.
+    #[test]
+    fn a_refused_column_of_a_jacobian_is_nan_and_the_next_places_again() {
+        let fmu = Quadratic::default();
+        let structure = StateStructure { states: STATES.to_vec(), derivatives: DERIVATIVES.to_vec(), pattern: None };
+        let mut scratch = JacobianScratch::default();
+        let sys = System::<Quadratic, 2>::new(&fmu, (2, 1), Some(&structure), &mut scratch);
+        let (mut seed, mut out) = ([0.0; 2], [0.0; 2]);
+        let mut columns = Vec::new();
+        fmu.refuse.set(true);
+        sys.directional_columns(0.0, &[2.0, 3.0], &[vec![0], vec![1]], (&mut seed, &mut out), |_, column| {
+            columns.push((column.to_vec(), fmu.states_set.get()));
+            fmu.refuse.set(false);
+        });
+        assert!(columns[0].0.iter().all(|v| v.is_nan()) && columns[0].1 == 1, "{columns:?}");
+        assert_eq!(columns[1], (vec![2.0, 0.0], 2));
+        let discard = sys.last_discard.borrow_mut().take().expect("the Discard is recorded");
+        assert_eq!(discard.status, DISCARD);
+        assert!(discard.message.starts_with("fmi2GetDirectionalDerivative at t = 0 returned status"), "{}", discard.message);
+        assert!(sys.poisoned.borrow().is_none());
+
+        fmu.nan.set(true);
+        columns.clear();
+        sys.directional_columns(1.0, &[2.0, 3.0], &[vec![0], vec![1]], (&mut seed, &mut out), |_, column| {
+            columns.push((column.to_vec(), fmu.states_set.get()));
+        });
+        assert!(columns[0].0[0] == 3.0 && columns[0].0[1].is_nan() && columns[1].0[0] == 2.0 && columns[1].1 == 3, "{columns:?}");
+        let discard = sys.last_discard.borrow().clone().expect("the value is recorded");
+        assert_eq!(discard.message, "fmi2GetDirectionalDerivative at t = 1 returned sensitivity[1] = NaN");
         assert!(sys.poisoned.borrow().is_none());
     }
 }

@@ -27,8 +27,12 @@ impl<C: Exchange> ModelExchange<C> {
         {
             return Err(format!("{name}: no directional derivatives of the states' derivatives"));
         }
+        if directional && self.bench_groups.len() != n {
+            unit_groups(&mut self.bench_groups, n);
+        }
         let layout = (self.nz, self.structure.as_ref(), &mut self.jacobian_scratch);
-        let trouble = by_state_count!(n, solver_jacobian::<C>(&self.component, layout, (self.t, x), directional, (jacobian, work)));
+        let columns = (directional, &self.bench_groups[..]);
+        let trouble = by_state_count!(n, solver_jacobian::<C>(&self.component, layout, (self.t, x), columns, (jacobian, work)));
         match trouble {
             Some(trouble) => Err(format!("{name}: {}", trouble.message)),
             None => Ok(()),
@@ -36,16 +40,25 @@ impl<C: Exchange> ModelExchange<C> {
     }
 }
 
+/// One group per state, as the solver's without a sparsity pattern, made once (out of line:
+/// in line, its allocation made the differences' path of `solver_jacobian` up to 75
+/// instructions dearer per Jacobian).
+#[cold]
+#[inline(never)]
+fn unit_groups(groups: &mut Vec<[usize; 1]>, n: usize) {
+    *groups = (0..n).map(|j| [j]).collect();
+}
+
 /// One Jacobian df/dx at (`t`, `x`) through a [`System`] of `N` states as the runner's implicit
-/// methods take it without a sparsity pattern, into `jacobian` (row-major): n
-/// `directional_derivative` calls with unit seeds, or, with `directional` false, n + 1 `rhs`
-/// calls (at x, then one forward difference per state). `work` holds 3 n values. What went
-/// wrong in the FMU's calls, if anything.
+/// methods take it without a sparsity pattern, into `jacobian` (row-major): the
+/// `directional_columns` call the solver's `evaluate_jacobian` makes (`groups`: one per
+/// state), or, with `directional` false, n + 1 `rhs` calls (at x, then one forward difference
+/// per state). `work` holds 3 n values. What went wrong in the FMU's calls, if anything.
 fn solver_jacobian<C: Exchange, const N: usize>(
     calls: &C,
     (nz, structure, scratch): (usize, Option<&StateStructure>, &mut JacobianScratch),
     (t, x): (f64, &[f64]),
-    directional: bool,
+    (directional, groups): (bool, &[[usize; 1]]),
     (jacobian, work): (&mut [f64], &mut [f64]),
 ) -> Option<Trouble> {
     let n = x.len();
@@ -53,14 +66,13 @@ fn solver_jacobian<C: Exchange, const N: usize>(
     let (f, rest) = work.split_at_mut(n);
     let (xs, fs) = rest.split_at_mut(n);
     if directional {
-        for j in 0..n {
-            xs.fill(0.0);
-            xs[j] = 1.0;
-            system.directional_derivative(t, x, xs, fs);
-            for i in 0..n {
-                jacobian[i * n + j] = fs[i];
+        system.directional_columns(t, x, groups, (xs, fs), |group, column| {
+            for &j in group {
+                for i in 0..n {
+                    jacobian[i * n + j] = column[i];
+                }
             }
-        }
+        });
     } else {
         system.rhs(t, x, f);
         for j in 0..n {

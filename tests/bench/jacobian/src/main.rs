@@ -5,8 +5,9 @@
 //! and ESDIRK take their Jacobian: through the importer's view of the FMU as an ODE system
 //! (`System`, `impl OdeSystem` in runner/importer/src/exchange.rs, reached through
 //! `Instance::bench_solver_jacobian`, which the importer compiles only with its `bench-hooks`
-//! feature, enabled by this benchmark alone), n `directional_derivative` calls with unit seeds
-//! against n + 1 `rhs` calls (at x, then one forward difference per state). Both pay the same
+//! feature, enabled by this benchmark alone), one `directional_columns` call of n one-state
+//! groups (the call the solver's `evaluate_jacobian` makes; n GetDirectionalDerivative) against
+//! n + 1 `rhs` calls (at x, then one forward difference per state). Both pay the same
 //! per-point costs: the time set once, the states set once for all the directional columns
 //! and once per evaluation for differences. Each Jacobian is at a new point: every state moved
 //! by 1e-9 relative, back and forth, so the FMU cannot answer from the last point's Jacobian.
@@ -142,6 +143,23 @@
 //! pendulum 1,646 -> 1,530 against 1,093 (1.40): missed. In time, one run at load average 2 (at
 //! 037c91b): 0.93 to 1.26, met for 6 of the 8 FMUs (mass_spring_damper 1.25 and 1.26 missed);
 //! one at load average 3 (at 55652f3): 0.91 to 1.60, the load's noise larger than the change.
+//!
+//! Eighth round, measured 2026-12-07 at 14cacc8 (the importer's side): the solver takes its
+//! Jacobian through one `OdeSystem::directional_columns` call, which the importer's System
+//! answers with the time and states set once, each one-state column passed as that state's
+//! reference and a constant seed [1.0] (no seed vector scanned, no held point compared per
+//! column), status and finiteness checked per column. Instructions per Jacobian at a new
+//! point (FMI 2.0), b44721b -> here, against n + 1 evaluations here: quarter_car 3,577 ->
+//! 3,121 against 2,104 (1.48; FMI 3.0 3,645 -> 3,183 against 2,101), second_order 1,542 ->
+//! 1,435 against 952 (1.51), mass_spring_damper 1,496 -> 1,390 against 847 (1.64), pendulum
+//! 1,645 -> 1,539 against 1,102 (1.40), the Reference VanDerPol 878 -> 772 against 739 (1.04;
+//! FMI 3.0 883 -> 775 against 735): missed for every FMU. The importer's share (all but the
+//! FMU's functions, this loop included) is now below the evaluations': mass_spring_damper 542
+//! -> 436 (543), quarter_car 1,272 -> 791 (1,077), VanDerPol 537 -> 431 (543); what is left
+//! is the FMU's (mass_spring_damper 953 against 304, VanDerPol 341 against 196). In time (at
+//! 8748e61, one instruction more), three rounds interleaved with b44721b's at load average 2.5: VanDerPol 2.0
+//! 0.85-0.87 (b44721b 0.96-1.00), quarter_car 0.78-1.15 (0.96-0.99), pendulum 0.92-0.96
+//! (0.98-1.45), second_order 0.91-1.09 (1.01-1.02), mass_spring_damper 1.24-1.74 (1.38-1.44).
 //!
 //! Usage: `cargo run --release -p jacobian_bench [-- FMU...]` (default: the FMI 2.0 and 3.0
 //! FMUs of second_order, mass_spring_damper, quarter_car and pendulum in target/, built by

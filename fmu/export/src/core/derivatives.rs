@@ -227,14 +227,13 @@ impl Jacobians {
     }
 
     /// [`Jacobians::column_times`] from the implicit solver's block (the asked unknowns are
-    /// the state derivatives in order): the same sums.
+    /// the state derivatives in order, `n` of them: the model's constant count, so the loop
+    /// unrolls): the same sums. False, for the general path, when the block has no such column.
     #[inline(always)]
-    fn solver_column_times(&self, column: usize, seed: f64, sensitivity: &mut [f64]) -> bool {
-        let n = sensitivity.len();
-        // From the column's start: its end is the zip's (a range's checks cost 10 a call).
-        let values = self.solver_block.get(column * n..).unwrap_or_default();
-        let mut probe = if values.len() >= n { 0.0 } else { f64::NAN };
-        for (out, &value) in sensitivity.iter_mut().zip(values) {
+    fn solver_column_times(&self, column: usize, seed: f64, sensitivity: &mut [f64], n: usize) -> bool {
+        let Some(values) = self.solver_block.get(column * n..).and_then(|v| v.get(..n)) else { return false };
+        let mut probe = 0.0;
+        for (out, &value) in sensitivity[..n].iter_mut().zip(values) {
             let mut v = 0.0;
             v += value * seed;
             probe += v * 0.0;
@@ -444,6 +443,28 @@ impl<M: Model> Core<M> {
     ) -> Option<bool> {
         let j = &self.jacobians;
         let ([k], [s]) = (knowns, seed) else { return None };
+        // The known's place, `ABSENT` (above every column count) when it is none: the solver's
+        // column test below rules that out without a test of its own.
+        let column = *j.known_at.get(*k as usize)? as usize;
+        // The implicit solver's column first, its request compared over the model's constant
+        // count of states (unrolled: mass_spring_damper's two unknowns one 64-bit compare).
+        // Anything else, or a request that differs, takes the general checks below.
+        let n = M::N_STATES;
+        if j.asked_derivatives
+            && column < j.solver_columns
+            && j.mode == Some(mode)
+            && mode != Mode::Initialization
+            && unknowns.len() == n
+            && sensitivity.len() == n
+            && j.asked.len() == n
+            && same_references(&j.asked[..n], &unknowns[..n])
+        {
+            let at_point = self.at_jacobians_point();
+            if !(j.solver_block_current && at_point) {
+                self.solver_block(at_point).ok()?;
+            }
+            return Some(self.jacobians.solver_column_times(column, *s, sensitivity, n));
+        }
         let column = j.place(*k, false)?;
         let checked = j.mode == Some(mode)
             && mode != Mode::Initialization
@@ -461,7 +482,7 @@ impl<M: Model> Core<M> {
             if !(j.solver_block_current && at_point) {
                 self.solver_block(at_point).ok()?;
             }
-            return Some(self.jacobians.solver_column_times(column, *s, sensitivity));
+            return Some(self.jacobians.solver_column_times(column, *s, sensitivity, sensitivity.len()));
         }
         let group = usize::from(column >= j.state_columns);
         let rows = j.asked_blocks;
@@ -539,9 +560,13 @@ impl<M: Model> Core<M> {
     #[inline(always)]
     fn at_jacobians_point(&self) -> bool {
         let j = &self.jacobians;
+        // Over the model's constant count of states, which `new_jacobians_point` keeps (the
+        // loop unrolls): states of another count are not the point.
+        let n = M::N_STATES;
         j.point == Some((self.version, self.state.t.to_bits()))
-            && j.x.len() == self.state.x.len()
-            && j.x.iter().zip(&self.state.x).all(|(a, b)| *a == b.to_bits())
+            && j.x.len() == n
+            && self.state.x.len() == n
+            && j.x[..n].iter().zip(&self.state.x[..n]).all(|(a, b)| *a == b.to_bits())
     }
 
     /// `fmi3GetAdjointDerivative`: `sensitivity = seed^T J` (one value per known, `seed` one

@@ -231,7 +231,7 @@ impl Jacobians {
     /// unrolls): the same sums. False, for the general path, when the block has no such column.
     #[inline(always)]
     fn solver_column_times(&self, column: usize, seed: f64, sensitivity: &mut [f64], n: usize) -> bool {
-        let Some(values) = self.solver_block.get(column * n..).and_then(|v| v.get(..n)) else { return false };
+        let Some(values) = self.solver_block.get(column * n..column * n + n) else { return false };
         let mut probe = 0.0;
         for (out, &value) in sensitivity[..n].iter_mut().zip(values) {
             let mut v = 0.0;

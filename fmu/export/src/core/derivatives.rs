@@ -295,6 +295,7 @@ impl<M: Model> Core<M> {
         j.values.resize(j.unknowns.len() * j.knowns.len(), 0.0);
         j.solver_block.clear();
         j.solver_block.resize(j.solver_columns * M::N_STATES, 0.0);
+        j.x = vec![0; M::N_STATES];
         // Only the fields' values are read at a new point; the other knowns' stay 0.
         j.known_values = vec![0.0; j.knowns.len()];
         j.fields_read_at = None;
@@ -489,16 +490,15 @@ impl<M: Model> Core<M> {
             self.new_jacobians_point();
         }
         let j = &mut self.jacobians;
-        let pass = Pass {
+        // The layout checked the block's columns once (`solver_columns`): the states in
+        // order, then at most the time, no field among them.
+        let pass = StatesPass {
             t: self.state.t,
             x: &self.state.x,
+            time: j.solver_columns > M::N_STATES,
             knowns: &j.seeds,
             fields: &j.fields,
             values: &j.known_values,
-            seeded: 0..j.solver_columns,
-            unknowns: &j.derivative_block,
-            evaluates: j.derivative_evaluates,
-            initialization: false,
             version: self.version,
         };
         (lifting.states)(&self.state.model, &pass, &mut j.lifted, &mut j.solver_block)
@@ -515,10 +515,15 @@ impl<M: Model> Core<M> {
         j.point = Some((self.version, self.state.t.to_bits()));
         // Over the model's constant number of states (a loop of known length): states of
         // another count never match (`at_jacobians_point` compares the lengths).
+        // Sized once per layout, so no resize here (a cold one if ever not).
         let n = M::N_STATES;
-        j.x.resize(n, 0);
-        for (bits, v) in j.x[..n].iter_mut().zip(&self.state.x) {
-            *bits = v.to_bits();
+        if j.x.len() != n {
+            j.x.resize(n, 0);
+        }
+        if let Some(x) = j.x.get_mut(..n) {
+            for (bits, v) in x.iter_mut().zip(&self.state.x) {
+                *bits = v.to_bits();
+            }
         }
         // While no input is driven, every write of a model field moves the version (a set, an
         // event, initialization, a reset, a restored state, input derivatives, the model's
@@ -1290,14 +1295,30 @@ where
     }
 }
 
-/// The block d(der x)/d(known) of an implicit solver's pass, column by column into `out`
-/// (`out[l * n + k]`: state derivative `k` in the pass's known `l`, `n` states): `pass` seeds
-/// the states in order, then at most the time (no field; the fields among the knowns get
-/// their values unseeded), and reads state derivatives, in one pass of as many lanes as
-/// [`forward`] takes for it: the same numbers and arithmetic, so the same values to the bit,
-/// without the general pass's loops over chunks and knowns. Any other pass is refused.
-/// `#[derive(Variables)]` points [`crate::model::Lifting`] here.
-pub fn states<M: Model + Lift>(model: &M, pass: &Pass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
+/// What an implicit solver's pass ([`states`]) evaluates: d(der x)/d(x[, t]) at `t` and `x`,
+/// the states seeded in order, then the time when `time`. Every model field among `knowns`
+/// ([`Pass`]'s: their places `fields`, their values `values`) gets its value unseeded. A
+/// Jacobian's layout checks its block's columns once, so the pass itself has nothing to check
+/// but its sizes.
+pub struct StatesPass<'a> {
+    pub t: f64,
+    pub x: &'a [f64],
+    /// The time's column follows the states'.
+    pub time: bool,
+    pub knowns: &'a [Known],
+    pub fields: &'a [usize],
+    pub values: &'a [f64],
+    /// The instance's version ([`KeptLift`]).
+    pub version: u64,
+}
+
+/// The block d(der x)/d(x[, t]) of an implicit solver's pass, column by column into `out`
+/// (`out[l * n + k]`: state derivative `k` in state `l`'s column, then the time's, `n`
+/// states), in one pass of as many lanes as [`forward`] takes for those knowns: the same
+/// numbers and arithmetic, so the same values to the bit, without the general pass's loops
+/// over chunks, knowns and unknowns. `#[derive(Variables)]` points
+/// [`crate::model::Lifting`] here.
+pub fn states<M: Model + Lift>(model: &M, pass: &StatesPass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
 where
     M::Over<DualSVec64<2>>: Send + 'static,
     M::Over<DualSVec64<4>>: Send + 'static,
@@ -1305,47 +1326,36 @@ where
     M::Over<DualSVec64<LANES>>: Send + 'static,
 {
     let n = M::N_STATES;
-    let lanes = pass.seeded.len();
-    let seeds = pass.knowns.get(..lanes).unwrap_or_default();
-    let solver = pass.seeded.start == 0
-        && !pass.initialization
-        && pass.evaluates == Evaluates { derivatives: true, outputs: false }
-        && pass.x.len() == n
-        && out.len() == lanes * n
-        && (n..=n + 1).contains(&lanes)
-        // The states over their constant count, without a branch per state (a loop that
-        // unrolls), then the time if seeded.
-        && seeds.get(..n).is_some_and(|states| states.iter().enumerate().fold(true, |ok, (l, k)| ok & (*k == Known::State(l))))
-        && seeds.get(n).is_none_or(|k| *k == Known::Time);
+    let lanes = n + usize::from(pass.time);
     match lanes {
-        _ if !solver => Err(ModelError("not an implicit solver's pass: the states in order, then at most the time".into())),
+        _ if pass.x.len() != n || out.len() != lanes * n => Err(ModelError("an implicit solver's pass of the wrong size".into())),
         1..=2 => states_in::<M, 2>(model, pass, kept, out),
         3..=4 => states_in::<M, 4>(model, pass, kept, out),
         5..=6 => states_in::<M, 6>(model, pass, kept, out),
         7..=LANES => states_in::<M, LANES>(model, pass, kept, out),
-        _ => Err(ModelError(format!("an implicit solver's pass is at most {LANES} knowns wide"))),
+        _ => Err(ModelError(format!("an implicit solver's pass is at least one and at most {LANES} knowns wide"))),
     }
 }
 
-/// [`states`] in dual numbers of `N` lanes, `pass` checked to be one of its passes.
-fn states_in<M: Model + Lift, const N: usize>(model: &M, pass: &Pass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
+/// [`states`] in dual numbers of `N` lanes, `pass` checked to fit them.
+fn states_in<M: Model + Lift, const N: usize>(model: &M, pass: &StatesPass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
 where
     M::Over<DualSVec64<N>>: Send + 'static,
 {
     let Lifted { model: lifted, x, dx } = kept.get::<M, DualSVec64<N>>(model, pass.version);
-    // No field is among this pass's seeded knowns (checked): they all get their values
-    // unseeded, said by an empty range the compiler sees (no lane to find per field).
-    give_fields::<M, N>(lifted, pass, &(0..0));
+    // No field is among this pass's seeded knowns: they all get their values unseeded, said
+    // by an empty range the compiler sees (no lane to find per field).
+    give_fields::<M, N>(lifted, pass.knowns, pass.fields, pass.values, &(0..0));
     // The model's constant number of states: the loops below have a known length.
     let n = M::N_STATES;
-    let lanes = pass.seeded.len();
-    x.resize(n, DualSVec64::from(0.0));
-    dx.resize(n, DualSVec64::from(0.0));
-    let (x, dx) = (&mut x[..n], &mut dx[..n]);
+    // The lift made them the model's constant length ([`KeptLift::lift`]): no resize per pass.
+    let (Some(x), Some(dx)) = (x.get_mut(..n), dx.get_mut(..n)) else {
+        return Err(ModelError("the lifted states' buffers are not the model's length".into()));
+    };
     for (l, (x, &v)) in x.iter_mut().zip(&pass.x[..n]).enumerate() {
         *x = seeded(v, Some(l));
     }
-    let t = seeded(pass.t, (lanes > n).then_some(n));
+    let t = seeded(pass.t, pass.time.then_some(n));
     lifted.derivatives(t, x, dx);
     // Column by column, each a slice of the states' length and at most N columns: no bounds
     // check per value (indexing out[l * n + k] cost quarter_car about 100 instructions more).
@@ -1357,18 +1367,24 @@ where
     Ok(())
 }
 
-/// Every field known of `pass` gets its value in `lifted`, seeded in the pass's `lanes` and
-/// unseeded otherwise. A kept lift already holds the last pass's: only a change is written, and
+/// Every field among a pass's `knowns` (their places `fields`, [`Pass`]'s) gets its value in
+/// `lifted`, seeded in the pass's `lanes` and unseeded otherwise. A kept lift already holds the last pass's: only a change is written, and
 /// then the derived fields are computed again.
 #[inline(always)]
-fn give_fields<M: Model + Lift, const N: usize>(lifted: &mut M::Over<DualSVec64<N>>, pass: &Pass, lanes: &std::ops::Range<usize>) {
+fn give_fields<M: Model + Lift, const N: usize>(
+    lifted: &mut M::Over<DualSVec64<N>>,
+    knowns: &[Known],
+    fields: &[usize],
+    values: &[f64],
+    lanes: &std::ops::Range<usize>,
+) {
     let mut changed = false;
-    for &i in pass.fields {
-        if let Known::Field(f) = pass.knowns[i] {
+    for &i in fields {
+        if let Known::Field(f) = knowns[i] {
             let lane = lanes.contains(&i).then(|| i - lanes.start);
             let field = M::field(lifted, f);
-            if !holds(field, pass.values[i], lane) {
-                *field = seeded(pass.values[i], lane);
+            if !holds(field, values[i], lane) {
+                *field = seeded(values[i], lane);
                 changed = true;
             }
         }
@@ -1400,7 +1416,7 @@ where
             // The last chunk's `initial_state` may have changed the model's fields.
             *lifted = model.lift();
         }
-        give_fields::<M, N>(lifted, pass, &lanes);
+        give_fields::<M, N>(lifted, pass.knowns, pass.fields, pass.values, &lanes);
         let mut t = DualSVec64::from(pass.t);
         x.clear();
         // The usual chunk, an implicit solver's: the states first and in order, each seeded as

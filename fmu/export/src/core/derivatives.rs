@@ -1357,11 +1357,21 @@ where
     }
     let t = seeded(pass.t, pass.time.then_some(n));
     lifted.derivatives(t, x, dx);
-    // Column by column, each a slice of the states' length and at most N columns: no bounds
-    // check per value (indexing out[l * n + k] cost quarter_car about 100 instructions more).
-    for (l, column) in out.chunks_exact_mut(n).enumerate().take(N) {
-        for (out, d) in column.iter_mut().zip(dx.iter()) {
-            *out = d.eps.0.as_ref().map_or(0.0, |e| e[l]);
+    // State derivative by state derivative, so a derivative's "no part" (it depends on no
+    // known) is one branch, not one per column; the columns are slices of the states' length
+    // (indexing out[l * n + k] cost quarter_car about 100 instructions more).
+    for (k, d) in dx.iter().enumerate() {
+        match &d.eps.0 {
+            Some(e) => {
+                for (column, &v) in out.chunks_exact_mut(n).zip(e.iter()) {
+                    column[k] = v;
+                }
+            }
+            None => {
+                for column in out.chunks_exact_mut(n) {
+                    column[k] = 0.0;
+                }
+            }
         }
     }
     Ok(())

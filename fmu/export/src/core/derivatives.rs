@@ -499,6 +499,7 @@ impl<M: Model> Core<M> {
             knowns: &j.seeds,
             fields: &j.fields,
             values: &j.known_values,
+            values_at: j.fields_read_at,
             version: self.version,
         };
         (lifting.states)(&self.state.model, &pass, &mut j.lifted, &mut j.solver_block)
@@ -942,7 +943,7 @@ fn trajectory_in<M: Model + Lift<Over<f64> = M>, D: Taylor + Send + 'static>(
 where
     M::Over<D>: Send + 'static,
 {
-    let Lifted { model: lifted, x: xs, dx } = pass.lifted.get::<M, D>(model, pass.version);
+    let Lifted { model: lifted, x: xs, dx, .. } = pass.lifted.get::<M, D>(model, pass.version);
     for (f, value, d) in &pass.inputs {
         *M::field::<D>(lifted, *f) = D::taylor(*value, d);
     }
@@ -1103,6 +1104,11 @@ pub struct Lifted<L, D> {
     pub model: L,
     pub x: Vec<D>,
     pub dx: Vec<D>,
+    /// When an implicit solver's pass ([`states`]) gave the field knowns their values unseeded
+    /// and no other pass has given them since: the version those values were read at
+    /// ([`StatesPass::values_at`]). The next such pass with values of that version has
+    /// nothing to give.
+    pub unseeded_at: Option<u64>,
 }
 
 /// Lifted models kept from pass to pass, one per number type (a Jacobian's blocks may take
@@ -1145,7 +1151,7 @@ impl KeptLift {
     {
         // The states' buffers at their constant length: a pass then need not resize them.
         let zero = || vec![D::from(0.0); M::N_STATES];
-        let lifted = Lifted { model: model.lift::<D>(), x: zero(), dx: zero() };
+        let lifted = Lifted { model: model.lift::<D>(), x: zero(), dx: zero(), unseeded_at: None };
         let entry = (std::any::TypeId::of::<Lifted<M::Over<D>, D>>(), version, Box::new(lifted) as Box<dyn std::any::Any + Send>);
         match found {
             Some(at) => {
@@ -1308,6 +1314,9 @@ pub struct StatesPass<'a> {
     pub knowns: &'a [Known],
     pub fields: &'a [usize],
     pub values: &'a [f64],
+    /// The instance's version `values` were read at, when they hold until it moves; `None`
+    /// when they may differ at every point (a driven input).
+    pub values_at: Option<u64>,
     /// The instance's version ([`KeptLift`]).
     pub version: u64,
 }
@@ -1342,10 +1351,14 @@ fn states_in<M: Model + Lift, const N: usize>(model: &M, pass: &StatesPass, kept
 where
     M::Over<DualSVec64<N>>: Send + 'static,
 {
-    let Lifted { model: lifted, x, dx } = kept.get::<M, DualSVec64<N>>(model, pass.version);
+    let Lifted { model: lifted, x, dx, unseeded_at } = kept.get::<M, DualSVec64<N>>(model, pass.version);
     // No field is among this pass's seeded knowns: they all get their values unseeded, said
-    // by an empty range the compiler sees (no lane to find per field).
-    give_fields::<M, N>(lifted, pass.knowns, pass.fields, pass.values, &(0..0));
+    // by an empty range the compiler sees (no lane to find per field); not again while they
+    // hold the same values so (the last pass was one of these, with values of one version).
+    if !(pass.values_at.is_some() && *unseeded_at == pass.values_at) {
+        give_fields::<M, N>(lifted, pass.knowns, pass.fields, pass.values, &(0..0));
+        *unseeded_at = pass.values_at;
+    }
     // The model's constant number of states: the loops below have a known length.
     let n = M::N_STATES;
     // The lift made them the model's constant length ([`KeptLift::lift`]): no resize per pass.
@@ -1410,8 +1423,8 @@ where
     M::Over<DualSVec64<N>>: Send + 'static,
 {
     let mut fresh;
-    let Lifted { model: lifted, x, dx } = if pass.initialization {
-        fresh = Lifted { model: model.lift(), x: Vec::new(), dx: Vec::new() };
+    let Lifted { model: lifted, x, dx, unseeded_at } = if pass.initialization {
+        fresh = Lifted { model: model.lift(), x: Vec::new(), dx: Vec::new(), unseeded_at: None };
         &mut fresh
     } else {
         kept.get::<M, DualSVec64<N>>(model, pass.version)
@@ -1427,6 +1440,7 @@ where
             *lifted = model.lift();
         }
         give_fields::<M, N>(lifted, pass.knowns, pass.fields, pass.values, &lanes);
+        *unseeded_at = None;
         let mut t = DualSVec64::from(pass.t);
         x.clear();
         // The usual chunk, an implicit solver's: the states first and in order, each seeded as
@@ -1858,6 +1872,91 @@ pub(crate) mod tests {
         let mut states = [0.0];
         core.continuous_states(&mut states, false).unwrap();
         assert_eq!(states, [1.5], "the states did not move: the Jacobians differ by the sets alone");
+    }
+
+    /// x1' = u x2, x2' = -k u x1: two states, so the general pass of the time's and input's
+    /// columns takes numbers of 2 lanes as the solver's pass does (the same kept lift), and
+    /// the input's lane there is a state's in the solver's.
+    #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+    #[variables(states = S2)]
+    struct Swing<T = f64> {
+        /// Rate constant
+        #[parameter]
+        k: T,
+        /// Input
+        #[input]
+        u: T,
+    }
+
+    #[derive(StateVector)]
+    struct S2<T = f64> {
+        /// The first state
+        x1: T,
+        /// The second state
+        x2: T,
+    }
+
+    impl Default for Swing {
+        fn default() -> Self {
+            Swing { k: 2.0, u: 0.5 }
+        }
+    }
+
+    impl<T: Scalar> Equations<T> for Swing<T> {
+        fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError> {
+            S2 { x1: T::from(1.5), x2: T::from(-0.5) }.store(x);
+            Ok(())
+        }
+
+        fn derivatives(&self, _t: T, x: &[T], dx: &mut [T]) {
+            let S2 { x1, x2 } = S2::load(x);
+            S2 { x1: self.u * x2, x2: -self.k * self.u * x1 }.store(dx);
+        }
+    }
+
+    impl Model for Swing {
+        const N_STATES: usize = 2;
+
+        fn info() -> ModelInfo {
+            ModelInfo { identifier: "swing", description: "", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
+        }
+    }
+
+    /// The solver's pass gives the field knowns their values unseeded only when the last pass
+    /// on its kept lift was not one of its own with values of the same version: a general pass
+    /// in between (the input's column, u seeded) must be undone at the next new point of the
+    /// same version, or u's derivative [x2, -k x1] adds to a state's column (seen: x1's became
+    /// [0.75, -5]). By hand (k = 2, u = 0.5): the columns d der(x)/dx1 = [0, -k u] = [0, -1]
+    /// and d der(x)/dx2 = [u, 0] = [0.5, 0] at every point, exactly.
+    #[test]
+    fn the_solver_block_unseeds_an_input_a_general_pass_seeded() {
+        let mut core = Core::<Swing>::new("swing", Logger::new(None, false), NAMES);
+        core.setup(None, 0.0, None).unwrap();
+        core.start_exchange().unwrap();
+        let row = |name: &str| core.table().rows.iter().position(|r| r.name == name).unwrap() as u32;
+        let (der1, der2, x1, x2, u) = (row("der(x1)"), row("der(x2)"), row("x1"), row("x2"), row("u"));
+        let unknowns = [der1, der2];
+        let columns = |core: &mut Core<Swing>| {
+            let mut out = [[0.0; 2]; 2];
+            for (column, known) in out.iter_mut().zip([x1, x2]) {
+                assert_eq!(core.try_directional_derivative(&unknowns, &[known], &[1.0], column, Mode::ContinuousTime), Some(true));
+                assert!(core.jacobians.solver_block_current, "answered from the solver's block");
+            }
+            out
+        };
+        // The request is checked by the general path first, as the C function's first call is.
+        let mut out = [0.0; 2];
+        core.directional_derivative(&unknowns, &[x1], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [0.0, -1.0]);
+        core.set_continuous_states(&[1.0, 0.25]).unwrap();
+        assert_eq!(columns(&mut core), [[0.0, -1.0], [0.5, 0.0]]);
+        // The input's column by the general path: d der(x)/du = [x2, -k x1].
+        core.directional_derivative(&unknowns, &[u], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [0.25, -2.0]);
+        let version = core.version;
+        core.set_continuous_states(&[2.0, 0.75]).unwrap();
+        assert_eq!(core.version, version, "a new point at the same version: the same kept lift and field values");
+        assert_eq!(columns(&mut core), [[0.0, -1.0], [0.5, 0.0]]);
     }
 
     /// A driven input moves inside a Co-Simulation step without a set (the version stays):

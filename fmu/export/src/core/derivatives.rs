@@ -1326,7 +1326,9 @@ pub struct StatesPass<'a> {
 /// states), in one pass of as many lanes as [`forward`] takes for those knowns: the same
 /// numbers and arithmetic, so the same values to the bit, without the general pass's loops
 /// over chunks, knowns and unknowns. `#[derive(Variables)]` points
-/// [`crate::model::Lifting`] here.
+/// [`crate::model::Lifting`] here; [`Core::solver_block`], its one caller, takes it inlined
+/// through that constant (a frame less, and the pass's fields not laid out in memory).
+#[inline(always)]
 pub fn states<M: Model + Lift>(model: &M, pass: &StatesPass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
 where
     M::Over<DualSVec64<2>>: Send + 'static,

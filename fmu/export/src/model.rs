@@ -429,7 +429,8 @@ pub struct Lifting<M> {
     pub forward: fn(&M, &crate::core::derivatives::Pass, &mut crate::core::derivatives::KeptLift, &mut [f64]) -> Result<(), ModelError>,
     /// [`Lifting::forward`] for an implicit solver's block d(der x)/dx, without the general
     /// pass's bookkeeping ([`crate::core::derivatives::states`]).
-    pub states: fn(&M, &crate::core::derivatives::Pass, &mut crate::core::derivatives::KeptLift, &mut [f64]) -> Result<(), ModelError>,
+    pub states:
+        fn(&M, &crate::core::derivatives::StatesPass, &mut crate::core::derivatives::KeptLift, &mut [f64]) -> Result<(), ModelError>,
     /// Output derivatives along the trajectory ([`crate::core::derivatives::trajectory`]).
     pub trajectory: fn(&mut M, &[f64], &mut crate::core::derivatives::Trajectory) -> Result<(), ModelError>,
 }

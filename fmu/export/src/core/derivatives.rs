@@ -294,6 +294,7 @@ impl<M: Model> Core<M> {
         j.values.resize(j.unknowns.len() * j.knowns.len(), 0.0);
         j.solver_block.clear();
         j.solver_block.resize(j.solver_columns * M::N_STATES, 0.0);
+        j.x = vec![0; M::N_STATES];
         // Only the fields' values are read at a new point; the other knowns' stay 0.
         j.known_values = vec![0.0; j.knowns.len()];
         j.fields_read_at = None;
@@ -510,16 +511,16 @@ impl<M: Model> Core<M> {
             self.new_jacobians_point();
         }
         let j = &mut self.jacobians;
-        let pass = Pass {
+        // The layout checked the block's columns once (`solver_columns`): the states in
+        // order, then at most the time, no field among them.
+        let pass = StatesPass {
             t: self.state.t,
             x: &self.state.x,
+            time: j.solver_columns > M::N_STATES,
             knowns: &j.seeds,
             fields: &j.fields,
             values: &j.known_values,
-            seeded: 0..j.solver_columns,
-            unknowns: &j.derivative_block,
-            evaluates: j.derivative_evaluates,
-            initialization: false,
+            values_at: j.fields_read_at,
             version: self.version,
         };
         (lifting.states)(&self.state.model, &pass, &mut j.lifted, &mut j.solver_block)
@@ -536,10 +537,15 @@ impl<M: Model> Core<M> {
         j.point = Some((self.version, self.state.t.to_bits()));
         // Over the model's constant number of states (a loop of known length): states of
         // another count never match (`at_jacobians_point` compares the lengths).
+        // Sized once per layout, so no resize here (a cold one if ever not).
         let n = M::N_STATES;
-        j.x.resize(n, 0);
-        for (bits, v) in j.x[..n].iter_mut().zip(&self.state.x) {
-            *bits = v.to_bits();
+        if j.x.len() != n {
+            j.x.resize(n, 0);
+        }
+        if let Some(x) = j.x.get_mut(..n) {
+            for (bits, v) in x.iter_mut().zip(&self.state.x) {
+                *bits = v.to_bits();
+            }
         }
         // While no input is driven, every write of a model field moves the version (a set, an
         // event, initialization, a reset, a restored state, input derivatives, the model's
@@ -962,7 +968,7 @@ fn trajectory_in<M: Model + Lift<Over<f64> = M>, D: Taylor + Send + 'static>(
 where
     M::Over<D>: Send + 'static,
 {
-    let Lifted { model: lifted, x: xs, dx } = pass.lifted.get::<M, D>(model, pass.version);
+    let Lifted { model: lifted, x: xs, dx, .. } = pass.lifted.get::<M, D>(model, pass.version);
     for (f, value, d) in &pass.inputs {
         *M::field::<D>(lifted, *f) = D::taylor(*value, d);
     }
@@ -1123,6 +1129,11 @@ pub struct Lifted<L, D> {
     pub model: L,
     pub x: Vec<D>,
     pub dx: Vec<D>,
+    /// When an implicit solver's pass ([`states`]) gave the field knowns their values unseeded
+    /// and no other pass has given them since: the version those values were read at
+    /// ([`StatesPass::values_at`]). The next such pass with values of that version has
+    /// nothing to give.
+    pub unseeded_at: Option<u64>,
 }
 
 /// Lifted models kept from pass to pass, one per number type (a Jacobian's blocks may take
@@ -1165,7 +1176,7 @@ impl KeptLift {
     {
         // The states' buffers at their constant length: a pass then need not resize them.
         let zero = || vec![D::from(0.0); M::N_STATES];
-        let lifted = Lifted { model: model.lift::<D>(), x: zero(), dx: zero() };
+        let lifted = Lifted { model: model.lift::<D>(), x: zero(), dx: zero(), unseeded_at: None };
         let entry = (std::any::TypeId::of::<Lifted<M::Over<D>, D>>(), version, Box::new(lifted) as Box<dyn std::any::Any + Send>);
         match found {
             Some(at) => {
@@ -1315,14 +1326,35 @@ where
     }
 }
 
-/// The block d(der x)/d(known) of an implicit solver's pass, column by column into `out`
-/// (`out[l * n + k]`: state derivative `k` in the pass's known `l`, `n` states): `pass` seeds
-/// the states in order, then at most the time (no field; the fields among the knowns get
-/// their values unseeded), and reads state derivatives, in one pass of as many lanes as
-/// [`forward`] takes for it: the same numbers and arithmetic, so the same values to the bit,
-/// without the general pass's loops over chunks and knowns. Any other pass is refused.
-/// `#[derive(Variables)]` points [`crate::model::Lifting`] here.
-pub fn states<M: Model + Lift>(model: &M, pass: &Pass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
+/// What an implicit solver's pass ([`states`]) evaluates: d(der x)/d(x[, t]) at `t` and `x`,
+/// the states seeded in order, then the time when `time`. Every model field among `knowns`
+/// ([`Pass`]'s: their places `fields`, their values `values`) gets its value unseeded. A
+/// Jacobian's layout checks its block's columns once, so the pass itself has nothing to check
+/// but its sizes.
+pub struct StatesPass<'a> {
+    pub t: f64,
+    pub x: &'a [f64],
+    /// The time's column follows the states'.
+    pub time: bool,
+    pub knowns: &'a [Known],
+    pub fields: &'a [usize],
+    pub values: &'a [f64],
+    /// The instance's version `values` were read at, when they hold until it moves; `None`
+    /// when they may differ at every point (a driven input).
+    pub values_at: Option<u64>,
+    /// The instance's version ([`KeptLift`]).
+    pub version: u64,
+}
+
+/// The block d(der x)/d(x[, t]) of an implicit solver's pass, column by column into `out`
+/// (`out[l * n + k]`: state derivative `k` in state `l`'s column, then the time's, `n`
+/// states), in one pass of as many lanes as [`forward`] takes for those knowns: the same
+/// numbers and arithmetic, so the same values to the bit, without the general pass's loops
+/// over chunks, knowns and unknowns. `#[derive(Variables)]` points
+/// [`crate::model::Lifting`] here; [`Core::solver_block`], its one caller, takes it inlined
+/// through that constant (a frame less, and the pass's fields not laid out in memory).
+#[inline(always)]
+pub fn states<M: Model + Lift>(model: &M, pass: &StatesPass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
 where
     M::Over<DualSVec64<2>>: Send + 'static,
     M::Over<DualSVec64<4>>: Send + 'static,
@@ -1330,70 +1362,79 @@ where
     M::Over<DualSVec64<LANES>>: Send + 'static,
 {
     let n = M::N_STATES;
-    let lanes = pass.seeded.len();
-    let seeds = pass.knowns.get(..lanes).unwrap_or_default();
-    let solver = pass.seeded.start == 0
-        && !pass.initialization
-        && pass.evaluates == Evaluates { derivatives: true, outputs: false }
-        && pass.x.len() == n
-        && out.len() == lanes * n
-        && (n..=n + 1).contains(&lanes)
-        // The states over their constant count, without a branch per state (a loop that
-        // unrolls), then the time if seeded.
-        && seeds.get(..n).is_some_and(|states| states.iter().enumerate().fold(true, |ok, (l, k)| ok & (*k == Known::State(l))))
-        && seeds.get(n).is_none_or(|k| *k == Known::Time);
+    let lanes = n + usize::from(pass.time);
     match lanes {
-        _ if !solver => Err(ModelError("not an implicit solver's pass: the states in order, then at most the time".into())),
+        _ if pass.x.len() != n || out.len() != lanes * n => Err(ModelError("an implicit solver's pass of the wrong size".into())),
         1..=2 => states_in::<M, 2>(model, pass, kept, out),
         3..=4 => states_in::<M, 4>(model, pass, kept, out),
         5..=6 => states_in::<M, 6>(model, pass, kept, out),
         7..=LANES => states_in::<M, LANES>(model, pass, kept, out),
-        _ => Err(ModelError(format!("an implicit solver's pass is at most {LANES} knowns wide"))),
+        _ => Err(ModelError(format!("an implicit solver's pass is at least one and at most {LANES} knowns wide"))),
     }
 }
 
-/// [`states`] in dual numbers of `N` lanes, `pass` checked to be one of its passes.
-fn states_in<M: Model + Lift, const N: usize>(model: &M, pass: &Pass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
+/// [`states`] in dual numbers of `N` lanes, `pass` checked to fit them.
+fn states_in<M: Model + Lift, const N: usize>(model: &M, pass: &StatesPass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>
 where
     M::Over<DualSVec64<N>>: Send + 'static,
 {
-    let Lifted { model: lifted, x, dx } = kept.get::<M, DualSVec64<N>>(model, pass.version);
-    // No field is among this pass's seeded knowns (checked): they all get their values
-    // unseeded, said by an empty range the compiler sees (no lane to find per field).
-    give_fields::<M, N>(lifted, pass, &(0..0));
+    let Lifted { model: lifted, x, dx, unseeded_at } = kept.get::<M, DualSVec64<N>>(model, pass.version);
+    // No field is among this pass's seeded knowns: they all get their values unseeded, said
+    // by an empty range the compiler sees (no lane to find per field); not again while they
+    // hold the same values so (the last pass was one of these, with values of one version).
+    if !(pass.values_at.is_some() && *unseeded_at == pass.values_at) {
+        give_fields::<M, N>(lifted, pass.knowns, pass.fields, pass.values, &(0..0));
+        *unseeded_at = pass.values_at;
+    }
     // The model's constant number of states: the loops below have a known length.
     let n = M::N_STATES;
-    let lanes = pass.seeded.len();
-    x.resize(n, DualSVec64::from(0.0));
-    dx.resize(n, DualSVec64::from(0.0));
-    let (x, dx) = (&mut x[..n], &mut dx[..n]);
+    // The lift made them the model's constant length ([`KeptLift::lift`]): no resize per pass.
+    let (Some(x), Some(dx)) = (x.get_mut(..n), dx.get_mut(..n)) else {
+        return Err(ModelError("the lifted states' buffers are not the model's length".into()));
+    };
     for (l, (x, &v)) in x.iter_mut().zip(&pass.x[..n]).enumerate() {
         *x = seeded(v, Some(l));
     }
-    let t = seeded(pass.t, (lanes > n).then_some(n));
+    let t = seeded(pass.t, pass.time.then_some(n));
     lifted.derivatives(t, x, dx);
-    // Column by column, each a slice of the states' length and at most N columns: no bounds
-    // check per value (indexing out[l * n + k] cost quarter_car about 100 instructions more).
-    for (l, column) in out.chunks_exact_mut(n).enumerate().take(N) {
-        for (out, d) in column.iter_mut().zip(dx.iter()) {
-            *out = d.eps.0.as_ref().map_or(0.0, |e| e[l]);
+    // State derivative by state derivative, so a derivative's "no part" (it depends on no
+    // known) is one branch, not one per column; the columns are slices of the states' length
+    // (indexing out[l * n + k] cost quarter_car about 100 instructions more).
+    for (k, d) in dx.iter().enumerate() {
+        match &d.eps.0 {
+            Some(e) => {
+                for (column, &v) in out.chunks_exact_mut(n).zip(e.iter()) {
+                    column[k] = v;
+                }
+            }
+            None => {
+                for column in out.chunks_exact_mut(n) {
+                    column[k] = 0.0;
+                }
+            }
         }
     }
     Ok(())
 }
 
-/// Every field known of `pass` gets its value in `lifted`, seeded in the pass's `lanes` and
-/// unseeded otherwise. A kept lift already holds the last pass's: only a change is written, and
+/// Every field among a pass's `knowns` (their places `fields`, [`Pass`]'s) gets its value in
+/// `lifted`, seeded in the pass's `lanes` and unseeded otherwise. A kept lift already holds the last pass's: only a change is written, and
 /// then the derived fields are computed again.
 #[inline(always)]
-fn give_fields<M: Model + Lift, const N: usize>(lifted: &mut M::Over<DualSVec64<N>>, pass: &Pass, lanes: &std::ops::Range<usize>) {
+fn give_fields<M: Model + Lift, const N: usize>(
+    lifted: &mut M::Over<DualSVec64<N>>,
+    knowns: &[Known],
+    fields: &[usize],
+    values: &[f64],
+    lanes: &std::ops::Range<usize>,
+) {
     let mut changed = false;
-    for &i in pass.fields {
-        if let Known::Field(f) = pass.knowns[i] {
+    for &i in fields {
+        if let Known::Field(f) = knowns[i] {
             let lane = lanes.contains(&i).then(|| i - lanes.start);
             let field = M::field(lifted, f);
-            if !holds(field, pass.values[i], lane) {
-                *field = seeded(pass.values[i], lane);
+            if !holds(field, values[i], lane) {
+                *field = seeded(values[i], lane);
                 changed = true;
             }
         }
@@ -1409,8 +1450,8 @@ where
     M::Over<DualSVec64<N>>: Send + 'static,
 {
     let mut fresh;
-    let Lifted { model: lifted, x, dx } = if pass.initialization {
-        fresh = Lifted { model: model.lift(), x: Vec::new(), dx: Vec::new() };
+    let Lifted { model: lifted, x, dx, unseeded_at } = if pass.initialization {
+        fresh = Lifted { model: model.lift(), x: Vec::new(), dx: Vec::new(), unseeded_at: None };
         &mut fresh
     } else {
         kept.get::<M, DualSVec64<N>>(model, pass.version)
@@ -1425,7 +1466,8 @@ where
             // The last chunk's `initial_state` may have changed the model's fields.
             *lifted = model.lift();
         }
-        give_fields::<M, N>(lifted, pass, &lanes);
+        give_fields::<M, N>(lifted, pass.knowns, pass.fields, pass.values, &lanes);
+        *unseeded_at = None;
         let mut t = DualSVec64::from(pass.t);
         x.clear();
         // The usual chunk, an implicit solver's: the states first and in order, each seeded as
@@ -1857,6 +1899,91 @@ pub(crate) mod tests {
         let mut states = [0.0];
         core.continuous_states(&mut states, false).unwrap();
         assert_eq!(states, [1.5], "the states did not move: the Jacobians differ by the sets alone");
+    }
+
+    /// x1' = u x2, x2' = -k u x1: two states, so the general pass of the time's and input's
+    /// columns takes numbers of 2 lanes as the solver's pass does (the same kept lift), and
+    /// the input's lane there is a state's in the solver's.
+    #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
+    #[variables(states = S2)]
+    struct Swing<T = f64> {
+        /// Rate constant
+        #[parameter]
+        k: T,
+        /// Input
+        #[input]
+        u: T,
+    }
+
+    #[derive(StateVector)]
+    struct S2<T = f64> {
+        /// The first state
+        x1: T,
+        /// The second state
+        x2: T,
+    }
+
+    impl Default for Swing {
+        fn default() -> Self {
+            Swing { k: 2.0, u: 0.5 }
+        }
+    }
+
+    impl<T: Scalar> Equations<T> for Swing<T> {
+        fn initial_state(&mut self, x: &mut [T]) -> Result<(), ModelError> {
+            S2 { x1: T::from(1.5), x2: T::from(-0.5) }.store(x);
+            Ok(())
+        }
+
+        fn derivatives(&self, _t: T, x: &[T], dx: &mut [T]) {
+            let S2 { x1, x2 } = S2::load(x);
+            S2 { x1: self.u * x2, x2: -self.k * self.u * x1 }.store(dx);
+        }
+    }
+
+    impl Model for Swing {
+        const N_STATES: usize = 2;
+
+        fn info() -> ModelInfo {
+            ModelInfo { identifier: "swing", description: "", stop_time: 1.0, tolerance: 1e-6, output_interval: 0.1, documentation: "" }
+        }
+    }
+
+    /// The solver's pass gives the field knowns their values unseeded only when the last pass
+    /// on its kept lift was not one of its own with values of the same version: a general pass
+    /// in between (the input's column, u seeded) must be undone at the next new point of the
+    /// same version, or u's derivative [x2, -k x1] adds to a state's column (seen: x1's became
+    /// [0.75, -5]). By hand (k = 2, u = 0.5): the columns d der(x)/dx1 = [0, -k u] = [0, -1]
+    /// and d der(x)/dx2 = [u, 0] = [0.5, 0] at every point, exactly.
+    #[test]
+    fn the_solver_block_unseeds_an_input_a_general_pass_seeded() {
+        let mut core = Core::<Swing>::new("swing", Logger::new(None, false), NAMES);
+        core.setup(None, 0.0, None).unwrap();
+        core.start_exchange().unwrap();
+        let row = |name: &str| core.table().rows.iter().position(|r| r.name == name).unwrap() as u32;
+        let (der1, der2, x1, x2, u) = (row("der(x1)"), row("der(x2)"), row("x1"), row("x2"), row("u"));
+        let unknowns = [der1, der2];
+        let columns = |core: &mut Core<Swing>| {
+            let mut out = [[0.0; 2]; 2];
+            for (column, known) in out.iter_mut().zip([x1, x2]) {
+                assert_eq!(core.try_directional_derivative(&unknowns, &[known], &[1.0], column, Mode::ContinuousTime), Some(true));
+                assert!(core.jacobians.solver_block_current, "answered from the solver's block");
+            }
+            out
+        };
+        // The request is checked by the general path first, as the C function's first call is.
+        let mut out = [0.0; 2];
+        core.directional_derivative(&unknowns, &[x1], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [0.0, -1.0]);
+        core.set_continuous_states(&[1.0, 0.25]).unwrap();
+        assert_eq!(columns(&mut core), [[0.0, -1.0], [0.5, 0.0]]);
+        // The input's column by the general path: d der(x)/du = [x2, -k x1].
+        core.directional_derivative(&unknowns, &[u], &[1.0], &mut out, Mode::ContinuousTime, "test").unwrap();
+        assert_eq!(out, [0.25, -2.0]);
+        let version = core.version;
+        core.set_continuous_states(&[2.0, 0.75]).unwrap();
+        assert_eq!(core.version, version, "a new point at the same version: the same kept lift and field values");
+        assert_eq!(columns(&mut core), [[0.0, -1.0], [0.5, 0.0]]);
     }
 
     /// A driven input moves inside a Co-Simulation step without a set (the version stays):

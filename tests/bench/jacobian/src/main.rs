@@ -252,28 +252,39 @@ fn started(fmu: &Fmu) -> Result<(fmi_importer::Instance<'_>, Vec<f64>), String> 
     Ok((instance, x0))
 }
 
-/// The states' count and, in seconds, per point (new, fixed) the linearization's Jacobian by
-/// directional derivatives and one evaluation, then the implicit solver's Jacobian by
-/// directional derivatives and by n + 1 evaluations.
-fn measure(path: &Path) -> Result<(usize, [(f64, f64); 3]), String> {
-    let fmu = Fmu::load_as(path, Some(Interface::ModelExchange))?;
-    let (mut instance, x0) = started(&fmu)?;
-    let n = x0.len();
-    let mut best = [(f64::INFINITY, f64::INFINITY); 3];
-    for _ in 0..ROUNDS {
-        for (point, (exact, evaluation)) in [Point::New, Point::Fixed].into_iter().zip(&mut best) {
-            *exact = exact.min(time(&mut instance, &fmu, JacobianSource::DirectionalDerivatives, point, &x0)?);
+/// One FMU under measurement: its instance, its initial states and the best times so far, in
+/// seconds: per point (new, fixed) the linearization's Jacobian by directional derivatives and
+/// one evaluation, then the implicit solver's Jacobian by directional derivatives and by n + 1
+/// evaluations.
+struct Subject<'f> {
+    fmu: &'f Fmu,
+    instance: fmi_importer::Instance<'f>,
+    x0: Vec<f64>,
+    best: [(f64, f64); 3],
+}
+
+impl<'f> Subject<'f> {
+    fn new(fmu: &'f Fmu) -> Result<Self, String> {
+        let (instance, x0) = started(fmu)?;
+        Ok(Subject { fmu, instance, x0, best: [(f64::INFINITY, f64::INFINITY); 3] })
+    }
+
+    /// One round of every measurement, each keeping its best.
+    fn round(&mut self) -> Result<(), String> {
+        let Subject { fmu, instance, x0, best } = self;
+        let n = x0.len();
+        for (point, (exact, evaluation)) in [Point::New, Point::Fixed].into_iter().zip(best.iter_mut()) {
+            *exact = exact.min(time(instance, fmu, JacobianSource::DirectionalDerivatives, point, x0)?);
             // Central differences: 2 n evaluations per Jacobian.
-            let differences = time(&mut instance, &fmu, JacobianSource::FiniteDifferences, point, &x0)?;
+            let differences = time(instance, fmu, JacobianSource::FiniteDifferences, point, x0)?;
             *evaluation = evaluation.min(differences / (2 * n) as f64);
         }
         let (exact, evaluations) = &mut best[2];
-        *exact = exact.min(time_solver(&mut instance, true, &x0)?);
-        *evaluations = evaluations.min(time_solver(&mut instance, false, &x0)?);
+        *exact = exact.min(time_solver(instance, true, x0)?);
+        *evaluations = evaluations.min(time_solver(instance, false, x0)?);
         // The linearizations start from the initial states.
-        instance.move_states(&x0)?;
+        instance.move_states(x0)
     }
-    Ok((n, best))
 }
 
 /// `--one SOURCE FMU`: one batch at new points by `source`, for a profiler.
@@ -315,15 +326,32 @@ fn main() {
         "| FMU | n | implicit solver: Jacobian (us) | n + 1 evaluations (us) | Jacobian / (n + 1) evaluations | at most 1 | linearize, new point: Jacobian (us) | one evaluation (us) | Jacobian / (n + 1) evaluations | linearize, fixed point: Jacobian / (n + 1) evaluations |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
+    let loaded: Vec<Result<Fmu, String>> = fmus.iter().map(|(path, _)| Fmu::load_as(path, Some(Interface::ModelExchange))).collect();
+    let mut subjects: Vec<Result<Subject, String>> =
+        loaded.iter().map(|fmu| fmu.as_ref().map_err(Clone::clone).and_then(Subject::new)).collect();
+    // The rounds go over every FMU in turn: a burst of the shared machine's load then falls on
+    // one round of a few FMUs, not on all the rounds of one (which printed it missed at times).
+    for _ in 0..ROUNDS {
+        for subject in &mut subjects {
+            if let Ok(measured) = subject {
+                if let Err(e) = measured.round() {
+                    *subject = Err(e);
+                }
+            }
+        }
+    }
     let mut missed = false;
-    for (path, judged) in &fmus {
+    for ((path, judged), subject) in fmus.iter().zip(&subjects) {
         let name = format!(
             "{}/{}",
             path.parent().and_then(|p| p.file_name()).unwrap_or_default().to_string_lossy(),
             path.file_stem().unwrap_or_default().to_string_lossy()
         );
-        match measure(path) {
-            Ok((n, [(exact, evaluation), (fixed_exact, fixed_evaluation), (solver_exact, solver_evaluations)])) => {
+        match subject {
+            Ok(Subject {
+                x0, best: [(exact, evaluation), (fixed_exact, fixed_evaluation), (solver_exact, solver_evaluations)], ..
+            }) => {
+                let n = x0.len();
                 let ratio = solver_exact / solver_evaluations;
                 let linearize = exact / ((n + 1) as f64 * evaluation);
                 let fixed = fixed_exact / ((n + 1) as f64 * fixed_evaluation);

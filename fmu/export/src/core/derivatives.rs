@@ -1354,7 +1354,7 @@ pub struct StatesPass<'a> {
 /// two-state block in 2 lanes took mass_spring_damper's Jacobian 0.077 us against 0.060 us in
 /// 4, for about the same instructions (1,026 against 1,017): the narrow numbers' code runs
 /// slower per instruction (measured in time, the judge). `#[derive(Variables)]` points
-/// [`crate::model::Lifting`] here; [`Core::solver_block`], its one caller, takes it inlined
+/// [`crate::model::Lifting`] here; `Core::solver_block`, its one caller, takes it inlined
 /// through that constant (a frame less, and the pass's fields not laid out in memory).
 #[inline(always)]
 pub fn states<M: Model + Lift>(model: &M, pass: &StatesPass, kept: &mut KeptLift, out: &mut [f64]) -> Result<(), ModelError>

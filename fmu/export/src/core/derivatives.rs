@@ -1903,9 +1903,10 @@ pub(crate) mod tests {
         assert_eq!(states, [1.5], "the states did not move: the Jacobians differ by the sets alone");
     }
 
-    /// x1' = u x2, x2' = -k u x1: two states, so the general pass of the time's and input's
-    /// columns takes numbers of 2 lanes as the solver's pass does (the same kept lift), and
-    /// the input's lane there is a state's in the solver's.
+    /// x1' = u x2 + w, x2' = -k u x1: two states and two inputs, so the general pass of the
+    /// columns of the time and the inputs (three knowns) takes numbers of 4 lanes as the
+    /// solver's pass of two states does (the same kept lift), and u's lane there is a state's
+    /// in the solver's.
     #[derive(Debug, Clone, Serialize, Deserialize, Variables)]
     #[variables(states = S2)]
     struct Swing<T = f64> {
@@ -1915,6 +1916,9 @@ pub(crate) mod tests {
         /// Input
         #[input]
         u: T,
+        /// A second input, so that the inputs' pass is as wide as the solver's
+        #[input]
+        w: T,
     }
 
     #[derive(StateVector)]
@@ -1927,7 +1931,7 @@ pub(crate) mod tests {
 
     impl Default for Swing {
         fn default() -> Self {
-            Swing { k: 2.0, u: 0.5 }
+            Swing { k: 2.0, u: 0.5, w: 0.0 }
         }
     }
 
@@ -1939,7 +1943,7 @@ pub(crate) mod tests {
 
         fn derivatives(&self, _t: T, x: &[T], dx: &mut [T]) {
             let S2 { x1, x2 } = S2::load(x);
-            S2 { x1: self.u * x2, x2: -self.k * self.u * x1 }.store(dx);
+            S2 { x1: self.u * x2 + self.w, x2: -self.k * self.u * x1 }.store(dx);
         }
     }
 

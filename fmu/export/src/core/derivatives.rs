@@ -477,14 +477,9 @@ impl<M: Model> Core<M> {
         if !checked {
             return None;
         }
+        // (The implicit solver's columns were answered above: `asked_derivatives` means as many
+        // unknowns as the model's constant count of states.)
         let at_point = self.at_jacobians_point();
-        if j.asked_derivatives && column < j.solver_columns {
-            // An implicit solver's column: its block in one pass at a new point, then read.
-            if !(j.solver_block_current && at_point) {
-                self.solver_block(at_point).ok()?;
-            }
-            return Some(self.jacobians.solver_column_times(column, *s, sensitivity, sensitivity.len()));
-        }
         let group = usize::from(column >= j.state_columns);
         let rows = j.asked_blocks;
         let blocks_done = (j.done[0][group] || !rows[0]) && (j.done[1][group] || !rows[1]);
